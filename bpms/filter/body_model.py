@@ -1,0 +1,96 @@
+"""The stick-figure body model (SPEC §6, appendix C).
+
+Segment orientations ``C[18, 3, 3]`` map segment axes to the world frame (north-east-down).
+A segment's axes coincide with the body's (X forward, Y right, Z down) in the calibration
+pose: standing upright, arms straight down at the sides, feet forward. After Reset Zero,
+``C_i = R_i R0_i^T Rz(ψ_hip)``, so the whole figure faces the hip IMU's magnetic heading.
+
+Joint positions come from walking the chain below from the pelvis (the root, where the low
+spine meets the hips), each point = parent point + ``C[imu] @ direction * length``. The figure
+is then lifted so that its lowest foot point sits on the ground (z = 0, z down).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpms.io.options import BodyOptions
+
+UP = (0.0, 0.0, -1.0)
+DOWN = (0.0, 0.0, 1.0)
+RIGHT = (0.0, 1.0, 0.0)
+LEFT = (0.0, -1.0, 0.0)
+FORWARD = (1.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class BodyPoint:
+    """A joint or end point: ``parent + C[imu] @ direction * length``."""
+
+    name: str
+    parent: str
+    imu: int
+    direction: tuple[float, float, float]
+    length: str  # attribute of BodyOptions
+
+
+#: The chain, parents before children. "pelvis" is the root at the origin.
+BODY_POINTS: tuple[BodyPoint, ...] = (
+    BodyPoint("spine_mid", "pelvis", 6, UP, "low_spine"),
+    BodyPoint("neck_base", "spine_mid", 8, UP, "mid_spine"),
+    BodyPoint("head_base", "neck_base", 7, UP, "neck"),
+    BodyPoint("head_top", "head_base", 17, UP, "head"),
+    BodyPoint("shoulder_r", "neck_base", 15, RIGHT, "shoulder"),
+    BodyPoint("elbow_r", "shoulder_r", 4, DOWN, "arm"),
+    BodyPoint("wrist_r", "elbow_r", 5, DOWN, "forearm"),
+    BodyPoint("fingers_r", "wrist_r", 3, DOWN, "hand"),
+    BodyPoint("shoulder_l", "neck_base", 16, LEFT, "shoulder"),
+    BodyPoint("elbow_l", "shoulder_l", 10, DOWN, "arm"),
+    BodyPoint("wrist_l", "elbow_l", 11, DOWN, "forearm"),
+    BodyPoint("fingers_l", "wrist_l", 9, DOWN, "hand"),
+    BodyPoint("hip_r", "pelvis", 6, RIGHT, "hip"),
+    BodyPoint("knee_r", "hip_r", 0, DOWN, "thigh"),
+    BodyPoint("ankle_r", "knee_r", 2, DOWN, "shank"),
+    BodyPoint("toe_r", "ankle_r", 1, FORWARD, "foot"),
+    BodyPoint("hip_l", "pelvis", 6, LEFT, "hip"),
+    BodyPoint("knee_l", "hip_l", 12, DOWN, "thigh"),
+    BodyPoint("ankle_l", "knee_l", 14, DOWN, "shank"),
+    BodyPoint("toe_l", "ankle_l", 13, FORWARD, "foot"),
+)
+POINT_NAMES: tuple[str, ...] = ("pelvis", *(p.name for p in BODY_POINTS))
+POINT_INDEX = {name: i for i, name in enumerate(POINT_NAMES)}
+#: Segments to draw, as (start point, end point, imu id).
+SEGMENTS: tuple[tuple[str, str, int], ...] = tuple((p.parent, p.name, p.imu) for p in BODY_POINTS)
+FOOT_POINTS = ("ankle_r", "toe_r", "ankle_l", "toe_l")
+
+#: Each IMU's segment vector in segment axes (the limb's long axis, or sideways for
+#: shoulders and the hip), used for flexion angles and the IMU's place on the figure.
+SEGMENT_AXIS: dict[int, tuple[float, float, float]] = {}
+for _p in BODY_POINTS:
+    SEGMENT_AXIS.setdefault(_p.imu, _p.direction)
+
+
+def segment_vectors(C: np.ndarray, lengths: BodyOptions | None = None) -> np.ndarray:
+    """``[..., 20, 3]`` vectors from parent to child point in world axes, metres."""
+    lengths = lengths or BodyOptions()
+    C = np.asarray(C, dtype=np.float64)
+    imus = np.array([p.imu for p in BODY_POINTS])
+    local = np.array([np.asarray(p.direction) * getattr(lengths, p.length) for p in BODY_POINTS])
+    return np.einsum("...pij,pj->...pi", C[..., imus, :, :], local)
+
+
+def joint_positions(C: np.ndarray, lengths: BodyOptions | None = None,
+                    on_ground: bool = True) -> np.ndarray:
+    """Joint positions ``[..., 21, 3]`` (order :data:`POINT_NAMES`), metres, world NED axes,
+    pelvis above the origin. With ``on_ground`` the lowest foot point is at z = 0."""
+    vectors = segment_vectors(C, lengths)
+    pos = np.zeros((*vectors.shape[:-2], len(POINT_NAMES), 3))
+    for k, point in enumerate(BODY_POINTS):
+        pos[..., k + 1, :] = pos[..., POINT_INDEX[point.parent], :] + vectors[..., k, :]
+    if on_ground:
+        feet = [POINT_INDEX[n] for n in FOOT_POINTS]
+        lowest = pos[..., feet, 2].max(axis=-1)  # z down: the largest z is the lowest point
+        pos[..., 2] -= lowest[..., None]
+    return pos

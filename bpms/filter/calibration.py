@@ -1,0 +1,121 @@
+"""Sensor calibration: raw counts ↔ filter units (SPEC §4), for all 18 IMUs at once.
+
+Filter frame: X forward, Y right, Z down, after the IMU's pre-rotation R* (SPEC §1).
+- accelerometer: "Gravity counts" (|a| ≈ Gravity ≈ 256–270 at rest), pointing *down*
+  (the filter's accel is the gravity direction, +Gravity on Z when level);
+- magnetometer: scaled so the full per-axis range is ±100;
+- gyroscope: rad/s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bpms.io.calib_file import CalibrationTable
+from bpms.io.frames import N_IMUS
+from bpms.io.options import SensorOptions
+
+STANDARD_GRAVITY = 9.81  # m/s² per g, as the dissertation uses
+GYRO_RAD_S_PER_COUNT = 0.06957 * math.pi / 180.0  # ITG-3200: 14.375 LSB per °/s
+MAG_GAUSS_PER_COUNT = 0.000917431  # HMC5883L gain, appendix C's GainMag
+MAG_FULL_SCALE = 100.0  # calibrated magnetometer units at the end of each axis range
+
+#: Pre-rotations R* (eq. 2.15–2.17), applied as v' = R* v.
+PITCH_90 = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+ROLL_90 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+_PRE_ROTATION_KIND = (
+    "pitch", "identity", "pitch", "pitch", "pitch", "pitch", "pitch", "pitch", "pitch",
+    "pitch", "pitch", "pitch", "pitch", "identity", "pitch", "roll", "roll", "identity",
+)
+PRE_ROTATIONS = np.stack(
+    [{"pitch": PITCH_90, "roll": ROLL_90, "identity": np.eye(3)}[k] for k in _PRE_ROTATION_KIND]
+)
+assert PRE_ROTATIONS.shape == (N_IMUS, 3, 3)
+
+
+@dataclass(frozen=True)
+class SensorCalibration:
+    """Per-axis offsets and scales of all 18 IMUs, plus sign vectors and pre-rotations.
+
+    Arrays are ``[18, 3]`` unless noted. ``gravity`` is ``[18]`` counts per g.
+    """
+
+    gravity: np.ndarray
+    accel_offset: np.ndarray
+    accel_scale: np.ndarray
+    mag_offset: np.ndarray
+    mag_scale: np.ndarray
+    gyro_avg: np.ndarray
+    accel_signs: np.ndarray  # [3]
+    mag_signs: np.ndarray  # [3]
+    gyro_signs: np.ndarray  # [3]
+    pre_rotations: np.ndarray = field(default_factory=PRE_ROTATIONS.copy)  # [18, 3, 3]
+
+    @classmethod
+    def from_table(
+        cls, table: CalibrationTable, sensors: SensorOptions | None = None
+    ) -> SensorCalibration:
+        """Offsets ``(min+max)/2``; accel scale ``Gravity/(max-offset)``; mag scale
+        ``100/(max-offset)`` (SPEC §4)."""
+        sensors = sensors or SensorOptions()
+        acc = table.accel_min_max
+        mag = table.mag_min_max
+        acc_off = acc.mean(axis=-1)
+        mag_off = mag.mean(axis=-1)
+        gravity = table.gravity.copy()
+        return cls(
+            gravity=gravity,
+            accel_offset=acc_off,
+            accel_scale=gravity[:, None] / (acc[..., 1] - acc_off),
+            mag_offset=mag_off,
+            mag_scale=MAG_FULL_SCALE / (mag[..., 1] - mag_off),
+            gyro_avg=table.gyro_avg.copy(),
+            accel_signs=np.asarray(sensors.accel_signs, dtype=np.float64),
+            mag_signs=np.asarray(sensors.mag_signs, dtype=np.float64),
+            gyro_signs=np.asarray(sensors.gyro_signs, dtype=np.float64),
+        )
+
+    # -- raw counts → filter units -------------------------------------------------------
+    def board_units(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Raw ``[..., 18, 9]`` → (accel, mag, gyro) ``[..., 18, 3]`` in filter units, signed,
+        in board axes (before the pre-rotation)."""
+        raw = np.asarray(raw, dtype=np.float64)
+        acc = (raw[..., 0:3] - self.accel_offset) * self.accel_scale * self.accel_signs
+        mag = (raw[..., 3:6] - self.mag_offset) * self.mag_scale * self.mag_signs
+        gyr = (raw[..., 6:9] - self.gyro_avg) * GYRO_RAD_S_PER_COUNT * self.gyro_signs
+        return acc, mag, gyr
+
+    def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Raw ``[..., 18, 9]`` → pre-rotated (accel counts-of-g, mag ±100, gyro rad/s),
+        each ``[..., 18, 3]`` in the filter frame. This is what the filter consumes."""
+        acc, mag, gyr = self.board_units(raw)
+        rot = self.pre_rotations
+        return (
+            np.einsum("kij,...kj->...ki", rot, acc),
+            np.einsum("kij,...kj->...ki", rot, mag),
+            np.einsum("kij,...kj->...ki", rot, gyr),
+        )
+
+    def physical_units(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Raw ``[..., 18, 9]`` → (accel m/s², mag gauss, gyro rad/s) in signed board axes,
+        for display and logging (SPEC §4)."""
+        acc, _, gyr = self.board_units(raw)
+        raw = np.asarray(raw, dtype=np.float64)
+        mag = (raw[..., 3:6] - self.mag_offset) * MAG_GAUSS_PER_COUNT * self.mag_signs
+        return acc * STANDARD_GRAVITY / self.gravity[:, None], mag, gyr
+
+    # -- filter units → raw counts (the simulated suit) ----------------------------------
+    def uncalibrate(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`calibrate`: pre-rotated filter-frame vectors ``[..., 18, 3]`` →
+        raw counts ``[..., 18, 9]`` (float, not yet rounded or saturated)."""
+        rot_t = np.swapaxes(self.pre_rotations, -1, -2)
+        acc_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(acc, dtype=np.float64))
+        mag_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(mag, dtype=np.float64))
+        gyr_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(gyr, dtype=np.float64))
+        raw_acc = acc_b * self.accel_signs / self.accel_scale + self.accel_offset
+        raw_mag = mag_b * self.mag_signs / self.mag_scale + self.mag_offset
+        raw_gyr = gyr_b * self.gyro_signs / GYRO_RAD_S_PER_COUNT + self.gyro_avg
+        return np.concatenate([raw_acc, raw_mag, raw_gyr], axis=-1)

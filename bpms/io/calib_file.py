@@ -1,0 +1,175 @@
+"""Sensor calibration values and the legacy ``Calib.cfg`` file (SPEC §4).
+
+Per IMU, 16 numbers in this order: ``Gravity, AxMin, AxMax, AyMin, AyMax, AzMin, AzMax,
+MxMin, MxMax, MyMin, MyMax, MzMin, MzMax, GxAvg, GyAvg, GzAvg`` (raw counts, except Gravity,
+which is in accelerometer counts per 1 g). The legacy file holds the 18 records in IMU id
+order separated by ``;`` and the 16 values of a record separated by ``,``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bpms.io.frames import N_IMUS
+from bpms.io.paths import factory_calibration_path
+from bpms.io.problems import FileProblem, report
+
+FIELDS: tuple[str, ...] = (
+    "Gravity", "AxMin", "AxMax", "AyMin", "AyMax", "AzMin", "AzMax",
+    "MxMin", "MxMax", "MyMin", "MyMax", "MzMin", "MzMax", "GxAvg", "GyAvg", "GzAvg",
+)
+N_FIELDS = len(FIELDS)
+
+
+@dataclass
+class CalibrationTable:
+    """Calibration values ``[18, 16]`` (float64), columns as :data:`FIELDS`."""
+
+    values: np.ndarray
+    source: str = "factory"
+    problems: list[FileProblem] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.values = np.array(self.values, dtype=np.float64)
+        if self.values.shape != (N_IMUS, N_FIELDS):
+            raise ValueError(f"calibration values must be [{N_IMUS}, {N_FIELDS}]")
+
+    def column(self, name: str) -> np.ndarray:
+        """One named column for all 18 IMUs."""
+        return self.values[:, FIELDS.index(name)]
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Accelerometer counts per 1 g, ``[18]``."""
+        return self.values[:, 0]
+
+    @property
+    def accel_min_max(self) -> np.ndarray:
+        """``[18, 3, 2]`` accelerometer (min, max) per axis, counts."""
+        return self.values[:, 1:7].reshape(N_IMUS, 3, 2)
+
+    @property
+    def mag_min_max(self) -> np.ndarray:
+        """``[18, 3, 2]`` magnetometer (min, max) per axis, counts."""
+        return self.values[:, 7:13].reshape(N_IMUS, 3, 2)
+
+    @property
+    def gyro_avg(self) -> np.ndarray:
+        """``[18, 3]`` gyroscope zero-rate averages, counts."""
+        return self.values[:, 13:16]
+
+    def copy(self) -> CalibrationTable:
+        return CalibrationTable(self.values.copy(), self.source, list(self.problems))
+
+    def replace_imus(self, other: CalibrationTable, imu_ids: list[int]) -> CalibrationTable:
+        """A copy where the records of ``imu_ids`` come from ``other`` (one IMU replaced)."""
+        merged = self.copy()
+        merged.values[imu_ids] = other.values[imu_ids]
+        return merged
+
+
+def _record_problem(values: list[str]) -> tuple[int, str] | None:
+    """(field index, message) of the first bad value of a record, or None."""
+    if len(values) != N_FIELDS:
+        return -1, f"has {len(values)} values, expected {N_FIELDS}"
+    for k, text in enumerate(values):
+        try:
+            number = float(text)
+        except ValueError:
+            return k, f"'{text.strip()[:20]}' is not a number"
+        if not math.isfinite(number):
+            return k, f"'{text.strip()}' is not a finite number"
+    return None
+
+
+def _check_ranges(row: np.ndarray) -> str | None:
+    """A message when a record is numerically unusable (min ≥ max, gravity ≤ 0)."""
+    if row[0] <= 0:
+        return "Gravity must be positive"
+    for axis, (lo, hi) in enumerate(row[1:13].reshape(6, 2)):
+        if hi <= lo:
+            return f"{FIELDS[1 + 2 * axis]} ≥ {FIELDS[2 + 2 * axis]} (min must be below max)"
+    return None
+
+
+def parse_legacy(text: str, path: str | Path = "<text>") -> CalibrationTable:
+    """Parse ``Calib.cfg`` text. Bad records fall back to the factory record, with a problem
+    report naming the IMU, the field and the line; a wrong record count falls back entirely."""
+    problems: list[FileProblem] = []
+    factory = load_factory_calibration()
+    chunks = text.split(";")
+    # Line on which each record starts, for the messages.
+    starts, offset = [], 0
+    for chunk in chunks:
+        lead = len(chunk) - len(chunk.lstrip())
+        starts.append(text.count("\n", 0, offset + lead) + 1)
+        offset += len(chunk) + 1
+    records = [(c, s) for c, s in zip(chunks, starts, strict=True) if c.strip()]
+    if len(records) != N_IMUS:
+        report(problems, path, "whole file",
+               f"holds {len(records)} IMU records, expected {N_IMUS}",
+               "factory calibration used for every IMU")
+        return CalibrationTable(factory.values, source=f"factory (bad {path})", problems=problems)
+    values = factory.values.copy()
+    for imu, (chunk, line) in enumerate(records):
+        fields = chunk.split(",")
+        bad = _record_problem(fields)
+        if bad is None:
+            row = np.array([float(v) for v in fields])
+            message = _check_ranges(row)
+            if message is None:
+                values[imu] = row
+                continue
+            bad = (-1, message)
+        k, message = bad
+        where = f"IMU {imu} (line {line})" + (f" field {k + 1} ({FIELDS[k]})" if k >= 0 else "")
+        report(problems, path, where, message, f"factory values used for IMU {imu}")
+    return CalibrationTable(values, source=str(path), problems=problems)
+
+
+def load_calibration(path: str | Path | None) -> CalibrationTable:
+    """Load a calibration file; a missing or unreadable file gives the factory table and a
+    problem report. ``None`` means the factory table."""
+    if path is None:
+        return load_factory_calibration()
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        table = load_factory_calibration().copy()
+        report(table.problems, path, "file", f"cannot be read ({exc.strerror or exc})",
+               "factory calibration used")
+        table.source = f"factory ({path} unreadable)"
+        return table
+    return parse_legacy(text, path)
+
+
+_FACTORY: CalibrationTable | None = None
+
+
+def load_factory_calibration() -> CalibrationTable:
+    """The shipped prototype calibration (dissertation Table 2.2)."""
+    global _FACTORY
+    if _FACTORY is None:
+        text = factory_calibration_path().read_text(encoding="utf-8")
+        rows = [[float(v) for v in rec.split(",")] for rec in text.split(";") if rec.strip()]
+        _FACTORY = CalibrationTable(np.array(rows), source="factory")
+    return _FACTORY.copy()
+
+
+def format_legacy(table: CalibrationTable) -> str:
+    """Legacy ``Calib.cfg`` text: one record per line, ``;`` between records."""
+    lines = [",".join(repr(float(v)) for v in row) for row in table.values]
+    return ";\n".join(lines) + "\n"
+
+
+def save_legacy(table: CalibrationTable, path: str | Path) -> None:
+    """Write ``Calib.cfg`` atomically (a temporary file renamed over the target)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(format_legacy(table), encoding="utf-8")
+    tmp.replace(path)

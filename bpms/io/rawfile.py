@@ -1,0 +1,243 @@
+"""The native raw recording format (``.bpmsraw``), documented in ``docs/raw-format.md``.
+
+::
+
+    offset        size   content
+    0             8      magic b"BPMSRAW\\0"
+    8             2      format version, little-endian uint16 (currently 1)
+    10            4      header length H, little-endian uint32
+    14            H      header: UTF-8 JSON (start time, calibration, options, notes, ...)
+    14+H          pad    spaces up to the next multiple of 16 (part of the header text)
+    D = 14+H+pad  348·N  records: host receive time (float64 LE, s since the Unix epoch)
+                         followed by the 340-byte frame exactly as received
+
+Fixed-size records make frame k reachable at ``D + 348·k`` and the whole file decodable in
+one ``numpy.frombuffer`` call. The writer flushes to the disk (``fsync``) at least once per
+flush interval, so after a crash every record before the last flush reads back; a torn last
+record is ignored with a warning.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import struct
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bpms.io.frames import FRAME_DTYPE, FRAME_SIZE, DecodedFrames, decode_frames
+
+log = logging.getLogger(__name__)
+
+MAGIC = b"BPMSRAW\0"
+FORMAT_VERSION = 1
+EXTENSION = ".bpmsraw"
+_PREAMBLE = struct.Struct("<8sHI")
+RECORD_DTYPE = np.dtype([("time", "<f8"), ("frame", FRAME_DTYPE)])
+RECORD_SIZE = RECORD_DTYPE.itemsize
+assert RECORD_SIZE == 8 + FRAME_SIZE
+
+
+class RawFileError(Exception):
+    """A file that cannot be read as a BPMS raw recording (message says why)."""
+
+
+class RecordingError(Exception):
+    """Writing a recording failed (disk full, folder not writable): recording must stop."""
+
+
+@dataclass
+class RawRecording:
+    """A raw recording in memory: host receive times ``[N]`` s and frames ``[N]`` (structured,
+    :data:`bpms.io.frames.FRAME_DTYPE`)."""
+
+    path: str
+    header: dict[str, Any]
+    times: np.ndarray
+    frames: np.ndarray
+    problems: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def decode(self) -> DecodedFrames:
+        """All frames as ``raw[N, 18, 9]`` and ``errors[N, 18, 3]``."""
+        return decode_frames(self.frames.tobytes())
+
+    def frame_bytes(self, index: int) -> bytes:
+        """The 340 bytes of frame ``index``."""
+        return self.frames[index].tobytes()
+
+    @property
+    def duration_s(self) -> float:
+        """Nominal duration at 50 Hz (frames × 0.02 s)."""
+        return len(self) * 0.02
+
+
+def _header_bytes(header: dict[str, Any]) -> bytes:
+    text = json.dumps(header, indent=1, sort_keys=True).encode("utf-8")
+    pad = (-(_PREAMBLE.size + len(text))) % 16
+    return text + b" " * pad
+
+
+def read_header(path: str | Path) -> tuple[dict[str, Any], int]:
+    """(header dict, offset of the first record). Raises RawFileError."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            preamble = f.read(_PREAMBLE.size)
+            if len(preamble) < _PREAMBLE.size or not preamble.startswith(MAGIC):
+                raise RawFileError(f"{path}: not a BPMS raw recording (no BPMSRAW signature)")
+            _, version, length = _PREAMBLE.unpack(preamble)
+            if version > FORMAT_VERSION:
+                raise RawFileError(
+                    f"{path}: raw format version {version} is newer than this software "
+                    f"({FORMAT_VERSION}); update BPMS Suite")
+            text = f.read(length)
+    except OSError as exc:
+        raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from exc
+    if len(text) < length:
+        raise RawFileError(f"{path}: the header is cut short ({len(text)} of {length} bytes)")
+    try:
+        header = json.loads(text.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise RawFileError(f"{path}: the header is damaged ({exc})") from exc
+    if not isinstance(header, dict):
+        raise RawFileError(f"{path}: the header is not a JSON object")
+    return header, _PREAMBLE.size + length
+
+
+def read_raw(path: str | Path) -> RawRecording:
+    """Read a whole native raw recording. A torn last record is dropped with a warning; frames
+    with damaged markers (disk corruption) are dropped and counted."""
+    path = Path(path)
+    header, offset = read_header(path)
+    data = path.read_bytes()[offset:]
+    problems: list[str] = []
+    torn = len(data) % RECORD_SIZE
+    if torn:
+        problems.append(f"{path}: the last record is incomplete ({torn} of {RECORD_SIZE} bytes, "
+                        "the recording was cut off): ignored")
+        data = data[: len(data) - torn]
+    records = np.frombuffer(data, dtype=RECORD_DTYPE)
+    good = (records["frame"]["start"] == b"$#") & (records["frame"]["end"] == b"#$")
+    if not good.all():
+        problems.append(f"{path}: {int((~good).sum())} damaged record(s) without frame markers: "
+                        "skipped")
+        records = records[good]
+    for p in problems:
+        log.warning("%s", p)
+    return RawRecording(str(path), header, records["time"].copy(), records["frame"].copy(),
+                        problems)
+
+
+def new_header(*, calibration: np.ndarray | None = None, options: dict[str, Any] | None = None,
+               notes: str = "", source: str = "", extra: dict[str, Any] | None = None,
+               ) -> dict[str, Any]:
+    """The header of a new recording: start time, calibration and options in force, notes."""
+    from bpms import __version__
+
+    now = time.time()
+    header: dict[str, Any] = {
+        "format": "BPMS raw recording",
+        "format_version": FORMAT_VERSION,
+        "software": f"bpms {__version__}",
+        "start_time": now,
+        "start_time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(now)),
+        "frame_size": FRAME_SIZE,
+        "record_size": RECORD_SIZE,
+        "frame_rate_hz": 50.0,
+        "source": source,
+        "notes": notes,
+        "calibration": None if calibration is None else np.asarray(calibration).tolist(),
+        "options": options or {},
+    }
+    header.update(extra or {})
+    return header
+
+
+class RawWriter:
+    """Appends records to a new raw file; data reach the disk at least every ``flush_interval_s``.
+
+    Raises :class:`RecordingError` on any OS error (disk full, folder not writable); the file
+    keeps every record written before the last successful flush.
+    """
+
+    def __init__(self, path: str | Path, header: dict[str, Any],
+                 flush_interval_s: float = 1.0) -> None:
+        self.path = Path(path)
+        self.flush_interval_s = flush_interval_s
+        self.records = 0
+        header_bytes = _header_bytes(header)
+        try:
+            # "x": never overwrite an existing recording.
+            self._file = self.path.open("xb")
+            self._file.write(_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(header_bytes)))
+            self._file.write(header_bytes)
+            self._sync()
+        except OSError as exc:
+            raise RecordingError(f"cannot create {self.path}: {exc.strerror or exc}") from exc
+        self._last_flush = time.monotonic()
+        self._record = bytearray(RECORD_SIZE)
+
+    def _sync(self) -> None:
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    def write(self, host_time: float, frame: bytes) -> None:
+        """Append one record (host receive time in s since the epoch, 340-byte frame)."""
+        if len(frame) != FRAME_SIZE:
+            raise ValueError(f"a frame is {FRAME_SIZE} bytes, got {len(frame)}")
+        struct.pack_into("<d", self._record, 0, host_time)
+        self._record[8:] = frame
+        try:
+            self._file.write(self._record)
+            self.records += 1
+            if time.monotonic() - self._last_flush >= self.flush_interval_s:
+                self.flush()
+        except OSError as exc:
+            raise RecordingError(f"writing {self.path} failed: {exc.strerror or exc}") from exc
+
+    def flush(self) -> None:
+        """Push everything written so far to the disk."""
+        self._sync()
+        self._last_flush = time.monotonic()
+
+    @property
+    def size_bytes(self) -> int:
+        return self._file.tell()
+
+    def close(self) -> None:
+        if self._file.closed:
+            return
+        try:
+            self._sync()
+        finally:
+            self._file.close()
+
+    def __enter__(self) -> RawWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def write_raw(path: str | Path, times: np.ndarray, frames: bytes, header: dict[str, Any]) -> None:
+    """Write a whole recording at once: ``times[N]`` s and N concatenated 340-byte frames."""
+    times = np.asarray(times, dtype="<f8")
+    if len(frames) != len(times) * FRAME_SIZE:
+        raise ValueError("frames must hold exactly one 340-byte frame per time")
+    records = np.empty(len(times), dtype=RECORD_DTYPE)
+    records["time"] = times
+    records["frame"] = np.frombuffer(frames, dtype=FRAME_DTYPE)
+    with RawWriter(path, header) as writer:
+        try:
+            writer._file.write(records.tobytes())
+            writer.records = len(records)
+        except OSError as exc:
+            raise RecordingError(f"writing {path} failed: {exc.strerror or exc}") from exc

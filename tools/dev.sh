@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# BPMS Suite developer entry point: prepares this machine, then runs one job.
+#
+#   bash tools/dev.sh app     set everything up and start BPMS on the simulated suit
+#                             (a real suit is used instead when one answers)
+#   bash tools/dev.sh test    set everything up and run the whole test suite
+#   bash tools/dev.sh setup   only set up (virtualenv in .venv, Python and Debian packages)
+#
+# Everything that is missing is installed: a virtualenv with the package and its dev extra,
+# and (when run as root with apt-get) the Debian packages for Xvfb, Qt's xcb platform and the
+# AVR toolchain. Nothing is installed twice: a stamp file remembers the last install.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV=${BPMS_VENV:-.venv}
+PY="$VENV/bin/python"
+
+DEBIAN_PACKAGES=(
+  xvfb xauth libgl1-mesa-dri libegl1 libgl1 libxkbcommon0 libxkbcommon-x11-0 libfontconfig1
+  libglib2.0-0 libdbus-1-3 libxcb-icccm4 libxcb-image0 libxcb-keysyms1 libxcb-randr0
+  libxcb-render-util0 libxcb-shape0 libxcb-xinerama0 libxcb-xfixes0 libxcb-cursor0
+  g++ make gcc-avr avr-libc arduino-core-avr
+)
+
+log() { printf '[dev.sh] %s\n' "$*" >&2; }
+
+ensure_debian_packages() {
+  command -v dpkg-query >/dev/null 2>&1 || { log "not a Debian system: skipping system packages"; return 0; }
+  local missing=() p
+  for p in "${DEBIAN_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  if [ "$(id -u)" -ne 0 ] || ! command -v apt-get >/dev/null 2>&1; then
+    log "missing Debian packages (install them as root): ${missing[*]}"
+    return 0
+  fi
+  log "installing Debian packages: ${missing[*]}"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+}
+
+ensure_venv() {
+  if [ ! -x "$PY" ]; then
+    log "creating virtualenv $VENV"
+    python3 -m venv "$VENV"
+  fi
+  local stamp="$VENV/.bpms-installed"
+  if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+    log "installing bpms and its dev extra into $VENV"
+    "$PY" -m pip install -q --upgrade pip >/dev/null
+    "$PY" -m pip install -q -e ".[dev]"
+    touch "$stamp"
+  fi
+}
+
+setup() {
+  ensure_debian_packages
+  ensure_venv
+}
+
+run_tests() {
+  log "ruff check"
+  "$VENV/bin/ruff" check bpms tests bench
+  log "pytest"
+  local rc=0
+  HYPOTHESIS_PROFILE=ci "$PY" -m pytest -q "$@" || rc=$?
+  if [ "$rc" -eq 5 ]; then
+    log "pytest collected no tests"
+    return 1
+  fi
+  return "$rc"
+}
+
+job=${1:-app}
+shift || true
+case "$job" in
+  setup) setup ;;
+  test) setup; run_tests "$@" ;;
+  app) setup; exec "$VENV/bin/bpms" "$@" ;;
+  *) log "unknown job '$job' (use: app, test, setup)"; exit 2 ;;
+esac
