@@ -41,7 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser()
-    if not [a for a in argv if not a.startswith("-")] and not {"-h", "--help", "--version"} & set(argv):
+    asks_help = {"-h", "--help", "--version"} & set(argv)
+    if not asks_help and not [a for a in argv if not a.startswith("-")]:
         argv = [*argv, DEFAULT_COMMAND]
     args = parser.parse_args(argv)
     level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]

@@ -132,7 +132,8 @@ def encode_frames(raw: np.ndarray, errors: np.ndarray | None = None) -> bytes:
 
 def encode_frame(raw: np.ndarray, errors: np.ndarray | None = None) -> bytes:
     """Encode one frame from raw ``[18, 9]`` counts and optional ``[18, 3]`` error flags."""
-    return encode_frames(np.asarray(raw)[None], None if errors is None else np.asarray(errors)[None])
+    flags = None if errors is None else np.asarray(errors)[None]
+    return encode_frames(np.asarray(raw)[None], flags)
 
 
 def is_frame(buf: bytes | bytearray | memoryview) -> bool:
@@ -177,6 +178,6 @@ def cluster_of(imu_id: int) -> int:
 
 def describe_errors(flags: np.ndarray) -> list[str]:
     """Human-readable list of failed sensors for one frame's ``[18, 3]`` flags."""
-    return [
-        f"IMU {i} ({IMU_NAMES[i]}) {SENSOR_NAMES[s]}" for i, s in zip(*np.nonzero(flags), strict=True)
-    ]
+    imus, sensors = np.nonzero(flags)
+    pairs = zip(imus, sensors, strict=True)
+    return [f"IMU {i} ({IMU_NAMES[i]}) {SENSOR_NAMES[s]}" for i, s in pairs]

@@ -68,7 +68,8 @@ class SerialOptions:
 
 @dataclass
 class UdpOptions:
-    forward_to: list[str] = _opt(["127.0.0.1:5005"], "UDP server targets, host:port", hostports=True)
+    forward_to: list[str] = _opt(["127.0.0.1:5005"], "UDP server targets, host:port",
+                                 hostports=True)
     listen: str = _opt("0.0.0.0:5005", "UDP client listens on host:port", hostport=True)
     multicast_ttl: int = _opt(1, "multicast time-to-live, hops", min=0, max=255)
 
