@@ -1,13 +1,20 @@
 """Streaming frame parser: arbitrary byte chunks in, whole 340-byte frames out.
 
 The frame has no sequence number and no checksum (SPEC §2), and its payload may contain the
-marker bytes ``$#`` / ``#$`` by chance. The parser therefore accepts a frame only when a
+marker bytes ``$#`` / ``#$`` by chance. The parser therefore accepts a *candidate* only when a
 ``$#`` is followed, exactly 338 bytes later, by ``#$``; anything else is discarded byte range
 by byte range and the parser resynchronises on the next ``$#``.
 
-Limitation (inherent to the protocol): a truncated frame whose chance ``$#`` lines up with a
-chance ``#$`` 338 bytes later can assemble a false frame. The odds are about 1 in 65,536 per
-resynchronisation attempt; downstream plausibility checks (error bits, magnitudes) catch it.
+Two candidates overlapping by two bytes or more cannot both be frames; the later one wins: a
+frame cut short followed by an intact frame makes a false candidate that borrows the intact
+frame's first bytes, while a false candidate *after* an intact frame needs a chance ``$#`` in
+its payload and a chance ``#$`` exactly 338 bytes later (odds about 1 in 65,536). The check
+costs one ``find`` per frame and delays a frame only when its payload holds a ``$#``.
+A one-byte overlap is allowed: the final ``$`` of a frame may also be the first byte of the
+next frame when that frame lost its own (or the frame lost its last byte), so both come out.
+
+Limitation (inherent to the protocol): such chance alignments can still make a false frame or
+drop a true one, about once per 65,536 resynchronisations or marker-bearing payloads.
 """
 
 from __future__ import annotations
@@ -37,11 +44,13 @@ class FrameParser:
     """Incremental parser. ``feed(chunk)`` returns the frames completed by that chunk, in order.
 
     Chunks may be any size, from one byte to megabytes. ``flush()`` at the end of a stream
-    counts the leftover bytes as discarded.
+    returns any frame still held back and counts the leftover bytes as discarded.
     """
 
     def __init__(self) -> None:
         self._buf = bytearray()
+        self._shared_dollar = False  # buf[0] is the last accepted frame's final '$'
+
         self._in_discard = False  # inside a discarded byte range (counts one resync per range)
         self.stats = ParserStats()
 
@@ -57,44 +66,83 @@ class FrameParser:
     def feed(self, chunk: bytes | bytearray | memoryview) -> list[bytes]:
         """Append ``chunk`` and return every frame it completes."""
         self.stats.bytes_in += len(chunk)
+        self._buf += chunk
+        return self._scan(final=False)
+
+    def flush(self) -> list[bytes]:
+        """End of stream: return any frame still held back for an overlap check, and count
+        the remaining bytes (an incomplete frame) as discarded."""
+        out = self._scan(final=True)
+        held = len(self._buf) - (1 if self._shared_dollar else 0)
+        self._discard(held)
+        self._buf.clear()
+        self._shared_dollar = False
+        self._in_discard = False
+        return out
+
+    def _scan(self, final: bool) -> list[bytes]:
         buf = self._buf
-        buf += chunk
         out: list[bytes] = []
-        pos = 0
         n = len(buf)
+        pos = 0
+        # When ``shared``, buf[pos] is the last accepted frame's final '$': it may also be the
+        # first byte of the next frame (if that frame lost its own), but is never discarded.
+        shared = self._shared_dollar
         while True:
             start = buf.find(START, pos)
             if start < 0:
                 # Keep a trailing '$': it may be the first half of the next start marker.
-                keep = 1 if n > pos and buf[n - 1] == START[0] else 0
-                self._discard(n - keep - pos)
-                pos = n - keep
+                keep = n - 1 if n > pos and buf[n - 1] == START[0] else n
+                if shared and keep > pos:
+                    pos, shared = pos + 1, False
+                self._discard(keep - pos)
+                pos = keep
                 break
-            if start > pos:
-                self._discard(start - pos)
+            if shared and start > pos:
+                pos, shared = pos + 1, False
+            self._discard(start - pos)
+            pos = start
             if n - start < FRAME_SIZE:
-                pos = start
                 break
-            if buf[start + END_OFFSET : start + FRAME_SIZE] == END:
-                out.append(bytes(buf[start : start + FRAME_SIZE]))
-                self._in_discard = False
-                pos = start + FRAME_SIZE
-            else:
+            if buf[start + END_OFFSET : start + FRAME_SIZE] != END:
                 # A start marker without its end marker: drop the '$' and look further.
-                self._discard(1)
-                pos = start + 1
+                if not shared:
+                    self._discard(1)
+                pos, shared = start + 1, False
+                continue
+            rival = self._overlapping_candidate(buf, start, final)
+            if rival is None:  # a rival candidate needs more bytes to decide
+                break
+            if rival > start:
+                self._discard(rival - start - (1 if shared else 0))
+                pos, shared = rival, False
+                continue
+            out.append(bytes(buf[start : start + FRAME_SIZE]))
+            self._in_discard = False
+            pos, shared = start + FRAME_SIZE - 1, True
         if pos:
             del buf[:pos]
+        self._shared_dollar = shared
         self.stats.frames += len(out)
         return out
+
+    @staticmethod
+    def _overlapping_candidate(buf: bytearray, start: int, final: bool) -> int | None:
+        """Position of a later candidate overlapping the one at ``start`` by two bytes or more
+        (the later one wins), ``start`` itself when there is none, or None when more bytes are
+        needed to decide. A one-byte overlap is allowed: see ``shared`` in ``_scan``."""
+        n = len(buf)
+        limit = min(n, start + FRAME_SIZE)
+        q = buf.find(START, start + 1, limit)
+        while q >= 0:
+            if n < q + FRAME_SIZE:
+                return start if final else None
+            if buf[q + END_OFFSET : q + FRAME_SIZE] == END:
+                return q
+            q = buf.find(START, q + 1, limit)
+        return start
 
     @property
     def pending(self) -> int:
         """Bytes held back waiting for the rest of a frame."""
         return len(self._buf)
-
-    def flush(self) -> None:
-        """End of stream: whatever is still buffered is an incomplete frame; count it."""
-        self._discard(len(self._buf))
-        self._buf.clear()
-        self._in_discard = False

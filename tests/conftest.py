@@ -1,0 +1,16 @@
+"""Shared test set-up: hypothesis profiles and a headless Qt platform."""
+
+from __future__ import annotations
+
+import os
+
+from hypothesis import HealthCheck, settings
+
+# 2D Qt widgets render offscreen; OpenGL tests run in their own Xvfb subprocess.
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+settings.register_profile("dev", deadline=None, max_examples=100)
+# CI: the same examples every run, so a green run means the same thing twice.
+settings.register_profile("ci", deadline=None, max_examples=150, derandomize=True,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
