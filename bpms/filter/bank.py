@@ -1,0 +1,133 @@
+"""FilterBank: 18 DCM Mahony filters (SPEC §5) driven by the numba kernels of
+:mod:`bpms.filter.mahony`, with run-time gains, resets and the failed-sensor hold.
+
+Inputs are calibrated filter-frame vectors (``SensorCalibration.calibrate``): accel in Gravity
+counts pointing down, mag ±100, gyro rad/s, ``[N, 18, 3]`` (batch) or ``[18, 3]`` (live).
+Outputs: DCM ``[.., 18, 3, 3]`` (filter frame → NED), Euler ``[.., 18, 3]`` (roll, pitch, yaw)
+rad, ωI and ωP ``[.., 18, 3]`` rad/s; NaN for an IMU that is not initialised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpms.filter.mahony import N_PARAMS, MahonyState, run_batch, step_frame
+from bpms.io.frames import N_IMUS
+from bpms.io.options import FilterOptions
+
+
+@dataclass
+class BankOutput:
+    """Filter outputs of N frames (see the module docstring for units)."""
+
+    R: np.ndarray
+    euler: np.ndarray
+    w_i: np.ndarray | None = None
+    w_p: np.ndarray | None = None
+
+
+def params_from_options(options: FilterOptions) -> np.ndarray:
+    """``[kp_rollpitch, ki_rollpitch, kp_yaw, ki_yaw, dt]`` as the kernels take them."""
+    return np.array([options.kp_rollpitch, options.ki_rollpitch, options.kp_yaw,
+                     options.ki_yaw, options.dt], dtype=np.float64)
+
+
+class FilterBank:
+    """18 (or ``n``) Mahony filters sharing gains and dt.
+
+    ``gravity``: ``[n]`` accelerometer counts per g (the calibration's Gravity). Gains are read
+    from :attr:`params` at every call, so changing them (:meth:`set_gains`) takes effect at the
+    next frame. :meth:`reset` re-initialises one IMU or all: the next valid frame of that IMU
+    only initialises it (SPEC §5).
+    """
+
+    def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
+        self.gravity = np.ascontiguousarray(gravity, dtype=np.float64)
+        self.n = len(self.gravity)
+        self.params = params_from_options(options or FilterOptions())
+        self.state = MahonyState(self.n)
+        self._pending_reset = np.zeros(self.n, dtype=np.bool_)
+        self._no_errors = np.zeros((self.n, 3), dtype=np.bool_)
+        self._live_out = (np.empty((self.n, 3, 3)), np.empty((self.n, 3)), np.empty((self.n, 3)),
+                          np.empty((self.n, 3)))
+
+    # -- settings -----------------------------------------------------------------------
+    def set_gains(self, kp_rollpitch: float | None = None, ki_rollpitch: float | None = None,
+                  kp_yaw: float | None = None, ki_yaw: float | None = None,
+                  dt: float | None = None) -> None:
+        """Change gains (per accel count for roll/pitch) or dt (s) from the next frame on."""
+        for k, v in enumerate((kp_rollpitch, ki_rollpitch, kp_yaw, ki_yaw, dt)):
+            if v is not None:
+                self.params[k] = float(v)
+
+    def set_options(self, options: FilterOptions) -> None:
+        self.params[:] = params_from_options(options)
+
+    def reset(self, imu: int | None = None) -> None:
+        """Re-initialise IMU ``imu`` (all when None) at its next valid frame."""
+        if imu is None:
+            self._pending_reset[:] = True
+        else:
+            self._pending_reset[imu] = True
+
+    @property
+    def initialised(self) -> np.ndarray:
+        """``[n]`` bool: IMUs whose filter runs."""
+        return self.state.initialised.copy()
+
+    @property
+    def held_count(self) -> np.ndarray:
+        """``[n, 3]`` filter steps that used a held (last good) accel, mag, gyro value."""
+        return self.state.held_count.copy()
+
+    # -- running ------------------------------------------------------------------------
+    def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+                errors: np.ndarray | None = None, resets: np.ndarray | None = None,
+                params: np.ndarray | None = None, store_terms: bool = False) -> BankOutput:
+        """Filter N frames in one kernel call and keep the state for the next call.
+
+        errors: bool ``[N, n, 3]`` failed-sensor flags; resets: bool ``[N, n]`` re-initialise
+        at frame k; params: ``[N, 5]`` per-frame gains (default: :attr:`params` for all).
+        """
+        acc, mag, gyr = (np.ascontiguousarray(v, dtype=np.float64) for v in (acc, mag, gyr))
+        n = acc.shape[0]
+        err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
+               else np.ascontiguousarray(errors, dtype=np.bool_))
+        if resets is None and not self._pending_reset.any():
+            rs = np.zeros((0, self.n), np.bool_)
+        else:
+            rs = (np.zeros((n, self.n), np.bool_) if resets is None
+                  else np.array(resets, dtype=np.bool_))
+            if n:
+                rs[0] |= self._pending_reset
+                self._pending_reset[:] = False
+        prm = (self.params[None] if params is None
+               else np.ascontiguousarray(np.atleast_2d(params), dtype=np.float64))
+        if prm.shape[1] != N_PARAMS or prm.shape[0] not in (1, n):
+            raise ValueError(f"params must be [1, {N_PARAMS}] or [N, {N_PARAMS}]")
+        out_R = np.empty((n, self.n, 3, 3))
+        out_e = np.empty((n, self.n, 3))
+        k = n if store_terms else 0
+        out_wi = np.empty((k, self.n, 3))
+        out_wp = np.empty((k, self.n, 3))
+        run_batch(acc, mag, gyr, err, rs, prm, self.gravity, *self.state.arrays(),
+                  out_R, out_e, out_wi, out_wp)
+        return BankOutput(out_R, out_e, out_wi if store_terms else None,
+                          out_wp if store_terms else None)
+
+    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+             errors: np.ndarray | None = None) -> BankOutput:
+        """Filter one live frame (``[n, 3]`` each). The returned arrays are fresh copies."""
+        err = self._no_errors if errors is None else np.asarray(errors, dtype=np.bool_)
+        out = self._live_out
+        step_frame(np.ascontiguousarray(acc, dtype=np.float64),
+                   np.ascontiguousarray(mag, dtype=np.float64),
+                   np.ascontiguousarray(gyr, dtype=np.float64), err, self._pending_reset,
+                   self.params, self.gravity, *self.state.arrays(), *out)
+        self._pending_reset[:] = False
+        return BankOutput(out[0].copy(), out[1].copy(), out[2].copy(), out[3].copy())
+
+
+__all__ = ["N_IMUS", "BankOutput", "FilterBank", "params_from_options"]

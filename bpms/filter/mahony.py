@@ -1,0 +1,308 @@
+"""The DCM Mahony complementary filter (SPEC §5, Razor AHRS lineage) for 18 IMUs at once.
+
+numba-compiled kernels, no Python per frame and no heap allocation per IMU update:
+
+- :func:`run_batch` filters N frames × 18 IMUs in one call;
+- :func:`step_frame` filters one live frame (18 IMUs) and is the same per-frame code.
+
+Inputs are the calibrated, pre-rotated filter-frame vectors of
+:meth:`bpms.filter.calibration.SensorCalibration.calibrate`: accelerometer in "Gravity counts"
+pointing down (|a| ≈ Gravity ≈ 256–270 at rest), magnetometer ±100, gyroscope rad/s. The
+DCM ``R`` maps the filter frame to world north-east-down; Euler angles (roll, pitch, yaw) in
+radians as :mod:`bpms.filter.rotations`.
+
+Per frame and IMU (all SPEC §5):
+
+- an IMU that is not initialised (first frame of a stream, or after a reset) is initialised
+  from the frame ("Reset_Mahony": ωI = ωP = 0, roll/pitch from the accelerometer, yaw from the
+  tilt-compensated magnetometer heading); no filter step runs on that frame;
+- otherwise one step: heading with the previous roll/pitch, matrix update with the previous
+  ωI + ωP, renormalisation, drift correction, Euler angles.
+
+Failed sensors (error bits of the frame, ``errors[..., imu, sensor]``, sensor 0 accel, 1 mag,
+2 gyro): the filter *holds* that sensor's last good calibrated value and runs its step with it;
+every step that used a held value is counted in ``held_count[imu, sensor]``. Initialisation
+needs a frame in which all three sensors of the IMU are good (a "valid" frame), so an IMU that
+never had a good value stays uninitialised. Outputs of an uninitialised IMU are NaN.
+
+Gains and dt are ``params = [kp_rollpitch, ki_rollpitch, kp_yaw, ki_yaw, dt]``; the batch path
+takes ``params[1, 5]`` (constant) or ``params[N, 5]`` (per frame) so they can change between
+frames. ``asin`` of ``R[2][0]`` is clamped to [-1, 1] (rounding can push it past 1 by 1e-16).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from bpms.io.frames import N_IMUS
+
+#: Indices into ``params``.
+KP_RP, KI_RP, KP_YAW, KI_YAW, DT = range(5)
+N_PARAMS = 5
+
+
+@njit(cache=True, inline="always")
+def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> float:
+    """SPEC §5 step 1: tilt-compensated magnetic heading H, rad."""
+    cr = math.cos(roll)
+    sr = math.sin(roll)
+    cp = math.cos(pitch)
+    sp = math.sin(pitch)
+    mx = m0 * cp + m1 * sr * sp + m2 * cr * sp
+    my = m1 * cr - m2 * sr
+    return math.atan2(-my, mx)
+
+
+@njit(cache=True)
+def _init_imu(i, a, m, R, w_i, w_p, euler):
+    """"Reset_Mahony" of IMU ``i`` from accel ``a[3]`` and mag ``m[3]``."""
+    for k in range(3):
+        w_i[i, k] = 0.0
+        w_p[i, k] = 0.0
+    a0, a1, a2 = a[0], a[1], a[2]
+    pitch = -math.atan2(a0, math.sqrt(a1 * a1 + a2 * a2))
+    # t1 = a × x̂ = (0, a2, -a1); t2 = x̂ × t1 = (0, a1, a2)
+    roll = math.atan2(a1, a2)
+    yaw = _heading(m[0], m[1], m[2], roll, pitch)
+    c1, s1 = math.cos(roll), math.sin(roll)
+    c2, s2 = math.cos(pitch), math.sin(pitch)
+    c3, s3 = math.cos(yaw), math.sin(yaw)
+    R[i, 0, 0] = c2 * c3
+    R[i, 0, 1] = c3 * s1 * s2 - c1 * s3
+    R[i, 0, 2] = s1 * s3 + c1 * c3 * s2
+    R[i, 1, 0] = c2 * s3
+    R[i, 1, 1] = c1 * c3 + s1 * s2 * s3
+    R[i, 1, 2] = c1 * s2 * s3 - c3 * s1
+    R[i, 2, 0] = -s2
+    R[i, 2, 1] = c2 * s1
+    R[i, 2, 2] = c1 * c2
+    euler[i, 0] = roll
+    euler[i, 1] = pitch
+    euler[i, 2] = yaw
+
+
+@njit(cache=True)
+def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, euler):
+    """One filter step (SPEC §5 steps 1–5) of IMU ``i``; scalars only, no allocation."""
+    # 1. heading with the previous roll and pitch
+    H = _heading(m[0], m[1], m[2], euler[i, 0], euler[i, 1])
+    # 2. R ← R + R·(dt·skew(ω)), ω = g + ωI + ωP
+    ux = dt * ((g[0] + w_i[i, 0]) + w_p[i, 0])
+    uy = dt * ((g[1] + w_i[i, 1]) + w_p[i, 1])
+    uz = dt * ((g[2] + w_i[i, 2]) + w_p[i, 2])
+    r00, r01, r02 = R[i, 0, 0], R[i, 0, 1], R[i, 0, 2]
+    r10, r11, r12 = R[i, 1, 0], R[i, 1, 1], R[i, 1, 2]
+    r20, r21, r22 = R[i, 2, 0], R[i, 2, 1], R[i, 2, 2]
+    x0 = r00 + (r01 * uz - r02 * uy)
+    x1 = r01 + (r02 * ux - r00 * uz)
+    x2 = r02 + (r00 * uy - r01 * ux)
+    y0 = r10 + (r11 * uz - r12 * uy)
+    y1 = r11 + (r12 * ux - r10 * uz)
+    y2 = r12 + (r10 * uy - r11 * ux)
+    # (row 2 of the update is not needed: renormalisation rebuilds it as X × Y)
+    # 3. renormalise
+    e = x0 * y0 + x1 * y1 + x2 * y2
+    h = e / 2.0
+    xo0, xo1, xo2 = x0 - h * y0, x1 - h * y1, x2 - h * y2
+    yo0, yo1, yo2 = y0 - h * x0, y1 - h * x1, y2 - h * x2
+    zo0 = xo1 * yo2 - xo2 * yo1
+    zo1 = xo2 * yo0 - xo0 * yo2
+    zo2 = xo0 * yo1 - xo1 * yo0
+    s = 0.5 * (3.0 - (xo0 * xo0 + xo1 * xo1 + xo2 * xo2))
+    r00, r01, r02 = s * xo0, s * xo1, s * xo2
+    s = 0.5 * (3.0 - (yo0 * yo0 + yo1 * yo1 + yo2 * yo2))
+    r10, r11, r12 = s * yo0, s * yo1, s * yo2
+    s = 0.5 * (3.0 - (zo0 * zo0 + zo1 * zo1 + zo2 * zo2))
+    r20, r21, r22 = s * zo0, s * zo1, s * zo2
+    R[i, 0, 0], R[i, 0, 1], R[i, 0, 2] = r00, r01, r02
+    R[i, 1, 0], R[i, 1, 1], R[i, 1, 2] = r10, r11, r12
+    R[i, 2, 0], R[i, 2, 1], R[i, 2, 2] = r20, r21, r22
+    # 4. drift correction
+    a0, a1, a2 = a[0], a[1], a[2]
+    w = 1.0 - 2.0 * abs(1.0 - math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) / gravity)
+    w = min(max(w, 0.0), 1.0)
+    e0 = a1 * r22 - a2 * r21  # eRP = a × R[2]
+    e1 = a2 * r20 - a0 * r22
+    e2 = a0 * r21 - a1 * r20
+    kp = kp_rp * w
+    ki = ki_rp * w
+    c = r00 * math.sin(H) - r10 * math.cos(H)  # eCourse
+    ey0, ey1, ey2 = r20 * c, r21 * c, r22 * c  # eYaw = R[2]·eCourse
+    w_p[i, 0] = kp * e0 + kp_y * ey0
+    w_p[i, 1] = kp * e1 + kp_y * ey1
+    w_p[i, 2] = kp * e2 + kp_y * ey2
+    w_i[i, 0] = (w_i[i, 0] + ki * e0) + ki_y * ey0
+    w_i[i, 1] = (w_i[i, 1] + ki * e1) + ki_y * ey1
+    w_i[i, 2] = (w_i[i, 2] + ki * e2) + ki_y * ey2
+    # 5. Euler angles
+    euler[i, 0] = math.atan2(r21, r22)
+    euler[i, 1] = -math.asin(min(max(r20, -1.0), 1.0))
+    euler[i, 2] = math.atan2(r10, r00)
+
+
+@njit(cache=True)
+def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
+           R, w_i, w_p, euler, initialised, held, seen, held_count):
+    """One frame for all IMUs: reset flags, failed-sensor hold, initialise or step."""
+    kp_rp, ki_rp = params[KP_RP], params[KI_RP]
+    kp_y, ki_y, dt = params[KP_YAW], params[KI_YAW], params[DT]
+    for i in range(acc.shape[0]):
+        if use_reset and reset[i]:
+            initialised[i] = False
+        valid = True
+        for k in range(3):
+            if use_err and err[i, 0]:
+                valid = False
+            else:
+                held[i, 0, k] = acc[i, k]
+            if use_err and err[i, 1]:
+                valid = False
+            else:
+                held[i, 1, k] = mag[i, k]
+            if use_err and err[i, 2]:
+                valid = False
+            else:
+                held[i, 2, k] = gyr[i, k]
+        for s in range(3):
+            if not (use_err and err[i, s]):
+                seen[i, s] = True
+        if not initialised[i]:
+            if valid:
+                _init_imu(i, held[i, 0], held[i, 1], R, w_i, w_p, euler)
+                initialised[i] = True
+            continue
+        if use_err:
+            for s in range(3):
+                if err[i, s]:
+                    held_count[i, s] += 1
+        _step_imu(i, held[i, 0], held[i, 1], held[i, 2], gravity[i], kp_rp, ki_rp, kp_y, ki_y,
+                  dt, R, w_i, w_p, euler)
+
+
+@njit(cache=True)
+def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp, store_terms):
+    nan = np.nan
+    for i in range(R.shape[0]):
+        ok = initialised[i]
+        for r in range(3):
+            out_euler[k, i, r] = euler[i, r] if ok else nan
+            for c in range(3):
+                out_R[k, i, r, c] = R[i, r, c] if ok else nan
+            if store_terms:
+                out_wi[k, i, r] = w_i[i, r] if ok else nan
+                out_wp[k, i, r] = w_p[i, r] if ok else nan
+
+
+@njit(cache=True)
+def run_batch(acc, mag, gyr, errors, resets, params, gravity,
+              R, w_i, w_p, euler, initialised, held, seen, held_count,
+              out_R, out_euler, out_wi, out_wp):
+    """Filter N frames × 18 IMUs, updating the state arrays in place.
+
+    acc, mag, gyr: float64 ``[N, 18, 3]`` filter inputs. errors: bool ``[N, 18, 3]`` or
+    ``[0, 18, 3]`` (no error flags). resets: bool ``[N, 18]`` (re-initialise that IMU from
+    frame k on) or ``[0, 18]``. params: ``[1, 5]`` or ``[N, 5]``. gravity: ``[18]`` counts/g.
+    out_R ``[N, 18, 3, 3]``, out_euler ``[N, 18, 3]``; out_wi, out_wp ``[N, 18, 3]`` or
+    ``[0, 18, 3]`` to skip storing ωI, ωP.
+    """
+    n = acc.shape[0]
+    use_err = errors.shape[0] > 0
+    use_reset = resets.shape[0] > 0
+    store_terms = out_wi.shape[0] > 0
+    per_frame = params.shape[0] > 1
+    no_err = np.zeros((acc.shape[1], 3), dtype=np.bool_)
+    no_reset = np.zeros(acc.shape[1], dtype=np.bool_)
+    for k in range(n):
+        p = params[k] if per_frame else params[0]
+        e = errors[k] if use_err else no_err
+        z = resets[k] if use_reset else no_reset
+        _frame(acc[k], mag[k], gyr[k], e, use_err, z, use_reset, p, gravity,
+               R, w_i, w_p, euler, initialised, held, seen, held_count)
+        _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
+               store_terms)
+
+
+@njit(cache=True)
+def step_frame(acc, mag, gyr, errors, resets, params, gravity,
+               R, w_i, w_p, euler, initialised, held, seen, held_count,
+               out_R, out_euler, out_wi, out_wp):
+    """Filter one live frame: acc, mag, gyr ``[18, 3]``, errors bool ``[18, 3]``, resets bool
+    ``[18]``, params ``[5]``; writes ``out_R[18, 3, 3]``, ``out_euler[18, 3]``,
+    ``out_wi[18, 3]``, ``out_wp[18, 3]`` (NaN for uninitialised IMUs)."""
+    _frame(acc, mag, gyr, errors, True, resets, True, params, gravity,
+           R, w_i, w_p, euler, initialised, held, seen, held_count)
+    nan = np.nan
+    for i in range(R.shape[0]):
+        ok = initialised[i]
+        for r in range(3):
+            out_euler[i, r] = euler[i, r] if ok else nan
+            out_wi[i, r] = w_i[i, r] if ok else nan
+            out_wp[i, r] = w_p[i, r] if ok else nan
+            for c in range(3):
+                out_R[i, r, c] = R[i, r, c] if ok else nan
+
+
+@dataclass
+class MahonyState:
+    """The filter state of ``n`` IMUs (arrays updated in place by the kernels).
+
+    R ``[n, 3, 3]`` DCM filter frame → NED; w_i, w_p ``[n, 3]`` rad/s; euler ``[n, 3]`` the
+    last (roll, pitch, yaw) rad; initialised ``[n]``; held ``[n, 3 sensors, 3]`` the last good
+    calibrated value of each sensor; seen ``[n, 3]`` a good value has arrived;
+    held_count ``[n, 3]`` steps that used a held value.
+    """
+
+    n: int = N_IMUS
+    R: np.ndarray = field(init=False)
+    w_i: np.ndarray = field(init=False)
+    w_p: np.ndarray = field(init=False)
+    euler: np.ndarray = field(init=False)
+    initialised: np.ndarray = field(init=False)
+    held: np.ndarray = field(init=False)
+    seen: np.ndarray = field(init=False)
+    held_count: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        n = self.n
+        self.R = np.tile(np.eye(3), (n, 1, 1))
+        self.w_i = np.zeros((n, 3))
+        self.w_p = np.zeros((n, 3))
+        self.euler = np.zeros((n, 3))
+        self.initialised = np.zeros(n, dtype=np.bool_)
+        self.held = np.zeros((n, 3, 3))
+        self.seen = np.zeros((n, 3), dtype=np.bool_)
+        self.held_count = np.zeros((n, 3), dtype=np.int64)
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """The state arrays in kernel argument order."""
+        return (self.R, self.w_i, self.w_p, self.euler, self.initialised, self.held, self.seen,
+                self.held_count)
+
+    def copy(self) -> MahonyState:
+        other = MahonyState(self.n)
+        for name in ("R", "w_i", "w_p", "euler", "initialised", "held", "seen", "held_count"):
+            setattr(other, name, getattr(self, name).copy())
+        return other
+
+
+def warm_up() -> float:
+    """Compile (or load from numba's cache) both kernels; returns the seconds it took."""
+    t0 = time.perf_counter()
+    st = MahonyState(1)
+    a = np.zeros((1, 1, 3))
+    a[..., 2] = 256.0
+    m = np.ones((1, 1, 3))
+    params = np.array([[0.02, 2e-5, 1.2, 2e-5, 0.02]])
+    gravity = np.array([256.0])
+    run_batch(a, m, a * 0, np.zeros((0, 1, 3), np.bool_), np.zeros((0, 1), np.bool_), params,
+              gravity, *st.arrays(), np.empty((1, 1, 3, 3)), np.empty((1, 1, 3)),
+              np.empty((0, 1, 3)), np.empty((0, 1, 3)))
+    step_frame(a[0], m[0], a[0] * 0, np.zeros((1, 3), np.bool_), np.zeros(1, np.bool_),
+               params[0], gravity, *st.arrays(), np.empty((1, 3, 3)), np.empty((1, 3)),
+               np.empty((1, 3)), np.empty((1, 3)))
+    return time.perf_counter() - t0
