@@ -1,0 +1,134 @@
+"""Offline generation of a simulated recording with its ground truth.
+
+>>> from bpms.firmware.sim.session import simulate
+>>> rec = simulate(seed=1)          # the whole script, raw frames + truth
+>>> rec.raw.shape[1:], len(rec.frames) == 340 * len(rec.t)
+((18, 9), True)
+
+Sample k is at ``t = k * 0.02`` s. See docs/simulated-suit.md for the script and the model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bpms.filter.calibration import SensorCalibration
+from bpms.filter.joints import joint_angles
+from bpms.firmware.sim.motion import DT, Motion, Step, generate_motion
+from bpms.firmware.sim.sensors import (
+    MagDisturbance,
+    SensorModel,
+    SensorValues,
+    add_noise,
+    heel_strike_spikes,
+    ideal_sensors,
+    inject_errors,
+    magnet_field,
+    to_raw,
+)
+from bpms.firmware.sim.sensors import mounting_errors as make_mounting_errors
+from bpms.io.calib_file import CalibrationTable, load_factory_calibration
+from bpms.io.frames import encode_frames
+
+
+@dataclass
+class Truth:
+    """Ground truth, sample by sample (N samples).
+
+    R: ``[N, 18, 3, 3]`` true filter-frame DCM of each IMU (filter frame → world NED);
+    C: ``[N, 18, 3, 3]`` segment orientations; E: ``[18, 3, 3]`` mounting errors (R = C E);
+    joint_angles: ``[N, 28]`` rad (``JOINT_ANGLE_NAMES`` order); pelvis_position: ``[N, 3]`` m;
+    imu_position / imu_acceleration: ``[N, 18, 3]`` m and m/s² (world, the latter including
+    heel-strike impacts); heel_strikes: (time s, "left"/"right"); sensors: noise-free
+    filter-frame values (accel Gravity counts, mag ±100 units, gyro rad/s) before rounding.
+    """
+
+    R: np.ndarray
+    C: np.ndarray
+    E: np.ndarray
+    joint_angles: np.ndarray
+    pelvis_position: np.ndarray
+    imu_position: np.ndarray
+    imu_acceleration: np.ndarray
+    heel_strikes: list[tuple[float, str]]
+    sensors: SensorValues
+
+
+@dataclass
+class Recording:
+    """A simulated recording: what the suit sends, and the truth behind it."""
+
+    t: np.ndarray  # [N] s
+    raw: np.ndarray  # int16 [N, 18, 9]
+    errors: np.ndarray  # bool [N, 18, 3]
+    frames: bytes  # N * 340
+    truth: Truth
+    still_windows: list[tuple[float, float]]
+    phases: list[tuple[float, float, str]]
+    calibration: CalibrationTable  # the true table the counts were made with
+    disturbances: list[MagDisturbance] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def default_disturbance(motion: Motion) -> MagDisturbance:
+    """A magnet beside the right forearm during the elbow-flexion moves."""
+    names = [p[2] for p in motion.phases]
+    t0 = motion.phases[names.index("elbow flexion")][0] if "elbow flexion" in names else 10.0
+    t1 = (motion.phases[names.index("arms relaxed")][1] if "arms relaxed" in names
+          else t0 + 8.0)
+    k = min(int(t0 / DT), len(motion.t) - 1)
+    pos = motion.imu_pos[k, 5] + np.array([0.1, 0.15, 0.0])  # beside the right forearm
+    return MagDisturbance(t0=t0, t1=t1, position=tuple(float(v) for v in pos))
+
+
+def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance: bool = False,
+             mounting_errors: bool = True, noise: bool = True, error_rate: float = 0.0,
+             calibration: CalibrationTable | None = None,
+             model: SensorModel | None = None, heading_deg: float = 30.0,
+             script: list[Step] | None = None,
+             disturbances: list[MagDisturbance] | None = None) -> Recording:
+    """Generate a recording of the scripted motion.
+
+    duration_s: None = the whole script (≈ 75 s); longer holds the final (calibration) pose.
+    seed: seeds mounting errors, noise, gyro biases and injected errors (independently).
+    mag_disturbance: add :func:`default_disturbance` (or ``disturbances`` when given).
+    error_rate: probability per frame, IMU and sensor of a failed reading (error bit set).
+    calibration: the suit's *true* calibration table (default: the factory table).
+    model: sensor settings (dip, noise levels, gyro bias, mounting error size, heel strikes).
+    heading_deg: the subject's initial magnetic heading (yaw of the pelvis), degrees.
+    """
+    model = model or SensorModel()
+    table = calibration if calibration is not None else load_factory_calibration()
+    cal = SensorCalibration.from_table(table)
+    n = None if duration_s is None else max(round(duration_s / DT), 1)
+    motion = generate_motion(n, script=script, heading_deg=heading_deg)
+    base = np.random.SeedSequence(seed)
+    rng_mount, rng_noise, rng_bias, rng_err = (np.random.default_rng(s) for s in base.spawn(4))
+    E = (make_mounting_errors(rng_mount, model.mounting_error_deg) if mounting_errors
+         else np.broadcast_to(np.eye(3), (18, 3, 3)).copy())
+    R = motion.C @ E
+    acc_lin = motion.imu_acc + heel_strike_spikes(motion.t, motion.heel_strikes,
+                                                  motion.imu_acc, model, DT)
+    dist: list[MagDisturbance] = []
+    if mag_disturbance:
+        dist = list(disturbances) if disturbances else [default_disturbance(motion)]
+    extra = magnet_field(motion.t, motion.imu_pos, dist) if dist else None
+    ideal = ideal_sensors(R, acc_lin, table.gravity, model.dip_deg, extra, DT)
+    values = add_noise(ideal, model, rng_noise, rng_bias) if noise else ideal
+    raw = to_raw(values, cal)
+    raw, errors = inject_errors(raw, error_rate, rng_err)
+    truth = Truth(
+        R=R, C=motion.C, E=E, joint_angles=joint_angles(motion.C),
+        pelvis_position=motion.pelvis, imu_position=motion.imu_pos,
+        imu_acceleration=acc_lin, heel_strikes=motion.heel_strikes, sensors=ideal,
+    )
+    return Recording(
+        t=motion.t, raw=raw, errors=errors, frames=encode_frames(raw, errors), truth=truth,
+        still_windows=motion.still_windows, phases=motion.phases, calibration=table,
+        disturbances=dist,
+    )
+
