@@ -1,0 +1,155 @@
+"""A raw recording played back as a frame source (SPEC §9 file mode).
+
+Pacing uses the suit's nominal period (20 ms per frame) divided by the speed, not the
+recorded host times: those carry the Bluetooth jitter and bursts of the live session, while
+the frames themselves were sampled every 20 ms. ``speed=None`` plays as fast as possible.
+
+Seeking re-initialises the filters: the first frame after a seek carries
+``discontinuity=True`` and, as ``preroll``, up to ``preroll_s`` seconds of the frames before
+the seek point, which the processor runs through (without output) so the filters have
+converged and the pose is right from the first displayed frame. The Reset Zero of the session
+stays in force across seeks (it is relative to the absolute filter attitude).
+
+All controls are thread-safe; :meth:`read` wakes up at once when a control changes the state.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from bpms.io.events import FrameEvent
+from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE
+from bpms.io.rawfile import RawRecording
+
+SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, None)  # None: as fast as possible
+
+
+class ReplaySource:
+    """Plays ``recording`` from frame 0; starts paused unless ``autoplay``."""
+
+    def __init__(self, recording: RawRecording, speed: float | None = 1.0, *,
+                 autoplay: bool = True, preroll_s: float = 5.0, batch: int = 256) -> None:
+        self.recording = recording
+        self._frames = recording.frames.tobytes()
+        self._cond = threading.Condition()
+        self._speed = speed
+        self._playing = autoplay
+        self._pos = 0
+        self._anchor = (time.monotonic(), 0)  # (monotonic time, frame index) of the pacing origin
+        self._steps = 0
+        self._discontinuity = True
+        self._preroll_frames = round(preroll_s / FRAME_PERIOD_S)
+        self._batch = batch
+        self._closed = False
+
+    # -- state ------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.recording)
+
+    @property
+    def position(self) -> int:
+        """Index of the next frame to be delivered."""
+        return self._pos
+
+    @property
+    def position_s(self) -> float:
+        return self._pos * FRAME_PERIOD_S
+
+    @property
+    def playing(self) -> bool:
+        return self._playing and not self.ended
+
+    @property
+    def ended(self) -> bool:
+        return self._pos >= len(self)
+
+    @property
+    def speed(self) -> float | None:
+        return self._speed
+
+    # -- controls ---------------------------------------------------------------------
+    def _reanchor(self) -> None:
+        self._anchor = (time.monotonic(), self._pos)
+
+    def play(self) -> None:
+        with self._cond:
+            self._playing = True
+            self._reanchor()
+            self._cond.notify_all()
+
+    def pause(self) -> None:
+        with self._cond:
+            self._playing = False
+            self._cond.notify_all()
+
+    def step(self, n: int = 1) -> None:
+        """While paused, deliver the next ``n`` frames at the next read."""
+        with self._cond:
+            self._steps += n
+            self._cond.notify_all()
+
+    def set_speed(self, speed: float | None) -> None:
+        if speed is not None and speed <= 0:
+            raise ValueError("speed must be positive (or None for as fast as possible)")
+        with self._cond:
+            self._speed = speed
+            self._reanchor()
+            self._cond.notify_all()
+
+    def seek(self, index: int | None = None, *, seconds: float | None = None) -> None:
+        """Jump to frame ``index`` (or ``seconds`` into the file), clamped to the file."""
+        if seconds is not None:
+            index = round(seconds / FRAME_PERIOD_S)
+        with self._cond:
+            self._pos = max(0, min(int(index or 0), len(self)))
+            self._discontinuity = True
+            self._steps = 0
+            self._reanchor()
+            self._cond.notify_all()
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    # -- delivery ---------------------------------------------------------------------
+    def _take(self, count: int) -> list[FrameEvent]:
+        out = []
+        times = self.recording.times
+        for _ in range(min(count, len(self) - self._pos)):
+            k = self._pos
+            preroll = b""
+            if self._discontinuity and k > 0:
+                first = max(0, k - self._preroll_frames)
+                preroll = self._frames[first * FRAME_SIZE:k * FRAME_SIZE]
+            frame = self._frames[k * FRAME_SIZE:(k + 1) * FRAME_SIZE]
+            out.append(FrameEvent(float(times[k]), frame, k, self._discontinuity, preroll))
+            self._discontinuity = False
+            self._pos += 1
+        return out
+
+    def read(self, timeout: float = 0.1) -> list[FrameEvent]:
+        """The frames due now (waits up to ``timeout`` s for the next one)."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while not self._closed:
+                if self._steps and not self.ended:
+                    n, self._steps = self._steps, 0
+                    return self._take(n)
+                if self._playing and not self.ended:
+                    if self._speed is None:
+                        return self._take(self._batch)
+                    t0, k0 = self._anchor
+                    period = FRAME_PERIOD_S / self._speed
+                    due = int((time.monotonic() - t0) / period) + k0 + 1 - self._pos
+                    if due > 0:
+                        return self._take(min(due, self._batch))
+                    wake = t0 + (self._pos - k0) * period
+                else:
+                    wake = deadline
+                now = time.monotonic()
+                if now >= deadline:
+                    return []
+                self._cond.wait(min(wake, deadline) - now)
+            return []
