@@ -72,11 +72,11 @@ class Walk:
     """
 
     name: str = "walk"
-    steps: int = 12
-    step_period: float = 0.72
-    hip_amp_deg: float = 15.0
-    knee_deg: float = 25.0
-    arm_deg: float = 12.0
+    steps: int = 10
+    step_period: float = 0.9
+    hip_amp_deg: float = 12.0
+    knee_deg: float = 15.0
+    arm_deg: float = 6.0
 
 
 @dataclass(frozen=True)
@@ -94,9 +94,9 @@ def default_script() -> list[Step]:
     """The standard trial: still, arm raises, elbows, trunk, squats, head, walk, still."""
     return [
         Still("still (start)", 3.0),
-        Move("right arm forward raise", 2.0, {"sh_r_flex": 90}, hold=0.5),
+        Move("right arm forward raise", 2.0, {"sh_r_flex": 60}, hold=0.5),
         Move("right arm down", 2.0, hold=0.3),
-        Move("left arm forward raise", 2.0, {"sh_l_flex": 90}, hold=0.5),
+        Move("left arm forward raise", 2.0, {"sh_l_flex": 60}, hold=0.5),
         Move("left arm down", 2.0, hold=0.3),
         Move("both arms side raise", 2.0, {"sh_r_abd": -80, "sh_l_abd": 80}, hold=0.5),
         Move("both arms down", 2.0, hold=0.3),
