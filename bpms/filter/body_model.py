@@ -72,25 +72,37 @@ for _p in BODY_POINTS:
     SEGMENT_AXIS.setdefault(_p.imu, _p.direction)
 
 
+_POINT_IMUS = np.array([p.imu for p in BODY_POINTS])
+_DIRECTIONS = np.array([p.direction for p in BODY_POINTS], dtype=np.float64)
+_FOOT_INDEX = np.array([POINT_INDEX[n] for n in FOOT_POINTS])
+
+
+def _path_matrix() -> np.ndarray:
+    """``[21, 20]``: entry (p, k) is 1 when segment k lies on the path from the pelvis to p."""
+    paths = np.zeros((len(POINT_NAMES), len(BODY_POINTS)))
+    for k, point in enumerate(BODY_POINTS):
+        paths[k + 1] = paths[POINT_INDEX[point.parent]]
+        paths[k + 1, k] = 1.0
+    return paths
+
+
+_PATHS = _path_matrix()
+
+
 def segment_vectors(C: np.ndarray, lengths: BodyOptions | None = None) -> np.ndarray:
     """``[..., 20, 3]`` vectors from parent to child point in world axes, metres."""
     lengths = lengths or BodyOptions()
     C = np.asarray(C, dtype=np.float64)
-    imus = np.array([p.imu for p in BODY_POINTS])
-    local = np.array([np.asarray(p.direction) * getattr(lengths, p.length) for p in BODY_POINTS])
-    return np.einsum("...pij,pj->...pi", C[..., imus, :, :], local)
+    scale = np.array([getattr(lengths, p.length) for p in BODY_POINTS])
+    return np.einsum("...pij,pj->...pi", C[..., _POINT_IMUS, :, :], _DIRECTIONS * scale[:, None])
 
 
 def joint_positions(C: np.ndarray, lengths: BodyOptions | None = None,
                     on_ground: bool = True) -> np.ndarray:
     """Joint positions ``[..., 21, 3]`` (order :data:`POINT_NAMES`), metres, world NED axes,
     pelvis above the origin. With ``on_ground`` the lowest foot point is at z = 0."""
-    vectors = segment_vectors(C, lengths)
-    pos = np.zeros((*vectors.shape[:-2], len(POINT_NAMES), 3))
-    for k, point in enumerate(BODY_POINTS):
-        pos[..., k + 1, :] = pos[..., POINT_INDEX[point.parent], :] + vectors[..., k, :]
+    pos = _PATHS @ segment_vectors(C, lengths)
     if on_ground:
-        feet = [POINT_INDEX[n] for n in FOOT_POINTS]
-        lowest = pos[..., feet, 2].max(axis=-1)  # z down: the largest z is the lowest point
+        lowest = pos[..., _FOOT_INDEX, 2].max(axis=-1)  # z down: the largest z is the lowest
         pos[..., 2] -= lowest[..., None]
     return pos

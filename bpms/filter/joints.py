@@ -56,17 +56,22 @@ JOINT_ANGLE_NAMES: tuple[str, ...] = (
 )
 
 
+_HINGE_PROXIMAL = np.array([j.proximal for j in HINGE_JOINTS])
+_HINGE_DISTAL = np.array([j.distal for j in HINGE_JOINTS])
+_HINGE_AXIS_P = np.array([SEGMENT_AXIS[j.proximal] for j in HINGE_JOINTS])
+_HINGE_AXIS_D = np.array([SEGMENT_AXIS[j.distal] for j in HINGE_JOINTS])
+_BALL_STATIC = np.array([j.static for j in BALL_JOINTS])
+_BALL_DYNAMIC = np.array([j.dynamic for j in BALL_JOINTS])
+
+
 def joint_angles(C: np.ndarray) -> np.ndarray:
     """Joint angles ``[..., 28]`` in radians, order :data:`JOINT_ANGLE_NAMES`, from calibrated
     segment orientations ``C[..., 18, 3, 3]``."""
     C = np.asarray(C, dtype=np.float64)
-    out = []
-    for j in HINGE_JOINTS:
-        u = C[..., j.proximal, :, :] @ np.asarray(SEGMENT_AXIS[j.proximal])
-        v = C[..., j.distal, :, :] @ np.asarray(SEGMENT_AXIS[j.distal])
-        cos = np.sum(u * v, axis=-1) / (np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1))
-        out.append(np.arccos(np.clip(cos, -1.0, 1.0))[..., None])
-    for j in BALL_JOINTS:
-        rel = np.swapaxes(C[..., j.static, :, :], -1, -2) @ C[..., j.dynamic, :, :]
-        out.append(dcm_to_euler(rel))
-    return np.concatenate(out, axis=-1)
+    u = np.einsum("...jab,jb->...ja", C[..., _HINGE_PROXIMAL, :, :], _HINGE_AXIS_P)
+    v = np.einsum("...jab,jb->...ja", C[..., _HINGE_DISTAL, :, :], _HINGE_AXIS_D)
+    cos = np.sum(u * v, axis=-1) / np.sqrt(np.sum(u * u, axis=-1) * np.sum(v * v, axis=-1))
+    flexion = np.arccos(np.clip(cos, -1.0, 1.0))
+    rel = np.swapaxes(C[..., _BALL_STATIC, :, :], -1, -2) @ C[..., _BALL_DYNAMIC, :, :]
+    ball = dcm_to_euler(rel).reshape(*C.shape[:-3], 3 * len(BALL_JOINTS))
+    return np.concatenate([flexion, ball], axis=-1)

@@ -56,30 +56,19 @@ def rot_z(angle: float) -> np.ndarray:
 
 
 def dcm_to_quaternion(R: np.ndarray) -> np.ndarray:
-    """``[..., 3, 3]`` → unit quaternions ``[..., 4]`` (w, x, y, z), w ≥ 0."""
+    """``[..., 3, 3]`` → unit quaternions ``[..., 4]`` (w, x, y, z), w ≥ 0.
+
+    Each component's magnitude comes from the diagonal, its sign from the off-diagonal
+    differences (copysign form); the result is renormalised.
+    """
     R = np.asarray(R, dtype=np.float64)
-    m = R
-    t = np.stack([
-        1 + m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2],
-        1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2],
-        1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2],
-        1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2],
-    ], axis=-1)
-    k = np.argmax(t, axis=-1)
-    s = np.sqrt(np.maximum(np.take_along_axis(t, k[..., None], -1)[..., 0], 1e-300)) * 2
-    cand = np.stack([
-        np.stack([s / 4, (m[..., 2, 1] - m[..., 1, 2]) / s, (m[..., 0, 2] - m[..., 2, 0]) / s,
-                  (m[..., 1, 0] - m[..., 0, 1]) / s], -1),
-        np.stack([(m[..., 2, 1] - m[..., 1, 2]) / s, s / 4, (m[..., 0, 1] + m[..., 1, 0]) / s,
-                  (m[..., 0, 2] + m[..., 2, 0]) / s], -1),
-        np.stack([(m[..., 0, 2] - m[..., 2, 0]) / s, (m[..., 0, 1] + m[..., 1, 0]) / s, s / 4,
-                  (m[..., 1, 2] + m[..., 2, 1]) / s], -1),
-        np.stack([(m[..., 1, 0] - m[..., 0, 1]) / s, (m[..., 0, 2] + m[..., 2, 0]) / s,
-                  (m[..., 1, 2] + m[..., 2, 1]) / s, s / 4], -1),
-    ], axis=-2)
-    q = np.take_along_axis(cand, k[..., None, None], -2)[..., 0, :]
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., :1] < 0, -q, q)
+    d0, d1, d2 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    q = 0.5 * np.sqrt(np.maximum(0.0, np.stack([1 + d0 + d1 + d2, 1 + d0 - d1 - d2,
+                                                  1 - d0 + d1 - d2, 1 - d0 - d1 + d2], -1)))
+    q[..., 1] = np.copysign(q[..., 1], R[..., 2, 1] - R[..., 1, 2])
+    q[..., 2] = np.copysign(q[..., 2], R[..., 0, 2] - R[..., 2, 0])
+    q[..., 3] = np.copysign(q[..., 3], R[..., 1, 0] - R[..., 0, 1])
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 def quaternion_to_dcm(q: np.ndarray) -> np.ndarray:
@@ -92,3 +81,30 @@ def quaternion_to_dcm(q: np.ndarray) -> np.ndarray:
         np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
     ], -2)
+
+
+def rotation_vector(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors ``[..., 3]`` (axis × angle, rad) of rotation matrices ``[..., 3, 3]``."""
+    R = np.asarray(R, dtype=np.float64)
+    v = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                        R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    s = np.linalg.norm(v, axis=-1)
+    angle = np.arctan2(s, 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0))
+    factor = np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 1.0)
+    return v * factor[..., None]
+
+
+def inclination_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
+    """Angle ``[...]`` rad between the estimated and true down vectors seen in body axes
+    (row 2 of the DCMs): the roll/pitch error, free of Euler singularities."""
+    d_est = np.asarray(R_est)[..., 2, :]
+    d_true = np.asarray(R_true)[..., 2, :]
+    cross = np.linalg.norm(np.cross(d_est, d_true), axis=-1)
+    return np.arctan2(cross, np.sum(d_est * d_true, axis=-1))
+
+
+def heading_error(R_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
+    """Signed heading error ``[...]`` rad: the vertical (world z) component of the rotation
+    vector of ``R_est R_trueᵀ``, free of Euler singularities (pitch ±90°)."""
+    err = np.asarray(R_est) @ np.swapaxes(np.asarray(R_true), -1, -2)
+    return rotation_vector(err)[..., 2]

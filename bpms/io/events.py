@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
+from typing import Protocol
 
 
 @dataclass(frozen=True, slots=True)
@@ -16,6 +18,7 @@ class FrameEvent:
         start, seek, reconnection): the filters re-initialise on it.
     preroll: on replay after a seek, the frames just before the seek point (concatenated), to
         run the filters through without output so the pose is right at once.
+    arrival: ``time.perf_counter()`` when the host took the frame in (latency measurements).
     """
 
     host_time: float
@@ -23,3 +26,32 @@ class FrameEvent:
     index: int = -1
     discontinuity: bool = False
     preroll: bytes = b""
+    arrival: float = field(default_factory=time.perf_counter)
+
+
+@dataclass
+class SourceStatus:
+    """What a source says about itself (shown in the status line and the GUI)."""
+
+    description: str
+    state: str = "streaming"  # connecting, streaming, link lost, paused, ended, closed
+    battery_v: float | None = None
+    resyncs: int = 0
+    discarded_bytes: int = 0
+    position: int | None = None  # replay: next frame index
+    length: int | None = None  # replay: frames in the file
+    counters: dict[str, int] = field(default_factory=dict)  # source-specific (UDP lost, ...)
+
+
+class FrameSource(Protocol):
+    """Anything the pipeline can read frames from (suit link, UDP client, raw-file replay)."""
+
+    def read(self, timeout: float = 0.1) -> list[FrameEvent]:
+        """Frames available now, waiting up to ``timeout`` s; [] when none."""
+        ...
+
+    def status(self) -> SourceStatus:
+        ...
+
+    def close(self) -> None:
+        ...

@@ -18,7 +18,7 @@ from __future__ import annotations
 import threading
 import time
 
-from bpms.io.events import FrameEvent
+from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE
 from bpms.io.rawfile import RawRecording
 
@@ -67,6 +67,12 @@ class ReplaySource:
     @property
     def speed(self) -> float | None:
         return self._speed
+
+    def status(self) -> SourceStatus:
+        state = ("closed" if self._closed else "ended" if self.ended
+                 else "streaming" if self._playing else "paused")
+        return SourceStatus(f"file {self.recording.path}", state, position=self._pos,
+                            length=len(self))
 
     # -- controls ---------------------------------------------------------------------
     def _reanchor(self) -> None:

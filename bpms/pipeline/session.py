@@ -1,0 +1,433 @@
+"""A live session: source → acquisition thread → processing thread → consumers.
+
+Threads and queues (docs/pipeline.md has the picture):
+
+- **acquisition** reads the source, forwards raw frames over UDP (non-blocking sends) and hands
+  each frame to the raw logger and to the processing thread. It never waits on a consumer.
+- **raw logger** writes raw records from an unbounded queue (raw data are never dropped; the
+  writer syncs to disk at least once per second). A write error (disk full, folder gone)
+  stops the recording with a message; streaming goes on.
+- **processing** runs the filter bank, Reset Zero, joints and the body model
+  (:class:`bpms.filter.processor.BodyPoseProcessor`), writes the filtered file, forwards the
+  pose over UDP and publishes a :class:`PoseSample` to every subscriber's bounded mailbox (a
+  slow subscriber loses its oldest samples, counted; it never blocks anything).
+
+Commands (Reset Zero, gains, logging, forwarding) may come from any thread; the ones that touch
+the processor are queued and run in the processing thread between two frames.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bpms.filter.processor import BodyPoseProcessor
+from bpms.io.events import FrameEvent, FrameSource, SourceStatus
+from bpms.io.filtered_file import FilteredWriter
+from bpms.io.frames import FRAME_PERIOD_S, decode_frames
+from bpms.io.naming import RecordingNamer
+from bpms.io.options import Options
+from bpms.io.rawfile import RawWriter, RecordingError, new_header
+from bpms.io.udp import UdpForwarder
+from bpms.pipeline.fanout import Fanout, Subscription
+from bpms.pipeline.rate import RateMeter
+
+log = logging.getLogger(__name__)
+_STOP = object()
+
+
+@dataclass(frozen=True, slots=True)
+class PoseSample:
+    """One processed frame. Angles rad, lengths m, frames as SPEC §5/§6.
+
+    index: frame index in the source; host_time: s since the epoch (receive time);
+    raw ``[18, 9]`` int16 counts; errors ``[18, 3]`` bool; euler ``[18, 3]`` filter roll,
+    pitch, yaw; R ``[18, 3, 3]`` filter DCMs; C ``[18, 3, 3]`` segment orientations after Reset
+    Zero (NaN before the first); joint_angles ``[28]``; joint_positions ``[21, 3]`` (NED, lowest
+    foot on the ground); latency_s: host receive → sample ready.
+    """
+
+    index: int
+    host_time: float
+    frame: bytes
+    raw: np.ndarray
+    errors: np.ndarray
+    euler: np.ndarray
+    R: np.ndarray
+    C: np.ndarray
+    joint_angles: np.ndarray
+    joint_positions: np.ndarray
+    latency_s: float
+
+
+@dataclass
+class RecordingStatus:
+    raw_path: Path | None = None
+    filtered_path: Path | None = None
+    raw_records: int = 0
+    raw_bytes: int = 0
+    filtered_rows: int = 0
+    error: str | None = None
+
+
+@dataclass
+class LiveStatus:
+    """A snapshot for status lines and the GUI (all counts since the session started)."""
+
+    source: SourceStatus
+    running: bool
+    rate_hz: float
+    frames: int
+    processed: int
+    error_bits: int
+    dropped: int  # deliveries dropped to slow subscribers
+    processing_backlog: int
+    recording: RecordingStatus | None
+    forwarding: list[str] = field(default_factory=list)
+    forwarded: int = 0
+    forward_errors: int = 0
+    latency_p99_ms: float = 0.0
+    events: list[str] = field(default_factory=list)  # recent notable events, newest last
+
+
+class _RawLogger(threading.Thread):
+    """Writes raw records from an unbounded queue; stops (with a message) on a write error."""
+
+    def __init__(self, writer: RawWriter, status: RecordingStatus,
+                 on_error: Callable[[str], None]) -> None:
+        super().__init__(name="bpms-raw-logger", daemon=True)
+        self.writer = writer
+        self.status = status
+        self.on_error = on_error
+        self.queue: queue.SimpleQueue[FrameEvent | object] = queue.SimpleQueue()
+
+    def run(self) -> None:
+        try:
+            while True:
+                item = self.queue.get()
+                if item is _STOP:
+                    break
+                assert isinstance(item, FrameEvent)
+                self.writer.write(item.host_time, item.frame)
+                self.status.raw_records = self.writer.records
+                self.status.raw_bytes = self.writer.size_bytes
+        except RecordingError as exc:
+            self.status.error = str(exc)
+            self.on_error(f"raw recording stopped: {exc}")
+        finally:
+            try:
+                self.writer.close()
+            except OSError as exc:
+                self.on_error(f"closing {self.writer.path} failed: {exc}")
+
+
+class LiveSession:
+    """Runs a :class:`FrameSource` through the pipeline until :meth:`stop`.
+
+    ``processor``: a BodyPoseProcessor (built from ``options`` and the factory calibration when
+    None). The calibration and options in force are written into raw recordings' headers.
+    """
+
+    def __init__(self, source: FrameSource, options: Options | None = None,
+                 processor: BodyPoseProcessor | None = None, *,
+                 recording_dir: str | Path | None = None, notes: str = "") -> None:
+        self.source = source
+        self.options = options or Options()
+        self.processor = processor or BodyPoseProcessor(options=self.options)
+        self.notes = notes
+        self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
+                                     self.options.logging.name)
+        self._fanout: Fanout[PoseSample] = Fanout()
+        self._proc_queue: queue.Queue[FrameEvent | object] = queue.Queue(maxsize=3000)
+        self._commands: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._lock = threading.Lock()
+        self._rate = RateMeter()
+        self._frames = 0
+        self._processed = 0
+        self._error_bits = 0
+        self._overflow = 0
+        self._latencies: list[float] = []
+        self._events: list[str] = []
+        self._raw_logger: _RawLogger | None = None
+        self._filtered: FilteredWriter | None = None
+        self._filtered_flushed = 0.0
+        self._recording: RecordingStatus | None = None
+        self._forwarder: UdpForwarder | None = None
+
+    # -- life cycle ---------------------------------------------------------------------
+    def start(self) -> None:
+        for target, name in ((self._acquire, "bpms-acquisition"),
+                             (self._process_loop, "bpms-processing")):
+            thread = threading.Thread(target=target, name=name, daemon=True)
+            thread.start()
+            self._threads.append(thread)
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop the threads, close the source, the recordings and the forwarder."""
+        self._stop.set()
+        self.source.close()
+        for thread in self._threads:
+            thread.join(timeout)
+        self._threads.clear()
+        self.stop_logging()
+        self.stop_forwarding()
+
+    @property
+    def running(self) -> bool:
+        return any(t.is_alive() for t in self._threads)
+
+    def __enter__(self) -> LiveSession:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def note(self, message: str) -> None:
+        """Record a notable event (logged, and kept for the status display)."""
+        log.warning("%s", message)
+        with self._lock:
+            self._events = [*self._events[-49:], f"{time.strftime('%H:%M:%S')} {message}"]
+
+    # -- consumers ------------------------------------------------------------------------
+    def subscribe(self, maxlen: int = 500) -> Subscription[PoseSample]:
+        """A bounded mailbox of every processed frame from now on."""
+        return self._fanout.subscribe(maxlen)
+
+    def unsubscribe(self, sub: Subscription[PoseSample]) -> None:
+        self._fanout.unsubscribe(sub)
+
+    # -- commands -------------------------------------------------------------------------
+    def reset_zero(self) -> None:
+        """Reset Zero at the next processed frame (SPEC §6)."""
+        self._commands.put(self.processor.reset_zero)
+
+    def set_gains(self, **gains: float) -> None:
+        """Change filter gains/dt from the next frame on (see BodyPoseProcessor.set_gains)."""
+        self._commands.put(lambda: self.processor.set_gains(**gains))
+
+    def start_logging(self, raw: bool = True, filtered: bool = True, name: str | None = None,
+                      degrees: bool = False) -> RecordingStatus:
+        """Start recording with the next sequence-numbered names. Raises RecordingError when
+        the raw file cannot be created (the session goes on)."""
+        self.stop_logging()
+        if name is not None:
+            self._namer = RecordingNamer(self._namer.directory, name)
+        self._namer.directory.mkdir(parents=True, exist_ok=True)
+        raw_path, filtered_path = self._namer.next_paths()
+        status = RecordingStatus()
+        if raw:
+            header = new_header(calibration=self.processor.table.values,
+                                options=_options_dict(self.options), notes=self.notes,
+                                source=self.source.status().description)
+            writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
+            logger = _RawLogger(writer, status, self.note)
+            logger.start()
+            status.raw_path = raw_path
+            self._raw_logger = logger
+        if filtered:
+            try:
+                writer = FilteredWriter(filtered_path, degrees=degrees, joints=True)
+            except OSError as exc:
+                self.note(f"filtered recording not started: cannot create {filtered_path}: {exc}")
+            else:
+                status.filtered_path = filtered_path
+                self._commands.put(lambda: setattr(self, "_filtered", writer))
+        self._recording = status
+        return status
+
+    def stop_logging(self) -> RecordingStatus | None:
+        """Stop recording; files are flushed and closed. Returns the final status."""
+        status, self._recording = self._recording, None
+        logger, self._raw_logger = self._raw_logger, None
+        if logger is not None:
+            logger.queue.put(_STOP)
+            logger.join(10.0)
+        done = threading.Event()
+
+        def close_filtered() -> None:
+            writer, self._filtered = self._filtered, None
+            if writer is not None:
+                writer.close()
+            done.set()
+
+        if self.running:
+            self._commands.put(close_filtered)
+            done.wait(5.0)
+        else:
+            close_filtered()
+        return status
+
+    def start_forwarding(self, targets: list[str] | None = None) -> UdpForwarder:
+        """Send every raw frame and pose to ``targets`` (default: the options' list)."""
+        self.stop_forwarding()
+        self._forwarder = UdpForwarder(targets or self.options.udp.forward_to,
+                                       self.options.udp.multicast_ttl)
+        return self._forwarder
+
+    def stop_forwarding(self) -> None:
+        forwarder, self._forwarder = self._forwarder, None
+        if forwarder is not None:
+            forwarder.close()
+
+    # -- status ---------------------------------------------------------------------------
+    def status(self) -> LiveStatus:
+        fwd = self._forwarder
+        fstats = fwd.stats if fwd is not None else None
+        with self._lock:
+            lat = sorted(self._latencies[-500:])
+            events = list(self._events)
+        return LiveStatus(
+            source=self.source.status(), running=self.running, rate_hz=self._rate.rate_hz(),
+            frames=self._frames, processed=self._processed, error_bits=self._error_bits,
+            dropped=self._fanout.dropped + self._overflow,
+            processing_backlog=self._proc_queue.qsize(), recording=self._recording,
+            forwarding=[f"{h}:{p}" for h, p in fwd.targets] if fwd else [],
+            forwarded=fstats.sent if fstats else 0,
+            forward_errors=fstats.errors if fstats else 0,
+            latency_p99_ms=1e3 * lat[int(0.99 * (len(lat) - 1))] if lat else 0.0,
+            events=events)
+
+    # -- threads ----------------------------------------------------------------------------
+    def _acquire(self) -> None:
+        while not self._stop.is_set():
+            try:
+                events = self.source.read(0.1)
+            except Exception as exc:  # a source bug must not kill the session silently
+                self.note(f"source error: {exc}")
+                time.sleep(0.1)
+                continue
+            if not events:
+                continue
+            self._rate.mark(len(events))
+            forwarder, logger = self._forwarder, self._raw_logger
+            for event in events:
+                self._frames += 1
+                if forwarder is not None:
+                    forwarder.send_frame(event.frame, max(event.index, 0) * FRAME_PERIOD_S)
+                if logger is not None:
+                    logger.queue.put(event)
+                try:
+                    self._proc_queue.put_nowait(event)
+                except queue.Full:
+                    self._overflow += 1
+        self._proc_queue.put(_STOP)
+
+    def _process_loop(self) -> None:
+        """Takes frames one by one at 50 Hz; when behind (replay at full speed, a Bluetooth
+        burst) takes everything waiting and filters it as one batch (same results)."""
+        while True:
+            try:
+                first = self._proc_queue.get(timeout=0.1)
+            except queue.Empty:
+                self._run_commands()
+                if self._stop.is_set():
+                    break
+                continue
+            batch = [first]
+            while len(batch) < 512:
+                try:
+                    batch.append(self._proc_queue.get_nowait())
+                except queue.Empty:
+                    break
+            self._run_commands()
+            stop = any(item is _STOP for item in batch)
+            events = [item for item in batch if isinstance(item, FrameEvent)]
+            # Runs that start at a discontinuity: the filters restart there.
+            starts = [k for k, e in enumerate(events) if e.discontinuity and k > 0]
+            for lo, hi in zip([0, *starts], [*starts, len(events)], strict=True):
+                if lo < hi:
+                    try:
+                        self._process(events[lo:hi])
+                    except Exception as exc:
+                        self.note(f"processing error on frames {events[lo].index}..: {exc}")
+            if stop:
+                break
+
+    def _run_commands(self) -> None:
+        while True:
+            try:
+                command = self._commands.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                command()
+            except Exception as exc:
+                self.note(f"command failed: {exc}")
+
+    def _process(self, events: list[FrameEvent]) -> None:
+        """Filter a run of frames (a discontinuity, if any, is on the first)."""
+        proc = self.processor
+        head = events[0]
+        if head.discontinuity:
+            if head.preroll:
+                proc.reset_filter()
+                decoded = decode_frames(head.preroll)
+                proc.process(decoded.raw, decoded.errors)
+            elif head.index <= 0:
+                proc.restart()
+            else:
+                proc.reset_filter()
+        decoded = decode_frames(b"".join(e.frame for e in events))
+        if len(events) == 1:
+            result = proc.step(decoded.raw[0], decoded.errors[0])
+        else:
+            result = proc.process(decoded.raw, decoded.errors)
+        angles = result.joint_angles
+        positions = result.joint_positions
+        done = time.perf_counter()
+        samples = [PoseSample(e.index, e.host_time, e.frame, decoded.raw[k], decoded.errors[k],
+                              result.euler[k], result.R[k], result.C[k], angles[k],
+                              positions[k], done - e.arrival)
+                   for k, e in enumerate(events)]
+        self._processed += len(events)
+        self._error_bits += int(decoded.errors.sum())
+        self._log_filtered(events, result.euler, angles)
+        forwarder = self._forwarder
+        if forwarder is not None:
+            quats = result.segment_quaternions.astype(np.float32)
+            finite = np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
+            for k, e in enumerate(events):
+                if finite[k]:
+                    forwarder.send_pose(quats[k], angles[k].astype(np.float32),
+                                        max(e.index, 0) * FRAME_PERIOD_S)
+        with self._lock:
+            self._latencies.extend(s.latency_s for s in samples)
+            if len(self._latencies) > 5000:
+                del self._latencies[:-2500]
+        for sample in samples:
+            self._fanout.publish(sample)
+
+    def _log_filtered(self, events: list[FrameEvent], euler: np.ndarray,
+                      angles: np.ndarray) -> None:
+        writer = self._filtered
+        if writer is None:
+            return
+        try:
+            # Time column: s since the start of the source (file position on replay).
+            t = np.array([max(e.index, 0) for e in events]) * FRAME_PERIOD_S
+            writer.write_block(t, euler, angles)
+            if self._recording is not None:
+                self._recording.filtered_rows += len(events)
+            now = time.monotonic()
+            if now - self._filtered_flushed >= self.options.logging.flush_interval_s:
+                writer.flush()
+                self._filtered_flushed = now
+        except OSError as exc:
+            self._filtered = None
+            self.note(f"filtered recording stopped: {exc}")
+
+
+def _options_dict(options: Options) -> dict:
+    import dataclasses
+
+    return {name: dataclasses.asdict(section) for name, section in options.sections().items()}
