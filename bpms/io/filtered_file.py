@@ -144,6 +144,9 @@ def read_filtered(path: str | Path) -> FilteredData:
     first = [c.strip() for c in lines[0].split(",")]
     legacy = all(_is_number(c) for c in first)
     if legacy:
+        if len(first) != N_LEGACY_COLUMNS:
+            raise FilteredFileError(f"{path}: not a filtered file ({len(first)} numbers per line, "
+                                    f"the legacy layout has {N_LEGACY_COLUMNS})")
         columns, body = filtered_columns(), lines
     else:
         columns, body = first, lines[1:]

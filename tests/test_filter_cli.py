@@ -1,0 +1,120 @@
+"""The filtered CSV file and ``bpms filter`` on a recording made from simulated data."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bpms.cli import main
+from bpms.filter.processor import BodyPoseProcessor
+from bpms.firmware.sim.session import simulate
+from bpms.io.filtered_file import (
+    FilteredFileError,
+    FilteredWriter,
+    default_output_path,
+    filtered_columns,
+    read_filtered,
+)
+from bpms.io.rawfile import RECORD_SIZE, new_header, write_raw
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    rec = simulate(duration_s=6.0, seed=4, error_rate=0.001)
+    path = tmp_path_factory.mktemp("raw") / "Raw_trial_001.bpmsraw"
+    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    return rec, path
+
+
+def test_columns_name_every_value_with_its_unit():
+    cols = filtered_columns()
+    assert len(cols) == 55 and cols[0] == "time_s"
+    assert cols[1:4] == ["imu0_right_leg_roll_rad", "imu0_right_leg_pitch_rad",
+                         "imu0_right_leg_yaw_rad"]
+    assert cols[-1] == "imu17_head_yaw_rad"
+    deg = filtered_columns(degrees=True, joints=True)
+    assert len(deg) == 55 + 28 and deg[-1].endswith("_deg") and "joint_knee_r_flexion_deg" in deg
+
+
+def test_writer_reader_round_trip(tmp_path):
+    rng = np.random.default_rng(0)
+    t = np.arange(7) * 0.02
+    euler = rng.uniform(-3, 3, (7, 18, 3))
+    euler[0, 5] = np.nan
+    joints = rng.uniform(-2, 2, (7, 28))
+    for degrees in (False, True):
+        path = tmp_path / f"f{degrees}.csv"
+        with FilteredWriter(path, degrees=degrees, joints=True) as w:
+            w.write_block(t[:4], euler[:4], joints[:4])
+            for k in range(4, 7):
+                w.write(t[k], euler[k], joints[k])
+        data = read_filtered(path)
+        assert data.unit == ("deg" if degrees else "rad") and not data.legacy
+        np.testing.assert_allclose(data.euler, euler, rtol=1e-9, equal_nan=True)
+        np.testing.assert_allclose(data.joint_angles, joints, rtol=1e-9)
+        np.testing.assert_allclose(data.t, t)
+
+
+def test_reader_accepts_legacy_headerless_layout(tmp_path):
+    rows = np.arange(3 * 55, dtype=float).reshape(3, 55) / 100
+    path = tmp_path / "Filtered.txt"
+    path.write_text("\n".join(", ".join(str(float(v)) for v in row) for row in rows) + "\n")
+    data = read_filtered(path)
+    assert data.legacy and data.joint_angles is None
+    np.testing.assert_allclose(data.euler[1, 2], rows[1, 7:10])
+    bad = tmp_path / "bad.csv"
+    bad.write_text("a,b,c\n1,2,3\n")
+    with pytest.raises(FilteredFileError):
+        read_filtered(bad)
+
+
+def test_bpms_filter_writes_one_row_per_frame_like_the_api(recording, tmp_path):
+    rec, raw_path = recording
+    out = tmp_path / "out.csv"
+    assert main(["filter", str(raw_path), "-o", str(out), "--joints"]) == 0
+    data = read_filtered(out)
+    api = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors)
+    assert len(data.t) == len(rec)
+    np.testing.assert_allclose(data.t, np.arange(len(rec)) * 0.02, atol=1e-12)
+    np.testing.assert_allclose(data.euler, api.euler, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(data.joint_angles, api.joint_angles, rtol=1e-9, atol=1e-12)
+    # degrees, default output name beside the raw file
+    assert main(["filter", str(raw_path), "--degrees"]) == 0
+    deg = read_filtered(default_output_path(raw_path))
+    assert default_output_path(raw_path).name == "Filtered_trial_001.csv"
+    assert deg.unit == "deg"
+    np.testing.assert_allclose(deg.euler, api.euler, rtol=1e-9, atol=1e-12)
+
+
+def _run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "bpms", "filter", *args], capture_output=True,
+                          text=True, timeout=60)
+
+
+def test_bad_inputs_give_one_line_and_nonzero_exit(tmp_path, recording):
+    _, raw_path = recording
+    not_raw = tmp_path / "notes.bpmsraw"
+    not_raw.write_text("hello")
+    cut = tmp_path / "cut.bpmsraw"
+    cut.write_bytes(raw_path.read_bytes()[:40])  # inside the header
+    for path in (tmp_path / "missing.bpmsraw", not_raw, cut):
+        proc = _run_cli(str(path), "-o", str(tmp_path / "x.csv"))
+        assert proc.returncode != 0
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("bpms filter: "), proc.stderr
+        assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_torn_last_record_is_filtered_with_a_warning(tmp_path, recording):
+    rec, raw_path = recording
+    torn = tmp_path / "torn.bpmsraw"
+    torn.write_bytes(raw_path.read_bytes()[: -RECORD_SIZE // 2])
+    out = tmp_path / "torn.csv"
+    proc = _run_cli(str(torn), "-o", str(out))
+    assert proc.returncode == 0
+    assert "incomplete" in proc.stderr
+    assert len(read_filtered(out).t) == len(rec) - 1
