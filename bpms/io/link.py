@@ -1,0 +1,229 @@
+"""The suit link: the host side of the arbiter protocol (SPEC §3) over pyserial.
+
+Layers, lowest first:
+
+- :func:`list_candidate_ports` / :func:`discover_suit`: find the port that answers ``BPMS``;
+- :class:`SuitLink`: one open port (a device path or any pyserial URL, e.g.
+  ``socket://127.0.0.1:5050``) with the commands ``identify``, ``battery_volts``, ``start``,
+  ``stop`` and :meth:`SuitLink.read_frames`, which returns the whole 340-byte frames parsed so
+  far (:class:`bpms.io.parser.FrameParser`; its stats are the resync counters).
+
+Every read waits at most a bounded time. Problems raise :class:`LinkError` with a one-line
+message. The port is opened non-blocking (pyserial ``timeout=0``) and waits use ``select`` on
+its file descriptor, which works for serial devices, pseudo-terminals and sockets alike.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import glob
+import logging
+import re
+import select
+import time
+from dataclasses import dataclass
+
+import serial
+import serial.tools.list_ports
+
+from bpms.io.parser import FrameParser
+
+log = logging.getLogger(__name__)
+
+CMD_START = b"\x00"
+CMD_BATTERY = b"\x01"
+CMD_IDENTIFY = b"\x02"
+IDENTITY = b"BPMS"
+BATTERY_REPLY = re.compile(rb"V(\d{1,2}\.\d{1,3})\r?\n")
+DEFAULT_BAUD = 1_000_000
+READ_CHUNK = 65536
+
+
+class LinkError(Exception):
+    """A suit-link problem, with a one-line message for the user."""
+
+
+def list_candidate_ports() -> list[str]:
+    """Serial ports that may lead to the suit: pyserial's list plus ``/dev/rfcomm*``."""
+    ports = [p.device for p in serial.tools.list_ports.comports()]
+    for path in sorted(glob.glob("/dev/rfcomm*")):
+        if path not in ports:
+            ports.append(path)
+    return ports
+
+
+def discover_suit(candidates: list[str] | None = None, timeout_s: float = 1.0,
+                  baud: int = DEFAULT_BAUD) -> str | None:
+    """The first port among ``candidates`` (default :func:`list_candidate_ports`) that answers
+    0x02 with ``BPMS`` within ``timeout_s``; None when none does. Ports that cannot be opened
+    or do not answer are skipped (logged)."""
+    for port in list_candidate_ports() if candidates is None else candidates:
+        try:
+            with SuitLink(port, baud=baud, reply_timeout_s=timeout_s) as link:
+                link.identify()
+        except LinkError as exc:
+            log.info("discovery: %s", exc)
+            continue
+        return port
+    return None
+
+
+@dataclass
+class LinkStats:
+    """Counters of a :class:`SuitLink` (the parser keeps the frame/resync counters)."""
+
+    starts: int = 0
+    stale_discarded: int = 0  # first frames after a start, dropped (SPEC §3)
+    frames_read: int = 0  # frames returned by read_frames
+    reply_bytes_skipped: int = 0  # bytes before/after a reply that were not part of it
+
+
+class SuitLink:
+    """An open link to the suit. ``port``: a device path or a pyserial URL.
+
+    ``baud`` is nominal over Bluetooth SPP; ``read_timeout_s`` bounds each
+    :meth:`read_frames` wait; ``reply_timeout_s`` bounds the wait for a command's reply and
+    for the first frames after :meth:`start`.
+    """
+
+    def __init__(self, port: str, baud: int = DEFAULT_BAUD, read_timeout_s: float = 0.05,
+                 reply_timeout_s: float = 1.0) -> None:
+        self.port = port
+        self.read_timeout_s = read_timeout_s
+        self.reply_timeout_s = reply_timeout_s
+        self.parser = FrameParser()
+        self.stats = LinkStats()
+        self.streaming = False
+        self._pending: list[bytes] = []  # frames parsed while waiting for something else
+        try:
+            self._ser = serial.serial_for_url(port, baudrate=baud, timeout=0, write_timeout=1.0)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise LinkError(f"cannot open {port}: {_reason(exc)}") from None
+
+    # -- low level ------------------------------------------------------------------------
+    def _write(self, data: bytes) -> None:
+        try:
+            self._ser.write(data)
+            self._ser.flush()
+        except (serial.SerialException, OSError) as exc:
+            raise LinkError(f"cannot write to {self.port}: {_reason(exc)}") from None
+
+    def _read(self, wait_s: float) -> bytes:
+        """The bytes available now, waiting up to ``wait_s`` for the first ones."""
+        try:
+            try:
+                fd = self._ser.fileno()
+            except (AttributeError, NotImplementedError, serial.SerialException):
+                fd = None
+            if fd is not None:
+                ready, _, _ = select.select([fd], [], [], max(wait_s, 0.0))
+                if not ready:
+                    return b""
+                return self._ser.read(READ_CHUNK)
+            deadline = time.monotonic() + wait_s
+            while True:
+                data = self._ser.read(READ_CHUNK)
+                if data or time.monotonic() >= deadline:
+                    return data
+                time.sleep(0.002)
+        except (serial.SerialException, OSError) as exc:
+            raise LinkError(f"cannot read from {self.port}: {_reason(exc)}") from None
+
+    def _command(self, cmd: bytes, reply: re.Pattern[bytes], what: str,
+                 keep_frames: bool | None = None) -> re.Match[bytes]:
+        """Send ``cmd`` and wait for ``reply``. Bytes before it (frames still in flight when
+        the command stopped a stream) go to the parser when streaming (or ``keep_frames``);
+        the match is returned."""
+        keep = self.streaming if keep_frames is None else keep_frames
+        self.streaming = False
+        self._write(cmd)
+        buf = bytearray()
+        deadline = time.monotonic() + self.reply_timeout_s
+        while True:
+            match = reply.search(buf)
+            if match:
+                before = bytes(buf[: match.start()])
+                if keep:
+                    self._pending += self.parser.feed(before)
+                else:
+                    self.stats.reply_bytes_skipped += len(before)
+                self.stats.reply_bytes_skipped += len(buf) - match.end()
+                return match
+            left = deadline - time.monotonic()
+            if left <= 0:
+                shown = bytes(buf[-24:])
+                got = f"got {len(buf)} bytes ending {shown!r}" if buf else "no answer"
+                raise LinkError(f"{self.port} did not answer {what} within "
+                                f"{self.reply_timeout_s:g} s ({got})")
+            buf += self._read(min(left, 0.05))
+
+    # -- commands -------------------------------------------------------------------------
+    def identify(self) -> None:
+        """Send 0x02; raise :class:`LinkError` unless ``BPMS`` comes back in time."""
+        self._command(CMD_IDENTIFY, re.compile(re.escape(IDENTITY)), "'BPMS'")
+
+    def battery_volts(self) -> float:
+        """Send 0x01 and return the battery voltage, V (reply ``V3.27\\n``)."""
+        match = self._command(CMD_BATTERY, BATTERY_REPLY, "a battery reading")
+        return float(match.group(1))
+
+    def start(self) -> None:
+        """Send 0x00 and discard the first (stale) frame; later frames go to read_frames."""
+        self._write(CMD_START)
+        self.streaming = True
+        self.stats.starts += 1
+        deadline = time.monotonic() + self.reply_timeout_s
+        frames: list[bytes] = []
+        while not frames:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                self.streaming = False
+                raise LinkError(f"{self.port} sent no frame within {self.reply_timeout_s:g} s "
+                                "of the start command")
+            frames = self.parser.feed(self._read(min(left, 0.05)))
+        self.stats.stale_discarded += 1
+        self._pending += frames[1:]
+
+    def stop(self) -> None:
+        """Stop the stream: send 0x02 (any byte stops it) and wait for its ``BPMS`` reply, so
+        that the frames still in flight are parsed (kept for read_frames) and the line is
+        quiet afterwards."""
+        self._command(CMD_IDENTIFY, re.compile(re.escape(IDENTITY)), "the stop command",
+                      keep_frames=True)
+
+    def read_frames(self, wait_s: float | None = None) -> list[bytes]:
+        """Whole frames received so far (waiting up to ``wait_s``, default read_timeout_s,
+        when none is ready yet), in order."""
+        out, self._pending = self._pending, []
+        if not out:
+            wait = self.read_timeout_s if wait_s is None else wait_s
+            out = self.parser.feed(self._read(wait))
+        while True:  # drain what else is already there, without waiting
+            more = self._read(0.0)
+            if not more:
+                break
+            out += self.parser.feed(more)
+        self.stats.frames_read += len(out)
+        return out
+
+    def close(self) -> None:
+        """Close the port (does not send anything)."""
+        with contextlib.suppress(serial.SerialException, OSError):
+            self._ser.close()
+
+    def __enter__(self) -> SuitLink:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _reason(exc: BaseException) -> str:
+    """A short reason from a pyserial/OS exception."""
+    text = str(exc).strip() or type(exc).__name__
+    m = re.search(r"\[Errno \d+\] ([^:']+)", text)
+    if m:
+        return m.group(1).strip()
+    if isinstance(exc, OSError) and isinstance(exc.strerror, str) and exc.strerror:
+        return exc.strerror.splitlines()[0]
+    return text.splitlines()[0]
