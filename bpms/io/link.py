@@ -221,9 +221,9 @@ class SuitLink:
 def _reason(exc: BaseException) -> str:
     """A short reason from a pyserial/OS exception."""
     text = str(exc).strip() or type(exc).__name__
-    m = re.search(r"\[Errno \d+\] ([^:']+)", text)
-    if m:
-        return m.group(1).strip()
+    found = re.findall(r"\[Errno \d+\] ([^:']+)", text)
+    if found:
+        return found[-1].strip()
     if isinstance(exc, OSError) and isinstance(exc.strerror, str) and exc.strerror:
         return exc.strerror.splitlines()[0]
     return text.splitlines()[0]
