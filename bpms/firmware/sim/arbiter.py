@@ -50,6 +50,8 @@ class Faults:
     burst_prob: float = 0.05  # per frame: the radio starts holding frames back
     burst_max_s: float = 0.3  # longest hold, s
     jitter_s: tuple[float, float] = (0.002, 0.010)  # delay outside holds, s
+    silence_at_s: float | None = None  # go silent this long after power-up, s (once)
+    silence_s: float = 0.0  # for this long, s
 
 
 @dataclass
@@ -145,11 +147,13 @@ class Arbiter:
         self._last_release = 0.0
         self._hold_until = 0.0
         self._silent_until = 0.0
+        self._silence_done = False
 
     # -- host → suit --------------------------------------------------------------------
     def receive(self, data: bytes, now: float | None = None) -> None:
         """Bytes from the host, in order."""
         now = self.clock() if now is None else now
+        self._scheduled_silence(now)
         if now < self._silent_until:
             self.stats.silenced_bytes_in += len(data)
             return
@@ -185,6 +189,7 @@ class Arbiter:
         transport's buffer); realtime frames never wait for room, the transport drops them.
         """
         now = self.clock() if now is None else now
+        self._scheduled_silence(now)
         self._emit_due(now, max_frames)
         out = []
         while self._queue and self._queue[0][0] <= now:
@@ -220,6 +225,12 @@ class Arbiter:
         return self.stats.motion_frames
 
     # -- internals ----------------------------------------------------------------------
+    def _scheduled_silence(self, now: float) -> None:
+        at = self.faults.silence_at_s
+        if at is not None and not self._silence_done and now - self._t0 >= at:
+            self._silence_done = True
+            self.silence(self.faults.silence_s, self._t0 + at)
+
     def _deadline(self, k: int) -> float:
         return self._stream_start + k * FRAME_PERIOD_S
 
