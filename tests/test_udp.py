@@ -508,3 +508,34 @@ def test_multicast_on_loopback():
 def test_header_helper_wraps_sequence_numbers():
     head = encode_header(MessageType.RAW_FRAME, 1, SEQ_MOD + 5, 0.0, 0.0)
     assert struct.unpack_from(">I", head, 12)[0] == 5
+
+
+def _docs_reader():
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "docs" / "udp.md").read_text(encoding="utf-8")
+    start = text.index("# bpms-udp-reader")
+    code = text[start : text.index("```", start)]
+    namespace: dict = {"__name__": "docs_example"}
+    exec(compile(code, "docs/udp.md", "exec"), namespace)
+    return namespace["parse"]
+
+
+def test_docs_third_party_reader_agrees_with_the_codec():
+    parse = _docs_reader()
+    raw = np.arange(162, dtype=np.int16).reshape(18, 9) - 81
+    errors = np.zeros((18, 3), bool)
+    errors[16, 2] = True
+    frame = encode_frame(raw, errors)
+    msg = parse(encode_raw_frame(frame, session=4, seq=77, suit_time=1.54, send_time=9.0))
+    assert (msg["type"], msg["session"], msg["seq"], msg["suit_time"]) == (1, 4, 77, 1.54)
+    assert np.array_equal(np.array(msg["imus"]), raw)
+    assert msg["error_words"][5] == 1 << (3 * 1 + 2)  # IMU 16 = cluster 5 slot 1, gyro
+    q = unit_quats()
+    angles = np.linspace(-1.5, 1.5, 28)
+    msg = parse(encode_pose(q, angles, session=4, seq=3, suit_time=0.5, send_time=9.0))
+    assert np.allclose(msg["quaternions"], q, atol=1e-6)
+    assert np.allclose(msg["angles"], angles, atol=1e-6)
+    assert JOINT_ANGLE_NAMES[2] == "knee_r.flexion"  # the example prints angles[2] as knee_r
+    for bad in random_bad_datagrams(300, seed=3):
+        assert parse(bad) is None or bad[5] == 2  # its POSE checks are lighter than ours
