@@ -159,10 +159,12 @@ def add_noise(values: SensorValues, model: SensorModel, rng: np.random.Generator
     bias_dir = bias_rng.normal(size=(N_IMUS, 3))
     bias_dir /= np.linalg.norm(bias_dir, axis=-1, keepdims=True)
     bias = np.deg2rad(model.gyro_bias_dps) * bias_dir
+    # One draw per sample, so a shorter recording is a prefix of a longer one (same seed).
+    white = rng.standard_normal((shape[0], N_IMUS, 3, 3))
     return SensorValues(
-        acc=values.acc + rng.normal(0.0, model.acc_noise_counts, shape),
-        mag=values.mag + rng.normal(0.0, model.mag_noise, shape),
-        gyr=values.gyr + bias + rng.normal(0.0, np.deg2rad(model.gyro_noise_dps), shape),
+        acc=values.acc + model.acc_noise_counts * white[..., 0, :],
+        mag=values.mag + model.mag_noise * white[..., 1, :],
+        gyr=values.gyr + bias + np.deg2rad(model.gyro_noise_dps) * white[..., 2, :],
     )
 
 
@@ -179,12 +181,12 @@ def inject_errors(raw: np.ndarray, rate: float, rng: np.random.Generator
     flags = np.zeros((*raw.shape[:-1], N_SENSORS), dtype=bool)
     if rate <= 0:
         return raw, flags
-    flags = rng.random(flags.shape) < rate
+    draw = rng.random((*flags.shape, 2))  # per sample: fail?, zero or garbage?
+    flags = draw[..., 0] < rate
     raw = raw.copy()
-    idx = np.nonzero(flags)
-    garbage = rng.integers(-32768, 32768, size=(len(idx[0]), 3), dtype=np.int64)
-    zero = rng.random(len(idx[0])) < 0.5
-    garbage[zero] = 0
     view = raw.reshape(*raw.shape[:-1], N_SENSORS, 3)
-    view[idx] = garbage.astype(np.int16)
+    idx = np.nonzero(flags)
+    garbage = ((draw[idx][:, 1:] * 1e6 * np.arange(1, 4)) % 65536 - 32768).astype(np.int16)
+    garbage[draw[idx][:, 1] < 0.5] = 0
+    view[idx] = garbage
     return raw, flags
