@@ -150,7 +150,8 @@ int ClusterPort::read() {
 }
 
 void ClusterPort::write(const uint8_t* data, uint16_t n) {
-    uint64_t t = tx.empty() ? world_.now : std::max(world_.now, tx.back().time);
+    uint64_t t = world_.now + reply_delay_us;
+    if (!tx.empty()) t = std::max(t, tx.back().time);
     if (max_reply_bytes >= 0 && n > max_reply_bytes) n = static_cast<uint16_t>(max_reply_bytes);
     for (uint16_t i = 0; i < n; ++i) {
         t += world_.cluster_byte_us;

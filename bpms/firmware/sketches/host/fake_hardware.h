@@ -101,6 +101,7 @@ public:
     std::deque<uint8_t> rx;
     std::deque<TimedByte> tx;
     int max_reply_bytes = -1;  // >= 0: every write is cut after that many bytes (broken wire)
+    uint64_t reply_delay_us = 0;  // a slow board: its bytes start this long after the write
 
 private:
     World& world_;

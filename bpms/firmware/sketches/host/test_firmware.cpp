@@ -459,6 +459,23 @@ TEST(silent_or_cut_cluster_gives_zeros_and_all_error_bits) {
     for (size_t j = 1; j < t.size(); ++j) CHECK(t[j] - t[j - 1] >= 19990 && t[j] - t[j - 1] <= 20010);
 }
 
+TEST(late_reply_of_the_last_cluster_is_not_taken_for_a_host_command) {
+    Suit s;
+    // Cluster 5 starts answering 2.2 ms after the poll: its reply is still arriving when the
+    // arbiter gives up (2.5 ms) and switches back to the radio.
+    s.cluster(5).port.reply_delay_us = 2200;
+    s.w.host_send(bpms::CMD_STREAM);
+    CHECK(s.run_frames(5));
+    CHECK(s.w.arbiter->streaming());
+    CHECK_EQ(s.w.arbiter->stats().unknown_commands, 0);
+    s.drain();
+    std::vector<Frame> frames;
+    CHECK(split_frames(s.w.radio_bytes(), frames));
+    CHECK(frames.size() >= 5u);
+    for (auto& f : frames) CHECK_EQ(f.error[5], bpms::ERROR_ALL);
+    CHECK(s.w.cluster_bytes_lost > 0);  // the rest of its reply went nowhere
+}
+
 TEST(all_clusters_silent_still_fits_the_period) {
     Suit s;
     for (int k = 0; k < 6; ++k) s.cluster(k).dead = [](uint32_t) { return true; };
