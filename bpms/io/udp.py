@@ -620,6 +620,8 @@ class UdpSource:
             raise UdpConfigError(f"cannot listen on {where}: {exc.strerror or exc}") from None
         self._sock = sock
         self.address: tuple[str, int] = sock.getsockname()
+        #: Effective receive buffer, bytes (the kernel caps the request at net.core.rmem_max).
+        self.rcvbuf: int = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
         self.multicast_group = multicast_group
 
     def _close_sockets(self, sock: socket.socket) -> None:
