@@ -4,10 +4,12 @@ so that firmware and host software cannot disagree about the frame."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import re
 import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -40,13 +42,26 @@ def _missing(*tools: str) -> list[str]:
 
 
 def _make(*targets: str, timeout: float) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        ["make", "--no-print-directory", "-C", str(FIRMWARE), "-j2", *targets],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        check=False,
-    )
+    """Run make in bpms/firmware; a lock file keeps parallel test processes from building
+    into the same directory at once."""
+    (FIRMWARE / "build").mkdir(exist_ok=True)
+    with open(FIRMWARE / "build" / ".make.lock", "w") as lock:
+        deadline = time.monotonic() + 2 * timeout
+        while True:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    pytest.fail("another process held the firmware build lock for too long")
+                time.sleep(0.2)
+        return subprocess.run(
+            ["make", "--no-print-directory", "-C", str(FIRMWARE), "-j2", *targets],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            check=False,
+        )
 
 
 @pytest.fixture(scope="session")
