@@ -132,7 +132,8 @@ def is_legacy_raw(path: str | Path) -> bool:
 def _refused(path: Path, offset: int, exc: Exception) -> RawFileError:
     return RawFileError(
         f"{path}: refused at byte {offset}: {exc}. A BPMS raw file holds only numbers and "
-        "byte strings; this one may be malicious or is not a raw file, and nothing in it was run")
+        "byte strings; this one is not a raw file, is damaged or may be malicious. Nothing in "
+        "it was run")
 
 
 def read_legacy_raw(path: str | Path) -> RawRecording:
