@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 from bpms.commands import CliError
-from bpms.filter.processor import BodyPoseProcessor
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.filtered_file import FilteredWriter, default_output_path
 from bpms.io.frames import decode_frames
@@ -83,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
     out_path = Path(args.output) if args.output else default_output_path(args.raw_file)
     if out_path.exists() and not args.force:
         raise CliError(f"{out_path} exists (use --force to overwrite)")
+    from bpms.filter.processor import BodyPoseProcessor  # numba: only when filtering
+
     proc = BodyPoseProcessor(_calibration(args, recording.header),
                              _options(args, recording.header))
     for problem in proc.problems:

@@ -120,7 +120,9 @@ class FilterBank:
     def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
              errors: np.ndarray | None = None) -> BankOutput:
         """Filter one live frame (``[n, 3]`` each). The returned arrays are fresh copies."""
-        err = self._no_errors if errors is None else np.asarray(errors, dtype=np.bool_)
+        # contiguous arrays of fixed dtypes: another layout would trigger a numba recompile
+        err = (self._no_errors if errors is None
+               else np.ascontiguousarray(errors, dtype=np.bool_))
         out = self._live_out
         step_frame(np.ascontiguousarray(acc, dtype=np.float64),
                    np.ascontiguousarray(mag, dtype=np.float64),

@@ -51,7 +51,7 @@ KP_RP, KI_RP, KP_YAW, KI_YAW, DT = range(5)
 N_PARAMS = 5
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> float:
     """SPEC §5 step 1: tilt-compensated magnetic heading H, rad."""
     cr = math.cos(roll)
