@@ -15,7 +15,8 @@ uint16_t battery_millivolts(uint32_t adc_sum, uint8_t n, const BatteryDivider& d
 }
 
 void format_battery_reply(uint16_t millivolts, uint8_t out[BATTERY_REPLY_BYTES]) {
-    uint16_t cv = static_cast<uint16_t>((millivolts + 5u) / 10u);  // centivolts, rounded
+    // 32-bit sum: on the AVR `unsigned` is 16 bits and 65535 + 5 would wrap to 4.
+    uint32_t cv = (static_cast<uint32_t>(millivolts) + 5u) / 10u;  // centivolts, rounded
     if (cv > 999) cv = 999;
     out[0] = 'V';
     out[1] = static_cast<uint8_t>('0' + cv / 100);

@@ -186,6 +186,8 @@ TEST(battery_conversion_and_format) {
     CHECK(std::memcmp(r, "V0.00\n", 6) == 0);
     bpms::format_battery_reply(12000, r);  // clamped, still 6 bytes
     CHECK(std::memcmp(r, "V9.99\n", 6) == 0);
+    bpms::format_battery_reply(65535, r);
+    CHECK(std::memcmp(r, "V9.99\n", 6) == 0);
     CHECK_EQ(bpms::battery_millivolts(1023u * 8, 8, bpms::DEFAULT_DIVIDER), 6594);
     const bpms::BatteryDivider other = {1100, 100, 27};  // 1.1 V bandgap, 100k over 27k
     const uint16_t mv2 = bpms::battery_millivolts(600u * 8, 8, other);
