@@ -180,3 +180,16 @@ def test_discovery_skips_ports_that_are_not_the_suit(source):
 def test_candidate_ports_are_strings():
     ports = list_candidate_ports()
     assert isinstance(ports, list) and all(isinstance(p, str) for p in ports)
+
+
+def test_a_vanishing_tcp_suit_raises_link_error(source):
+    server = TcpServer(Arbiter(source)).start()
+    with SuitLink(server.url) as link:
+        link.start()
+        assert link.read_frames(0.5)
+        server.stop()
+        with pytest.raises(LinkError, match="cannot read from socket://"):
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 5.0:
+                link.read_frames(0.05)
+        assert not link.streaming

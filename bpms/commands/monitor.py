@@ -93,7 +93,10 @@ def _monitor(port: str, args: argparse.Namespace) -> int:
             link.start()
         except LinkError as exc:
             raise CliError(str(exc)) from None
-        _status_loop(link, volts, args.seconds)
+        try:
+            _status_loop(link, volts, args.seconds)
+        except LinkError as exc:
+            raise CliError(f"link lost: {exc}") from None
     except KeyboardInterrupt:
         pass
     finally:

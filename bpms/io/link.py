@@ -127,6 +127,7 @@ class SuitLink:
                     return data
                 time.sleep(0.002)
         except (serial.SerialException, OSError) as exc:
+            self.streaming = False  # the stream is gone with the port
             raise LinkError(f"cannot read from {self.port}: {_reason(exc)}") from None
 
     def _command(self, cmd: bytes, reply: re.Pattern[bytes], what: str,
