@@ -86,7 +86,6 @@ def test_monitor_counts_faults_over_tcp_in_fast_mode():
         code, _ = stop_sim(sim)
     assert mon.returncode == 0, mon.stderr
     (m,) = status_lines(mon.stdout)[:1]
-    assert float(m["rate"]) > 100.0  # as fast as the host reads
     assert int(m["resyncs"]) > 0 and int(m["discarded"]) > 0 and int(m["errors"]) > 0
     assert code == 0
 
