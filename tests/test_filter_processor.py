@@ -105,3 +105,14 @@ def test_accuracy_on_the_undisturbed_script(full_rec):
     assert np.sqrt(np.mean(incl**2)) < 2.0
     assert np.sqrt(np.mean(joints**2)) < 3.0
     assert np.sqrt(np.mean(head**2)) < 2.0
+
+
+def test_compiled_calibration_equals_sensor_calibration(short_rec):
+    rec = short_rec
+    proc = BodyPoseProcessor(rec.calibration)
+    fast = proc.calibrate(rec.raw)
+    slow = proc.sensor_calibration.calibrate(rec.raw)
+    for f, s in zip(fast, slow, strict=True):
+        np.testing.assert_allclose(f, s, rtol=1e-13, atol=1e-12)
+    as_float = proc.calibrate(rec.raw[:5].astype(np.float64)[:, :, :])
+    np.testing.assert_allclose(as_float[0], slow[0][:5], rtol=1e-13, atol=1e-12)

@@ -34,6 +34,7 @@ import numpy as np
 
 from bpms.filter.body_model import joint_positions
 from bpms.filter.joints import joint_angles
+from bpms.filter.mahony import right_multiply
 from bpms.filter.rotations import dcm_to_euler, rot_z
 from bpms.io.options import BodyOptions
 
@@ -88,7 +89,12 @@ def segment_orientations(R: np.ndarray, zero: Zero | None) -> np.ndarray:
     """``C[..., 18, 3, 3] = R @ R0^T @ Rz(ψ0)``; NaN without a zero."""
     if zero is None:
         return np.full(np.shape(R), np.nan)
-    return np.asarray(R) @ zero.offset
+    R = np.asarray(R, dtype=np.float64)
+    if R.ndim != 4:
+        return R @ zero.offset
+    out = np.empty_like(R)
+    right_multiply(np.ascontiguousarray(R), np.ascontiguousarray(zero.offset), out)
+    return out
 
 
 def body_outputs(C: np.ndarray, body: BodyOptions | None = None,
@@ -131,6 +137,13 @@ class PoseCalibrator:
         """Stream frame index of the automatic capture."""
         return self.settle + self.window - 1
 
+    def _window_ending_at(self, R: np.ndarray, k: int) -> np.ndarray:
+        """The last ``window`` frames up to batch frame ``k``, reaching into earlier batches."""
+        lo = k - self.window + 1
+        if lo >= 0 or self._buffer is None:
+            return R[max(lo, 0):k + 1]
+        return np.concatenate([self._buffer[max(len(self._buffer) + lo, 0):], R[:k + 1]])
+
     def apply(self, R: np.ndarray, zero_at: Iterable[int] = ()) -> np.ndarray:
         """Segment orientations ``C[N, 18, 3, 3]`` of the next N frames' DCMs
         ``R[N, 18, 3, 3]``; ``zero_at``: extra capture frames, indices into this batch."""
@@ -149,8 +162,6 @@ class PoseCalibrator:
             if ok.any():
                 provisional = int(np.argmax(ok))
                 self._provisional_done = True
-        history = R if self._buffer is None else np.concatenate([self._buffer, R])
-        lead = len(history) - n
         C = np.empty_like(R)
         start = 0
         for k in sorted(events | ({provisional} if provisional is not None else set())):
@@ -158,12 +169,17 @@ class PoseCalibrator:
             if k == provisional and k not in events:
                 window = R[k:k + 1]
             else:
-                window = history[max(0, lead + k - self.window + 1): lead + k + 1]
+                window = self._window_ending_at(R, k)
             self.zero = capture_zero(window, self.zero, first + k, self.hip)
             self.captures.append(self.zero)
             start = k
         C[start:] = segment_orientations(R[start:], self.zero)
         keep = self.window - 1
-        self._buffer = history[max(0, len(history) - keep):].copy() if keep else None
+        if keep == 0:
+            self._buffer = None
+        elif n >= keep:
+            self._buffer = R[n - keep:].copy()
+        else:
+            self._buffer = self._window_ending_at(R, n - 1)[-keep:].copy()
         self.frames += n
         return C

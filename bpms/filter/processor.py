@@ -42,7 +42,8 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.bank import FilterBank
-from bpms.filter.calibration import SensorCalibration
+from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
+from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_quaternion
 from bpms.io.calib_file import CalibrationTable, load_calibration
@@ -137,6 +138,12 @@ class BodyPoseProcessor:
         self.options = _load_options(options)
         self.sensor_calibration = SensorCalibration.from_table(self.table, self.options.sensors)
         self.bank = FilterBank(self.sensor_calibration.gravity, self.options.filter)
+        cal = self.sensor_calibration
+        self._cal_params = tuple(np.ascontiguousarray(v, dtype=np.float64) for v in (
+            cal.accel_offset, cal.accel_scale * cal.accel_signs, cal.mag_offset,
+            cal.mag_scale * cal.mag_signs, cal.gyro_avg,
+            np.broadcast_to(GYRO_RAD_S_PER_COUNT * cal.gyro_signs, (N_IMUS, 3)),
+            cal.pre_rotations))
         dt = self.options.filter.dt
         self.pose = PoseCalibrator(window=round(self.options.pose.reset_window_s / dt),
                                    settle=round(SETTLE_S / dt), auto=auto_zero)
@@ -165,6 +172,16 @@ class BodyPoseProcessor:
         self.bank.set_gains(**gains)
 
     # -- running ------------------------------------------------------------------------
+    def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Raw ``[N, 18, 9]`` counts → filter inputs (accel, mag, gyro) ``[N, 18, 3]``: the
+        numbers of ``SensorCalibration.calibrate`` (same formula and parameters), computed in
+        one compiled pass."""
+        raw = np.asarray(raw)
+        if raw.dtype != np.int16 or not raw.flags.c_contiguous:
+            raw = np.ascontiguousarray(raw, dtype=np.float64)
+        outs = tuple(np.empty((raw.shape[0], N_IMUS, 3)) for _ in range(3))
+        calibrate_batch(raw, *self._cal_params, *outs)
+        return outs
     def _result(self, n: int, R: np.ndarray, euler: np.ndarray, C: np.ndarray,
                 captures_before: int) -> Result:
         t = (self.frames + np.arange(n)) * self.options.filter.dt
@@ -180,7 +197,7 @@ class BodyPoseProcessor:
         raw = np.asarray(raw)
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
-        acc, mag, gyr = self.sensor_calibration.calibrate(raw)
+        acc, mag, gyr = self.calibrate(raw)
         out = self.bank.process(acc, mag, gyr, errors=errors)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R, zero_at)
@@ -188,8 +205,8 @@ class BodyPoseProcessor:
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
-        acc, mag, gyr = self.sensor_calibration.calibrate(np.asarray(raw))
-        out = self.bank.step(acc, mag, gyr, errors)
+        acc, mag, gyr = self.calibrate(np.asarray(raw)[None])
+        out = self.bank.step(acc[0], mag[0], gyr[0], errors)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R[None])
         return self._result(1, out.R[None], out.euler[None], C, before)
