@@ -118,3 +118,20 @@ def test_torn_last_record_is_filtered_with_a_warning(tmp_path, recording):
     assert proc.returncode == 0
     assert "incomplete" in proc.stderr
     assert len(read_filtered(out).t) == len(rec) - 1
+
+
+def test_bpms_filter_reads_legacy_pickled_raw_files(tmp_path):
+    """The original suite's raw file (pickled [time, frame] records) filters like the API."""
+    import pickle
+
+    rec = simulate(duration_s=2.0, seed=6)
+    path = tmp_path / "Raw_legacy.txt"
+    with path.open("wb") as f:
+        for k in range(len(rec)):
+            frame = rec.frames[340 * k: 340 * (k + 1)].decode("latin1")  # a Python 2 str
+            pickle.dump([1.3e9 + 0.02 * k, frame], f, protocol=0)
+    out = tmp_path / "legacy.csv"
+    assert main(["filter", str(path), "-o", str(out)]) == 0
+    data = read_filtered(out)
+    api = BodyPoseProcessor().process(rec.raw, rec.errors)  # no calibration stored: factory
+    np.testing.assert_allclose(data.euler, api.euler, rtol=1e-9, atol=1e-12)

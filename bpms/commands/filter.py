@@ -3,7 +3,9 @@
 Writes the filtered CSV file (:mod:`bpms.io.filtered_file`): time, then roll, pitch, yaw of
 IMU 0..17, radians (``--degrees`` for degrees), plus the 28 joint angles with ``--joints``.
 The calibration and options stored in the recording's header are used unless ``--calibration``
-/ ``--options`` name files. Progress goes to stderr for long files.
+/ ``--options`` name files (legacy pickled raw files carry none: factory values). Reads native
+recordings and the original suite's pickled raw files (never executing code). Progress goes
+to stderr for long files.
 """
 
 from __future__ import annotations
@@ -20,7 +22,8 @@ from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.filtered_file import FilteredWriter, default_output_path
 from bpms.io.frames import decode_frames
 from bpms.io.options import Options, load_options, options_from_dict
-from bpms.io.rawfile import RawFileError, read_raw
+from bpms.io.rawfile import RawFileError
+from bpms.io.recordings import open_recording
 
 CHUNK_FRAMES = 15_000  # 5 min of recording per kernel call (keeps memory flat)
 PROGRESS_ABOVE_FRAMES = 30_000
@@ -31,7 +34,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "filter", help="filter a raw recording into a filtered CSV file",
         description="Filter a raw recording (no real-time pacing) into a filtered CSV file: "
                     "time, then roll, pitch, yaw of IMU 0..17.")
-    parser.add_argument("raw_file", metavar="RAW_FILE", help="raw recording (.bpmsraw)")
+    parser.add_argument("raw_file", metavar="RAW_FILE",
+                        help="raw recording (.bpmsraw, or the original suite's pickled .txt)")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="output file (default: Filtered… beside the raw file)")
     parser.add_argument("--degrees", action="store_true", help="angles in degrees (default rad)")
@@ -71,7 +75,7 @@ def _options(args: argparse.Namespace, header: dict) -> Options | None:
 def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     try:
-        recording = read_raw(args.raw_file)
+        recording = open_recording(args.raw_file)
     except RawFileError as exc:
         raise CliError(str(exc)) from exc
     for problem in recording.problems:

@@ -49,7 +49,7 @@ from bpms.filter.rotations import dcm_to_quaternion
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, load_options
-from bpms.io.rawfile import read_raw
+from bpms.io.recordings import open_recording
 
 #: Seconds the filters settle after the stream starts before the automatic Reset Zero window.
 SETTLE_S = 0.5
@@ -212,9 +212,10 @@ class BodyPoseProcessor:
         return self._result(1, out.R[None], out.euler[None], C, before)
 
     def process_file(self, path: str | Path, zero_at: list[int] | tuple[int, ...] = ()) -> Result:
-        """Filter a whole native raw recording (:func:`bpms.io.rawfile.read_raw`) as one new
-        stream. Raises :class:`bpms.io.rawfile.RawFileError` for an unreadable file."""
-        recording = read_raw(path)
+        """Filter a whole raw recording — native (:func:`bpms.io.rawfile.read_raw`) or a
+        legacy pickled raw file (read without executing code) — as one new stream. Raises
+        :class:`bpms.io.rawfile.RawFileError` for an unreadable file."""
+        recording = open_recording(path)
         decoded = recording.decode()
         self.restart()
         result = self.process(decoded.raw, decoded.errors, zero_at)
