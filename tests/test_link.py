@@ -163,11 +163,12 @@ def test_bad_ports_raise_one_line_errors():
         assert "\n" not in str(exc.value)
         with pytest.raises(LinkError, match="battery"):
             link.battery_volts()
-    with GarbagePty(reply=None) as silent, SuitLink(silent.path, reply_timeout_s=0.2) as link:
-        with pytest.raises(LinkError, match="no answer"):
-            link.identify()
-        with pytest.raises(LinkError, match="no frame"):
-            link.start()
+    with (GarbagePty(reply=None) as silent, SuitLink(silent.path, reply_timeout_s=0.2) as link,
+          pytest.raises(LinkError, match="no answer")):
+        link.identify()
+    with (GarbagePty(reply=b"BPMS") as mute, SuitLink(mute.path, reply_timeout_s=0.2) as link,
+          pytest.raises(LinkError, match=r"no frame within 0\.2 s of the start command")):
+        link.start()
 
 
 def test_discovery_skips_ports_that_are_not_the_suit(source):
@@ -193,3 +194,22 @@ def test_a_vanishing_tcp_suit_raises_link_error(source):
             while time.monotonic() - t0 < 5.0:
                 link.read_frames(0.05)
         assert not link.streaming
+
+
+def test_start_after_a_host_left_the_suit_streaming(source):
+    with PtyServer(Arbiter(source)) as server:
+        with SuitLink(server.path) as first:
+            first.start()
+            first.read_frames(0.3)
+        time.sleep(0.2)  # still streaming, nobody reading
+        with SuitLink(server.path) as second:
+            time.sleep(0.1)  # old-stream frames arrive after the open's input flush
+            second.start()
+            frames = second.read_frames(0.3)
+            second.stop()
+            frames += second.read_frames(0.1)
+            skipped = second.stats.reply_bytes_skipped
+        # Old frames went before the sync reply; the new stream is consecutive samples that
+        # end with the last one the suit sent.
+        assert skipped > 0 and second.parser.stats.discarded_bytes == 0
+        check_sequence(frames, source, first=server.arbiter.motion_index - len(frames))

@@ -95,6 +95,7 @@ class SuitLink:
         self.stats = LinkStats()
         self.streaming = False
         self._pending: list[bytes] = []  # frames parsed while waiting for something else
+        self._synced = False  # a reply was seen since opening: the line is quiet
         try:
             self._ser = serial.serial_for_url(port, baudrate=baud, timeout=0, write_timeout=1.0)
         except (serial.SerialException, OSError, ValueError) as exc:
@@ -149,6 +150,7 @@ class SuitLink:
                 else:
                     self.stats.reply_bytes_skipped += len(before)
                 self.stats.reply_bytes_skipped += len(buf) - match.end()
+                self._synced = True
                 return match
             left = deadline - time.monotonic()
             if left <= 0:
@@ -169,7 +171,12 @@ class SuitLink:
         return float(match.group(1))
 
     def start(self) -> None:
-        """Send 0x00 and discard the first (stale) frame; later frames go to read_frames."""
+        """Send 0x00 and discard the first (stale) frame; later frames go to read_frames.
+
+        On a freshly opened link, an identify round trip comes first, so that frames of a
+        stream left running by a previous host cannot pass for this stream's first frame."""
+        if not self._synced:
+            self.identify()
         self._write(CMD_START)
         self.streaming = True
         self.stats.starts += 1
