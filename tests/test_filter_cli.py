@@ -135,3 +135,22 @@ def test_bpms_filter_reads_legacy_pickled_raw_files(tmp_path):
     data = read_filtered(out)
     api = BodyPoseProcessor().process(rec.raw, rec.errors)  # no calibration stored: factory
     np.testing.assert_allclose(data.euler, api.euler, rtol=1e-9, atol=1e-12)
+
+
+def test_bpms_filter_uses_the_options_stored_in_the_recording(tmp_path):
+    from bpms.io.options import Options
+
+    rec = simulate(duration_s=3.0, seed=8)
+    path = tmp_path / "Raw_opts.bpmsraw"
+    header = new_header(calibration=rec.calibration.values,
+                        options={"filter": {"kp_yaw": 0.3, "kp_rollpitch": 0.05}})
+    write_raw(path, rec.t, rec.frames, header)
+    out = tmp_path / "opts.csv"
+    assert main(["filter", str(path), "-o", str(out)]) == 0
+    opts = Options()
+    opts.filter.kp_yaw, opts.filter.kp_rollpitch = 0.3, 0.05
+    api = BodyPoseProcessor(rec.calibration, opts).process(rec.raw, rec.errors)
+    factory = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors)
+    got = read_filtered(out).euler
+    np.testing.assert_allclose(got, api.euler, rtol=1e-9, atol=1e-12)
+    assert not np.allclose(got, factory.euler)
