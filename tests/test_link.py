@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import select
 import threading
@@ -213,3 +214,19 @@ def test_start_after_a_host_left_the_suit_streaming(source):
         # end with the last one the suit sent.
         assert skipped > 0 and second.parser.stats.discarded_bytes == 0
         check_sequence(frames, source, first=server.arbiter.motion_index - len(frames))
+
+
+def test_silence_while_streaming_over_a_pty(source):
+    with PtyServer(Arbiter(source)) as server, SuitLink(server.path) as link:
+        link.start()
+        arrivals: list[float] = []
+        t0 = time.monotonic()
+        silenced = False
+        while time.monotonic() - t0 < 1.5:
+            if not silenced and time.monotonic() - t0 > 0.3:
+                server.arbiter.silence(0.5)  # from this thread, while the server polls
+                silenced = True
+            arrivals += [time.monotonic()] * len(link.read_frames(0.02))
+        gaps = [b - a for a, b in itertools.pairwise(arrivals)]
+        assert max(gaps) >= 0.45 and len(arrivals) > 40  # it came back after the silence
+        assert server.arbiter.stats.silenced_frames >= 20

@@ -22,6 +22,8 @@ are never emitted, so they take no motion sample.
 
 from __future__ import annotations
 
+import functools
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
@@ -72,6 +74,18 @@ class ArbiterStats:
     corrupted_frames: int = 0
     silenced_frames: int = 0  # frames due while silent (never emitted)
     silenced_bytes_in: int = 0  # host bytes ignored while silent
+
+
+def _locked(method):
+    """Serialise a public method: a transport thread and the caller may both drive the arbiter
+    (e.g. ``silence()`` from a test while the server thread polls)."""
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        with self._lock:
+            return method(self, *args, **kwargs)
+
+    return wrapper
 
 
 class MotionSource:
@@ -148,8 +162,10 @@ class Arbiter:
         self._hold_until = 0.0
         self._silent_until = 0.0
         self._silence_done = False
+        self._lock = threading.RLock()
 
     # -- host → suit --------------------------------------------------------------------
+    @_locked
     def receive(self, data: bytes, now: float | None = None) -> None:
         """Bytes from the host, in order."""
         now = self.clock() if now is None else now
@@ -174,6 +190,7 @@ class Arbiter:
             else:
                 self.stats.ignored_bytes += 1
 
+    @_locked
     def host_disconnected(self) -> None:
         """The host went away (TCP client closed): stop streaming, forget undelivered bytes."""
         if self.streaming:
@@ -182,6 +199,7 @@ class Arbiter:
         self._queue.clear()
 
     # -- suit → host --------------------------------------------------------------------
+    @_locked
     def poll(self, now: float | None = None, max_frames: int | None = None) -> list[bytes]:
         """Byte chunks (whole frames or replies) due for the host by ``now``, in order.
 
@@ -196,6 +214,7 @@ class Arbiter:
             out.append(self._queue.popleft()[1])
         return out
 
+    @_locked
     def next_event(self) -> float | None:
         """The next time (clock s) :meth:`poll` has something to do, or None."""
         times = []
@@ -205,6 +224,7 @@ class Arbiter:
             times.append(self._deadline(self._stream_k) if self.realtime else self.clock())
         return min(times) if times else None
 
+    @_locked
     def silence(self, seconds: float, now: float | None = None) -> None:
         """Go silent for ``seconds``: nothing is emitted and host bytes are ignored (a lost
         radio link). A stream in progress resumes afterwards; its frames due meanwhile are
