@@ -134,3 +134,10 @@ def test_monitor_on_a_port_that_answers_garbage():
     assert mon.returncode != 0
     lines = mon.stderr.strip().splitlines()
     assert len(lines) == 1 and "did not answer 'BPMS' within 0.5 s" in lines[0], mon.stderr
+
+
+def test_sim_rejects_bad_options_in_one_line():
+    bad = subprocess.run(bpms("sim", "--pty", "--drop-rate", "2"), cwd=ROOT,
+                         capture_output=True, text=True, timeout=30)
+    assert bad.returncode == 2 and bad.stdout == ""
+    assert bad.stderr.strip() == "bpms sim: --drop-rate must be between 0 and 1, got 2"
