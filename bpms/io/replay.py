@@ -28,6 +28,9 @@ SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, None)  # None: as fast as possible
 class ReplaySource:
     """Plays ``recording`` from frame 0; starts paused unless ``autoplay``."""
 
+    #: A file can wait: the pipeline applies back-pressure instead of dropping frames.
+    can_wait = True
+
     def __init__(self, recording: RawRecording, speed: float | None = 1.0, *,
                  autoplay: bool = True, preroll_s: float = 5.0, batch: int = 256) -> None:
         self.recording = recording
