@@ -1,0 +1,73 @@
+"""The Qt face of a live session: polls a Qt-free :class:`LiveSession` on a display timer.
+
+The pipeline runs in its own threads; nothing here filters or does I/O. Every ``1/refresh_hz``
+seconds the model drains its bounded subscription and emits what arrived, so widgets redraw at
+the display rate (≈ 20 Hz), never at the 50 Hz frame rate, and a burst of frames (Bluetooth,
+UDP flood) costs one redraw.
+
+Views connect to:
+- ``samplesArrived(list[PoseSample])``: the samples since the last tick, oldest first;
+- ``statusChanged(LiveStatus)``: a status snapshot each tick;
+- ``sessionChanged(object)``: a new session (or None) was attached.
+``latest`` is the newest sample (or None).
+"""
+
+from __future__ import annotations
+
+from PyQt6.QtCore import QObject, QTimer, pyqtSignal
+
+from bpms.io.options import Options
+from bpms.pipeline.fanout import Subscription
+from bpms.pipeline.session import LiveSession, LiveStatus, PoseSample
+
+
+class SessionModel(QObject):
+    samplesArrived = pyqtSignal(list)
+    statusChanged = pyqtSignal(object)
+    sessionChanged = pyqtSignal(object)
+
+    def __init__(self, options: Options | None = None, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.options = options or Options()
+        self.session: LiveSession | None = None
+        self.latest: PoseSample | None = None
+        self.last_status: LiveStatus | None = None
+        self._sub: Subscription[PoseSample] | None = None
+        self._timer = QTimer(self)
+        self._timer.timeout.connect(self.tick)
+        self.set_refresh_hz(self.options.display.refresh_hz)
+
+    def set_refresh_hz(self, hz: float) -> None:
+        """Redraw rate of every view attached to this model, Hz."""
+        self._timer.setInterval(max(1, round(1000.0 / hz)))
+
+    def attach(self, session: LiveSession | None) -> None:
+        """Show ``session`` (already started or not); None detaches."""
+        if self.session is not None and self._sub is not None:
+            self.session.unsubscribe(self._sub)
+        self.session = session
+        self.latest = None
+        self._sub = session.subscribe(maxlen=3000) if session is not None else None
+        if session is None:
+            self._timer.stop()
+        else:
+            self._timer.start()
+        self.sessionChanged.emit(session)
+
+    def tick(self) -> None:
+        """Drain the subscription and notify the views (runs on the display timer)."""
+        if self.session is None or self._sub is None:
+            return
+        samples = self._sub.drain()
+        if samples:
+            self.latest = samples[-1]
+            self.samplesArrived.emit(samples)
+        self.last_status = self.session.status()
+        self.statusChanged.emit(self.last_status)
+
+    def stop(self) -> None:
+        """Stop and detach the session (threads joined, files closed)."""
+        session = self.session
+        self.attach(None)
+        if session is not None:
+            session.stop()
