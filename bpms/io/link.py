@@ -154,6 +154,10 @@ class SuitLink:
                 return match
             left = deadline - time.monotonic()
             if left <= 0:
+                frames = self.parser.feed(bytes(buf)) if keep else []
+                if frames:  # the suit is streaming (it did not hear us): keep its frames
+                    self._pending += frames
+                    self.streaming = True
                 shown = bytes(buf[-24:])
                 got = f"got {len(buf)} bytes ending {shown!r}" if buf else "no answer"
                 raise LinkError(f"{self.port} did not answer {what} within "
@@ -161,9 +165,11 @@ class SuitLink:
             buf += self._read(min(left, 0.05))
 
     # -- commands -------------------------------------------------------------------------
-    def identify(self) -> None:
-        """Send 0x02; raise :class:`LinkError` unless ``BPMS`` comes back in time."""
-        self._command(CMD_IDENTIFY, re.compile(re.escape(IDENTITY)), "'BPMS'")
+    def identify(self, keep_frames: bool | None = None) -> None:
+        """Send 0x02; raise :class:`LinkError` unless ``BPMS`` comes back in time. Frames
+        that arrive before the reply are kept for read_frames when streaming (or
+        ``keep_frames``); if they arrive but the reply does not, the stream is on."""
+        self._command(CMD_IDENTIFY, re.compile(re.escape(IDENTITY)), "'BPMS'", keep_frames)
 
     def battery_volts(self) -> float:
         """Send 0x01 and return the battery voltage, V (reply ``V3.27\\n``)."""
@@ -199,18 +205,27 @@ class SuitLink:
         self._command(CMD_IDENTIFY, re.compile(re.escape(IDENTITY)), "the stop command",
                       keep_frames=True)
 
+    def send_stop(self) -> None:
+        """Stop the stream without waiting for a reply (for shutting down): one byte, 0x02."""
+        self.streaming = False
+        self._write(CMD_IDENTIFY)
+
     def read_frames(self, wait_s: float | None = None) -> list[bytes]:
         """Whole frames received so far (waiting up to ``wait_s``, default read_timeout_s,
         when none is ready yet), in order."""
         out, self._pending = self._pending, []
+        fresh: list[bytes] = []
         if not out:
             wait = self.read_timeout_s if wait_s is None else wait_s
-            out = self.parser.feed(self._read(wait))
+            fresh = self.parser.feed(self._read(wait))
         while True:  # drain what else is already there, without waiting
             more = self._read(0.0)
             if not more:
                 break
-            out += self.parser.feed(more)
+            fresh += self.parser.feed(more)
+        if fresh:
+            self.streaming = True  # frames keep coming: the stream is on
+        out += fresh
         self.stats.frames_read += len(out)
         return out
 

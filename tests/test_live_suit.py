@@ -1,0 +1,163 @@
+"""Live acquisition from the simulated suit over a real pseudo-terminal: recording, link loss,
+the field recorder (`bpms record`) including kill -9 and a full disk."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bpms.filter.processor import BodyPoseProcessor
+from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
+from bpms.firmware.sim.server import PtyServer
+from bpms.io.options import Options, SerialOptions
+from bpms.io.rawfile import read_raw
+from bpms.pipeline.session import LiveSession
+from bpms.pipeline.sources import SuitFrameSource
+
+FRAME = 340
+
+
+@pytest.fixture(scope="module")
+def motion():
+    return MotionSource.simulated(seed=5)
+
+
+def wait_until(predicate, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def test_record_30_s_holds_every_frame_and_replays_to_the_live_outputs(motion, tmp_path):
+    # 30 s of suit data (1,500 frames), streamed as fast as the host reads them.
+    arbiter = Arbiter(motion, realtime=False)
+    with PtyServer(arbiter) as server:
+        session = LiveSession(SuitFrameSource(server.path, SerialOptions()),
+                              recording_dir=tmp_path)
+        sub = session.subscribe(maxlen=5000)
+        session.source.connect()
+        status = session.start_logging(raw=True, filtered=True, name="e2e")
+        session.start()
+        assert wait_until(lambda: arbiter.stats.motion_frames >= 1500, 30)
+        session.source.stop_stream()  # Stop Data: the frames in flight still arrive
+        assert wait_until(lambda: arbiter.stats.stops == 1, 5)
+        assert wait_until(lambda: session.status().frames == arbiter.stats.motion_frames, 5)
+        session.stop()
+    recording = read_raw(status.raw_path)
+    n = len(recording)
+    assert n == arbiter.stats.motion_frames >= 1500  # every frame the suit sent
+    expected = b"".join(motion.frame(j) for j in range(n))
+    assert recording.frames.tobytes() == expected  # every frame, in order, stale one dropped
+    live = np.array([s.euler for s in sub.drain()])
+    replayed = BodyPoseProcessor().process_file(status.raw_path)
+    np.testing.assert_array_equal(live[:n], replayed.euler)
+
+
+def test_link_loss_is_reported_and_the_stream_comes_back(motion, tmp_path):
+    arbiter = Arbiter(motion, Faults(silence_at_s=2.0, silence_s=5.0))
+    states = []
+    with PtyServer(arbiter) as server:
+        serial = SerialOptions(link_lost_after_s=1.0, discovery_timeout_s=0.5)
+        session = LiveSession(SuitFrameSource(server.path, serial), recording_dir=tmp_path)
+        status = session.start_logging(raw=True, filtered=False, name="loss")
+        session.start()
+        end = time.monotonic() + 11.0
+        while time.monotonic() < end:
+            states.append(session.status().source.state)
+            time.sleep(0.05)
+        session.stop()
+    assert "link lost" in states
+    first_lost = states.index("link lost")
+    assert "streaming" in states[first_lost:]
+    assert session.status().source.counters["links_lost"] == 1
+    recording = read_raw(status.raw_path)  # one file, with a gap
+    gaps = np.diff(recording.times)
+    assert 4.0 < gaps.max() < 5.0 + 2.0  # back within 2 s of the suit's return
+    assert (gaps[gaps < 1.0] < 0.5).all()
+    # The frames before and after the gap are consecutive motion samples (the silenced ones
+    # were never sent) and none is a stale repeat.
+    n = len(recording)
+    got = [recording.frame_bytes(k) for k in range(n)]
+    bad = [k for k in range(n) if got[k] != motion.frame(k)]
+    assert not bad
+
+
+def bpms(*args: str, **kwargs) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "bpms", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kwargs)
+
+
+def test_record_cli_survives_kill_9(tmp_path):
+    proc = bpms("record", "--sim", "-o", str(tmp_path), "--name", "crash")
+    raw = tmp_path / "Raw_crash_1.bpmsraw"
+    assert wait_until(lambda: raw.exists() and raw.stat().st_size > 40_000, 30)
+    time.sleep(1.2)  # at least one more flush
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=10)
+    recording = read_raw(raw)
+    assert len(recording) >= 100
+    assert recording.decode().raw.shape == (len(recording), 18, 9)
+    assert (np.diff(recording.times) > 0).all()
+
+
+def test_record_cli_ctrl_c_closes_cleanly(tmp_path):
+    proc = bpms("record", "--sim", "-o", str(tmp_path), "--name", "ctrlc", "--filtered")
+    assert wait_until(lambda: (tmp_path / "Raw_ctrlc_1.bpmsraw").exists(), 30)
+    time.sleep(2.5)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
+    lines = [line for line in out.splitlines() if line.startswith("t ")]
+    assert lines and "Hz" in lines[-1] and "streaming" in lines[-1]
+    recording = read_raw(tmp_path / "Raw_ctrlc_1.bpmsraw")
+    assert recording.problems == [] and len(recording) >= 100
+    rows = (tmp_path / "Filtered_ctrlc_1.csv").read_text().splitlines()
+    assert len(rows) - 1 == len(recording)
+
+
+def test_record_cli_port_that_does_not_exist(tmp_path):
+    proc = bpms("record", "/dev/does-not-exist", "-o", str(tmp_path))
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 2
+    assert "cannot open /dev/does-not-exist" in err and "Traceback" not in err
+    assert err.count("\n") == 1
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("mount"), reason="needs root to "
+                    "mount a tiny tmpfs")
+def test_full_disk_stops_recording_and_streaming_goes_on(motion, tmp_path):
+    disk = tmp_path / "small"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)]).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        arbiter = Arbiter(motion, realtime=False)
+        with PtyServer(arbiter) as server:
+            options = Options()
+            options.logging.flush_interval_s = 0.05
+            session = LiveSession(SuitFrameSource(server.path), options, recording_dir=disk)
+            status = session.start_logging(raw=True, filtered=False, name="full")
+            session.start()
+            assert wait_until(lambda: status.error is not None, 20)
+            processed = session.status().processed
+            assert wait_until(lambda: session.status().processed > processed + 200, 20)
+            events = session.status().events
+            session.stop()
+        assert any("raw recording stopped" in e and "No space left" in e for e in events)
+        recording = read_raw(status.raw_path)
+        assert len(recording) > 100  # what was flushed before the disk filled is intact
+    finally:
+        subprocess.run(["umount", str(disk)])
+    assert Path(disk).exists()
