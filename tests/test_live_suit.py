@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from waiting import wait_until
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
@@ -28,15 +29,6 @@ FRAME = 340
 @pytest.fixture(scope="module")
 def motion():
     return MotionSource.simulated(seed=5)
-
-
-def wait_until(predicate, timeout):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def test_record_30_s_holds_every_frame_and_replays_to_the_live_outputs(motion, tmp_path):

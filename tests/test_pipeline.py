@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import pytest
+from waiting import wait_until
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
@@ -25,15 +26,6 @@ def recording_path(tmp_path_factory):
     path = tmp_path_factory.mktemp("rec") / "Raw_sim_1.bpmsraw"
     write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(notes="simulated"))
     return path
-
-
-def wait_until(predicate, timeout=20.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def test_replay_records_every_frame_and_matches_the_batch_filter(recording_path, tmp_path):
