@@ -1,0 +1,84 @@
+"""Stick-figure geometry shared by the Qt 3D windows and the vpython views (no Qt, no GL).
+
+Display frame: the body model works in world NED (x north, y east, z down, metres, lowest foot
+on z = 0). 3D views want z up, so every point is drawn as ``(x, -y, -z)``: display x = north,
+display y = west, display z = up, a 180° rotation about north (the frame stays right-handed).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bpms.filter.body_model import BODY_POINTS, POINT_INDEX, SEGMENTS, joint_positions
+
+#: NED → display (z up): x stays, y and z flip.
+NED_TO_DISPLAY = np.diag([1.0, -1.0, -1.0])
+
+RIGHT_COLOUR = (0.15, 0.85, 0.15, 1.0)
+LEFT_COLOUR = (0.95, 0.2, 0.2, 1.0)
+CENTRE_COLOUR = (0.35, 0.65, 1.0, 1.0)
+JOINT_COLOUR = (1.0, 0.85, 0.2, 1.0)
+WAITING_COLOUR = (0.5, 0.5, 0.5, 1.0)
+AXIS_COLOURS = ((1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0), (0.0, 0.0, 1.0, 1.0))
+AXIS_LENGTH_M = 0.12
+
+
+def _segment_colour(child: str) -> tuple[float, float, float, float]:
+    if child.endswith("_r"):
+        return RIGHT_COLOUR
+    if child.endswith("_l"):
+        return LEFT_COLOUR
+    return CENTRE_COLOUR
+
+
+#: Per segment: start and end point index (POINT_NAMES order) and RGBA colour.
+SEG_START = np.array([POINT_INDEX[a] for a, _, _ in SEGMENTS])
+SEG_END = np.array([POINT_INDEX[b] for _, b, _ in SEGMENTS])
+SEG_COLOURS = np.array([_segment_colour(b) for _, b, _ in SEGMENTS])
+#: Each IMU's triad sits at the mid-point of the first segment it drives.
+_IMU_SEGMENT: dict[int, int] = {}
+for _k, _p in enumerate(BODY_POINTS):
+    _IMU_SEGMENT.setdefault(_p.imu, _k)
+#: IMU ids with a triad, and the segment each one sits on.
+AXIS_IMUS = np.array(sorted(_IMU_SEGMENT))
+AXIS_SEGMENTS = np.array([_IMU_SEGMENT[i] for i in AXIS_IMUS])
+#: The calibration pose (every segment aligned with the body), shown grey before Reset Zero.
+CALIBRATION_POSE = joint_positions(np.broadcast_to(np.eye(3), (18, 3, 3)))
+
+
+def to_display(points_ned: np.ndarray) -> np.ndarray:
+    """``[..., 3]`` NED metres → display metres (x north, y west, z up)."""
+    return np.asarray(points_ned, dtype=np.float64) @ NED_TO_DISPLAY
+
+
+def figure_lines(points: np.ndarray, colours: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Line-segment vertices ``[2M, 3]`` and colours ``[2M, 4]`` for the stick figure.
+
+    points: ``[21, 3]`` display metres; segments with a non-finite end are left out.
+    colours: one RGBA per segment (default: left/right/centre colours).
+    """
+    colours = SEG_COLOURS if colours is None else colours
+    a, b = points[SEG_START], points[SEG_END]
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    pos = np.stack([a[ok], b[ok]], axis=1).reshape(-1, 3)
+    col = np.repeat(colours[ok], 2, axis=0)
+    return pos, col
+
+
+def imu_axes_lines(points: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """RGB triads ``[2K, 3]`` / ``[2K, 4]`` at each IMU's segment mid-point.
+
+    points: ``[21, 3]`` display metres; C: ``[18, 3, 3]`` segment → NED orientations.
+    """
+    mid = 0.5 * (points[SEG_START[AXIS_SEGMENTS]] + points[SEG_END[AXIS_SEGMENTS]])
+    # Column k of C is the segment's k-th axis in NED; rows after the transpose.
+    axes = np.swapaxes(C[AXIS_IMUS], 1, 2) @ NED_TO_DISPLAY * AXIS_LENGTH_M  # [K, 3, 3]
+    starts = np.repeat(mid[:, None, :], 3, axis=1)
+    ends = starts + axes
+    ok = (np.isfinite(starts).all(axis=2) & np.isfinite(ends).all(axis=2)).reshape(-1)
+    pos = np.stack([starts, ends], axis=2).reshape(-1, 2, 3)[ok].reshape(-1, 3)
+    col = np.tile(np.array(AXIS_COLOURS), (len(AXIS_IMUS), 1))[ok]
+    return pos, np.repeat(col, 2, axis=0)
+
+
