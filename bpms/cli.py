@@ -18,7 +18,7 @@ import bpms.commands
 from bpms.commands import CliError
 
 #: What ``bpms`` with no arguments runs.
-DEFAULT_COMMAND = "monitor"
+DEFAULT_COMMAND = "gui"
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,38 @@
+"""``bpms gui [--sim]`` (also ``bpms`` with no arguments): the desktop app (docs/gui.md).
+
+Without a display it says so in one line and points to the headless commands (exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from bpms.commands import CliError
+
+
+def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    p = sub.add_parser("gui", help="the desktop app (start-up window, data table, plots, 3D)",
+                       description=__doc__)
+    p.add_argument("--sim", action="store_true",
+                   help="skip the start-up window: straight to the simulated suit")
+    p.add_argument("--seed", type=int, default=0, help="simulated suit's seed (default 0)")
+    p.add_argument("--options", metavar="options.toml", help="options file to load")
+    p.add_argument("--calibration", metavar="Calib.cfg", help="calibration file to load")
+    p.add_argument("--recording-dir", metavar="DIR",
+                   help="folder for recordings (default: the options' logging.directory)")
+    p.set_defaults(run=run)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from bpms.gui.app import display_problem
+
+    problem = display_problem()
+    if problem:
+        raise CliError(problem)
+    try:
+        from bpms.gui import app
+    except ImportError as exc:
+        raise CliError(f"the desktop app cannot start: {exc}") from None
+    return app.run(options_path=args.options, calibration_path=args.calibration,
+                   simulated=args.sim, recording_dir=args.recording_dir, seed=args.seed)

@@ -1,0 +1,319 @@
+"""Panels of the main window: data controls and status, filter gains, file operations
+(logging), playback (file mode) and the UDP server. Every panel reads the session's
+:class:`LiveStatus` snapshot that :class:`SessionModel` emits once per display tick; button
+presses call :class:`LiveSession` / :class:`SessionRunner` methods, which only queue work for
+the pipeline threads (the GUI thread never filters or writes files).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from PyQt6.QtCore import Qt, pyqtSignal
+from PyQt6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDoubleSpinBox,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QSlider,
+    QVBoxLayout,
+    QWidget,
+)
+
+from bpms.gui.modes import SessionRunner
+from bpms.io.frames import FRAME_PERIOD_S
+from bpms.io.options import FilterOptions
+from bpms.io.rawfile import RecordingError
+from bpms.io.udp import UdpConfigError
+from bpms.pipeline.session import LiveStatus
+
+GAIN_NAMES = ("kp_rollpitch", "ki_rollpitch", "kp_yaw", "ki_yaw")
+SPEEDS: tuple[tuple[str, float | None], ...] = (
+    ("0.25×", 0.25), ("0.5×", 0.5), ("1×", 1.0), ("2×", 2.0), ("4×", 4.0), ("8×", 8.0),
+    ("max", None),
+)
+
+
+def _size(n: int) -> str:
+    return f"{n / 1e6:.2f} MB" if n >= 1e6 else f"{n / 1e3:.1f} kB"
+
+
+class StatusPanel(QGroupBox):
+    """Start/Stop Data, Reset Zero and the link's numbers (units in the labels)."""
+
+    dataToggled = pyqtSignal(bool)
+    resetZeroClicked = pyqtSignal()
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__("Data", parent)
+        form = QFormLayout(self)
+        buttons = QHBoxLayout()
+        self.data_button = QPushButton("Start Data")
+        self.data_button.setToolTip("Start or stop the stream (Ctrl+Space)")
+        self.data_button.clicked.connect(lambda: self.dataToggled.emit(not self.streaming))
+        self.reset_button = QPushButton("Reset Zero")
+        self.reset_button.setToolTip("Stand in the calibration pose and press (Ctrl+R); "
+                                     "done automatically 1 s after the stream starts")
+        self.reset_button.setEnabled(False)
+        self.reset_button.clicked.connect(self.resetZeroClicked)
+        buttons.addWidget(self.data_button)
+        buttons.addWidget(self.reset_button)
+        form.addRow(buttons)
+        self.labels: dict[str, QLabel] = {}
+        for key, title in (("source", "Source"), ("state", "Link state"),
+                           ("rate", "Reception rate"), ("frames", "Frames"),
+                           ("errors", "Error counter"), ("battery", "Battery"),
+                           ("dropped", "Dropped deliveries"), ("latency", "Latency p99"),
+                           ("extra", "Source counters"), ("event", "Last event")):
+            label = QLabel("–")
+            label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+            label.setWordWrap(True)
+            self.labels[key] = label
+            form.addRow(title, label)
+        self.streaming = False
+
+    def set_streaming(self, on: bool) -> None:
+        self.streaming = on
+        self.data_button.setText("Stop Data" if on else "Start Data")
+        self.reset_button.setEnabled(on)
+
+    def show_status(self, st: LiveStatus) -> None:
+        src = st.source
+        text = {
+            "source": src.description,
+            "state": src.state if st.running else f"{src.state} (session stopped)",
+            "rate": f"{st.rate_hz:.1f} Hz (nominal 50 Hz)",
+            "frames": f"{st.frames} received, {st.processed} processed",
+            "errors": f"{st.error_bits} sensor error flags",
+            "battery": f"{src.battery_v:.2f} V" if src.battery_v is not None else "–",
+            "dropped": f"{st.dropped} (backlog {st.processing_backlog} frames)",
+            "latency": f"{st.latency_p99_ms:.1f} ms",
+            "extra": ", ".join(f"{k} {v}" for k, v in src.counters.items())
+                     + (f", resyncs {src.resyncs}" if src.resyncs else ""),
+            "event": st.events[-1] if st.events else "–",
+        }
+        for key, value in text.items():
+            if self.labels[key].text() != value:
+                self.labels[key].setText(value or "–")
+
+
+class GainsPanel(QGroupBox):
+    """The Mahony gains, editable at run time (applied from the next frame on)."""
+
+    gainsChanged = pyqtSignal(dict)
+
+    def __init__(self, options: FilterOptions, parent: QWidget | None = None) -> None:
+        super().__init__("Filter gains", parent)
+        form = QFormLayout(self)
+        fields = {f.name: f for f in dataclasses.fields(FilterOptions)}
+        self.boxes: dict[str, QDoubleSpinBox] = {}
+        for name in GAIN_NAMES:
+            box = QDoubleSpinBox()
+            box.setDecimals(6)
+            box.setRange(0.0, 100.0)
+            box.setSingleStep(0.001 if name.startswith("kp") else 0.00001)
+            box.setValue(getattr(options, name))
+            box.setToolTip(fields[name].metadata.get("help", ""))
+            box.setKeyboardTracking(False)
+            box.valueChanged.connect(lambda v, n=name: self.gainsChanged.emit({n: v}))
+            self.boxes[name] = box
+            form.addRow(name, box)
+
+
+class FilePanel(QGroupBox):
+    """File operations: name, Raw / Filtered, Start/Stop Logging, current files and sizes."""
+
+    def __init__(self, runner: SessionRunner, parent: QWidget | None = None) -> None:
+        super().__init__("File operations", parent)
+        self.runner = runner
+        form = QFormLayout(self)
+        self.name_edit = QLineEdit(runner.options.logging.name)
+        self.name_edit.setPlaceholderText("empty = a time stamp")
+        self.name_edit.setToolTip("Files are Raw_<name>_<n>.bpmsraw and Filtered_<name>_<n>.csv;"
+                                  " n grows at every Start Logging")
+        form.addRow("Name", self.name_edit)
+        boxes = QHBoxLayout()
+        self.raw_box = QCheckBox("Raw")
+        self.filtered_box = QCheckBox("Filtered")
+        self.raw_box.setChecked(runner.options.logging.raw)
+        self.filtered_box.setChecked(runner.options.logging.filtered)
+        if runner.mode == "file":  # replaying a raw file: only filtered recording makes sense
+            self.raw_box.setChecked(False)
+            self.raw_box.setEnabled(False)
+            self.raw_box.setToolTip("Raw recording is off in file mode (the file is the raw "
+                                    "data)")
+        self.degrees_box = QCheckBox("angles in deg")
+        self.degrees_box.setToolTip("Filtered file angle unit (default rad)")
+        for box in (self.raw_box, self.filtered_box, self.degrees_box):
+            boxes.addWidget(box)
+        form.addRow(boxes)
+        self.log_button = QPushButton("Start Logging")
+        self.log_button.setToolTip("Ctrl+L")
+        self.log_button.clicked.connect(self.toggle_logging)
+        form.addRow(self.log_button)
+        self.files_label = QLabel("not logging")
+        self.files_label.setWordWrap(True)
+        self.files_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        form.addRow(self.files_label)
+        self.message = ""
+        self.last_recording = None
+
+    @property
+    def logging(self) -> bool:
+        session = self.runner.session
+        return session is not None and session.status().recording is not None
+
+    def toggle_logging(self) -> None:
+        session = self.runner.session
+        if session is None:
+            return
+        if self.logging:
+            self.last_recording = session.stop_logging()
+            self.log_button.setText("Start Logging")
+            self.files_label.setText("stopped: " + self._describe(self.last_recording))
+            return
+        raw = self.raw_box.isChecked() and self.raw_box.isEnabled()
+        filtered = self.filtered_box.isChecked()
+        if not raw and not filtered:
+            self.files_label.setText("tick Raw and/or Filtered first")
+            return
+        try:
+            session.start_logging(raw=raw, filtered=filtered,
+                                  name=self.name_edit.text().strip() or None,
+                                  degrees=self.degrees_box.isChecked())
+        except (RecordingError, OSError) as exc:
+            self.files_label.setText(f"cannot start logging: {exc}")
+            return
+        self.log_button.setText("Stop Logging")
+
+    @staticmethod
+    def _describe(rec) -> str:
+        if rec is None:
+            return "–"
+        parts = []
+        if rec.raw_path is not None:
+            parts.append(f"{rec.raw_path.name}: {rec.raw_records} frames, "
+                         f"{_size(rec.raw_bytes)}")
+        if rec.filtered_path is not None:
+            size = rec.filtered_path.stat().st_size if rec.filtered_path.exists() else 0
+            parts.append(f"{rec.filtered_path.name}: {_size(size)}")
+        if rec.error:
+            parts.append(f"error: {rec.error}")
+        return "; ".join(parts)
+
+    def show_status(self, st: LiveStatus) -> None:
+        if st.recording is not None:
+            text = "logging: " + self._describe(st.recording)
+            if self.files_label.text() != text:
+                self.files_label.setText(text)
+            self.log_button.setText("Stop Logging")
+        elif self.log_button.text() == "Stop Logging":
+            self.log_button.setText("Start Logging")
+
+
+class PlaybackPanel(QGroupBox):
+    """File mode: seek slider, speed, position. Slider and speed disabled while playing."""
+
+    def __init__(self, runner: SessionRunner, parent: QWidget | None = None) -> None:
+        super().__init__("Playback", parent)
+        assert runner.replay is not None
+        self.runner = runner
+        self.replay = runner.replay
+        layout = QVBoxLayout(self)
+        self.slider = QSlider(Qt.Orientation.Horizontal)
+        self.slider.setRange(0, max(0, len(self.replay) - 1))
+        self.slider.setToolTip("Seek (only while stopped)")
+        self.slider.sliderReleased.connect(lambda: self.seek(self.slider.value()))
+        self.slider.valueChanged.connect(self._slider_moved)
+        layout.addWidget(self.slider)
+        row = QHBoxLayout()
+        self.position_label = QLabel()
+        row.addWidget(self.position_label, 1)
+        row.addWidget(QLabel("Speed"))
+        self.speed_combo = QComboBox()
+        for label, _ in SPEEDS:
+            self.speed_combo.addItem(label)
+        self.speed_combo.setCurrentIndex(2)
+        self.speed_combo.currentIndexChanged.connect(
+            lambda i: self.replay.set_speed(SPEEDS[i][1]))
+        row.addWidget(self.speed_combo)
+        layout.addLayout(row)
+        self._update_label(self.replay.position)
+
+    def _slider_moved(self, value: int) -> None:
+        if not self.slider.isSliderDown() and self.slider.isEnabled() \
+                and value != self.replay.position:
+            self.seek(value)
+        self._update_label(value)
+
+    def seek(self, index: int) -> None:
+        """Jump to frame ``index`` (the filters are pre-rolled; Reset Zero is kept)."""
+        self.replay.seek(index)
+        self._update_label(index)
+
+    def _update_label(self, index: int) -> None:
+        total = len(self.replay)
+        self.position_label.setText(f"{index * FRAME_PERIOD_S:.2f} s / "
+                                    f"{total * FRAME_PERIOD_S:.2f} s (frame {index} of {total})")
+
+    def show_status(self, st: LiveStatus | None = None) -> None:
+        playing = self.replay.playing
+        self.slider.setEnabled(not playing)
+        self.speed_combo.setEnabled(not playing)
+        if not self.slider.isSliderDown():
+            pos = min(self.replay.position, self.slider.maximum())
+            self.slider.blockSignals(True)
+            self.slider.setValue(pos)
+            self.slider.blockSignals(False)
+            self._update_label(self.replay.position)
+
+
+class UdpServerPanel(QGroupBox):
+    """UDP server (suit and simulated modes): forward the live stream to the configured
+    targets; shows the forwarder's counts."""
+
+    def __init__(self, runner: SessionRunner, parent: QWidget | None = None) -> None:
+        super().__init__("UDP server", parent)
+        self.runner = runner
+        form = QFormLayout(self)
+        self.targets_edit = QLineEdit(", ".join(runner.options.udp.forward_to))
+        self.targets_edit.setToolTip("host:port targets, comma-separated (multicast allowed)")
+        form.addRow("Targets", self.targets_edit)
+        self.button = QPushButton("Start UDP server")
+        self.button.clicked.connect(self.toggle)
+        form.addRow(self.button)
+        self.status_label = QLabel("off")
+        self.status_label.setWordWrap(True)
+        form.addRow(self.status_label)
+        self.on = False
+
+    def toggle(self) -> None:
+        session = self.runner.session
+        if session is None:
+            return
+        if self.on:
+            session.stop_forwarding()
+            self.on = False
+            self.button.setText("Start UDP server")
+            self.status_label.setText("off")
+            self.targets_edit.setEnabled(True)
+            return
+        targets = [t.strip() for t in self.targets_edit.text().split(",") if t.strip()]
+        try:
+            session.start_forwarding(targets)
+        except (UdpConfigError, OSError) as exc:
+            self.status_label.setText(f"cannot start: {exc}")
+            return
+        self.on = True
+        self.button.setText("Stop UDP server")
+        self.targets_edit.setEnabled(False)
+
+    def show_status(self, st: LiveStatus) -> None:
+        if self.on:
+            self.status_label.setText(f"sending to {', '.join(st.forwarding)}: "
+                                      f"{st.forwarded} datagrams, {st.forward_errors} errors")

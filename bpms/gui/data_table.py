@@ -1,0 +1,183 @@
+"""The standard data view: 18 IMUs (rows) × raw, calibrated, Euler and error-flag columns.
+
+A model/view table: :class:`ImuTableModel` keeps the newest sample's numbers in numpy arrays
+and announces one ``dataChanged`` per display tick; Qt asks for the visible cells only.
+Calibrated values are :meth:`SensorCalibration.physical_units` (accel m/s², mag gauss,
+gyro rad/s, signed board axes); Euler angles are the filter's roll, pitch, yaw in rad or deg
+(switchable live).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from PyQt6.QtCore import QAbstractTableModel, QModelIndex, Qt
+from PyQt6.QtWidgets import QAbstractItemView, QTableView, QWidget
+
+from bpms.filter.calibration import SensorCalibration
+from bpms.io.frames import CHANNEL_NAMES, IMU_NAMES, N_IMUS, SENSOR_NAMES
+from bpms.pipeline.session import PoseSample
+
+
+@dataclass(frozen=True)
+class Column:
+    """One table column: ``group`` raw/cal/euler/errors, ``k`` the index inside the group."""
+
+    group: str
+    k: int
+    name: str
+    unit: str
+
+    def label(self, angle_unit: str = "deg") -> str:
+        unit = angle_unit if self.group == "euler" else self.unit
+        return f"{self.name} [{unit}]" if unit else self.name
+
+
+_CAL_UNITS = ("m/s²", "m/s²", "m/s²", "G", "G", "G", "rad/s", "rad/s", "rad/s")
+COLUMNS: tuple[Column, ...] = (
+    *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_NAMES)),
+    *(Column("cal", k, c, _CAL_UNITS[k]) for k, c in enumerate(CHANNEL_NAMES)),
+    *(Column("euler", k, c, "rad") for k, c in enumerate(("roll", "pitch", "yaw"))),
+    Column("errors", 0, "errors", ""),
+)
+
+
+def calibrated(calibration: SensorCalibration, raw: np.ndarray) -> np.ndarray:
+    """Raw ``[..., 18, 9]`` counts → ``[..., 18, 9]`` accel m/s², mag gauss, gyro rad/s."""
+    acc, mag, gyr = calibration.physical_units(raw)
+    return np.concatenate([acc, mag, gyr], axis=-1)
+
+
+def column_values(column: Column, raw: np.ndarray, cal: np.ndarray, euler: np.ndarray,
+                  degrees: bool) -> np.ndarray:
+    """Values of ``column`` for blocks ``raw/cal [..., 18, 9]``, ``euler [..., 18, 3]`` rad →
+    ``[..., 18]`` in the column's unit."""
+    if column.group == "raw":
+        return raw[..., column.k].astype(np.float64)
+    if column.group == "cal":
+        return cal[..., column.k]
+    if column.group == "euler":
+        values = euler[..., column.k]
+        return np.degrees(values) if degrees else values
+    raise ValueError(f"column {column.name} has no numeric value")
+
+
+def error_text(flags: np.ndarray) -> str:
+    """``[3]`` bool flags (accel, mag, gyro) → "" or e.g. "mag gyro"."""
+    return " ".join(name for name, bad in zip(SENSOR_NAMES, flags, strict=True) if bad)
+
+
+class ImuTableModel(QAbstractTableModel):
+    """Numbers of the newest sample; refreshed by :meth:`update` once per display tick."""
+
+    def __init__(self, calibration: SensorCalibration, angle_unit: str = "deg",
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.calibration = calibration
+        self.angle_unit = angle_unit
+        self.raw = np.zeros((N_IMUS, 9), np.int16)
+        self.cal = np.full((N_IMUS, 9), np.nan)
+        self.euler = np.full((N_IMUS, 3), np.nan)
+        self.errors = np.zeros((N_IMUS, 3), bool)
+        self.has_data = False
+
+    # -- updates ------------------------------------------------------------------------
+    def update(self, sample: PoseSample) -> None:
+        """Show ``sample`` (one ``dataChanged`` for the whole table)."""
+        self.raw = sample.raw
+        self.cal = calibrated(self.calibration, sample.raw)
+        self.euler = sample.euler
+        self.errors = sample.errors
+        self.has_data = True
+        self.dataChanged.emit(self.index(0, 0), self.index(N_IMUS - 1, len(COLUMNS) - 1))
+
+    def set_angle_unit(self, unit: str) -> None:
+        """"deg" or "rad": Euler cells and headers change at once."""
+        if unit not in ("deg", "rad"):
+            raise ValueError(f"angle unit must be 'deg' or 'rad', not {unit!r}")
+        self.angle_unit = unit
+        self.headerDataChanged.emit(Qt.Orientation.Horizontal, 0, len(COLUMNS) - 1)
+        self.dataChanged.emit(self.index(0, 0), self.index(N_IMUS - 1, len(COLUMNS) - 1))
+
+    # -- QAbstractTableModel --------------------------------------------------------------
+    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else N_IMUS
+
+    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else len(COLUMNS)
+
+    def value(self, row: int, col: int) -> float | str:
+        """The number (in the header's unit) or text shown at ``row, col``."""
+        column = COLUMNS[col]
+        if column.group == "errors":
+            return error_text(self.errors[row])
+        if column.group == "raw":
+            return int(self.raw[row, column.k])
+        if column.group == "cal":
+            return float(self.cal[row, column.k])
+        angle = float(self.euler[row, column.k])
+        return float(np.degrees(angle)) if self.angle_unit == "deg" else angle
+
+    def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole):
+        if not index.isValid():
+            return None
+        row, col = index.row(), index.column()
+        if role == Qt.ItemDataRole.DisplayRole:
+            if not self.has_data:
+                return ""
+            value = self.value(row, col)
+            if isinstance(value, (str, int)):
+                return str(value)
+            if np.isnan(value):
+                return "–"
+            group = COLUMNS[col].group
+            digits = 2 if group == "euler" and self.angle_unit == "deg" else 3
+            return f"{value:.{digits}f}"
+        if role == Qt.ItemDataRole.TextAlignmentRole:
+            return Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter
+        if role == Qt.ItemDataRole.ForegroundRole and COLUMNS[col].group == "errors":
+            return Qt.GlobalColor.red
+        return None
+
+    def headerData(self, section: int, orientation: Qt.Orientation,
+                   role: int = Qt.ItemDataRole.DisplayRole):
+        if role != Qt.ItemDataRole.DisplayRole:
+            return None
+        if orientation == Qt.Orientation.Horizontal:
+            return COLUMNS[section].label(self.angle_unit)
+        return f"{section} {IMU_NAMES[section]}"
+
+
+class DataTable(QTableView):
+    """The table view: multi-cell selection (click, Ctrl+click, Shift+click, drag)."""
+
+    def __init__(self, model: ImuTableModel, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setModel(model)
+        self.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
+        self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectItems)
+        self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.setAlternatingRowColors(True)
+        self.horizontalHeader().setDefaultSectionSize(78)
+        self.verticalHeader().setDefaultSectionSize(22)
+
+    def table_model(self) -> ImuTableModel:
+        model = self.model()
+        assert isinstance(model, ImuTableModel)
+        return model
+
+    def selected_cells(self) -> list[tuple[int, int]]:
+        """(row = IMU id, column) of the selected numeric cells, in table order."""
+        cells = {(i.row(), i.column()) for i in self.selectionModel().selectedIndexes()}
+        return sorted(c for c in cells if COLUMNS[c[1]].group != "errors")
+
+    def select_cells(self, cells: list[tuple[int, int]]) -> None:
+        """Select exactly ``cells`` (as Ctrl+clicks would)."""
+        from PyQt6.QtCore import QItemSelectionModel
+
+        sel = self.selectionModel()
+        sel.clearSelection()
+        flag = QItemSelectionModel.SelectionFlag.Select
+        for row, col in cells:
+            sel.select(self.model().index(row, col), flag)

@@ -1,0 +1,191 @@
+"""Building and driving the :class:`LiveSession` of each start-up mode (no widgets here).
+
+Modes: ``suit`` (serial/Bluetooth), ``sim`` (the simulated suit served in-process on a real
+pty and opened like a real suit), ``udp`` (UDP client) and ``file`` (raw-file playback).
+
+:meth:`SessionRunner.prepare` does the blocking part (discovery, opening the port, reading the
+file) and is meant for a worker thread; it raises :class:`ModeError` with a one-line message
+that says what to check. Start/Stop Data then means: suit → start/stop the stream (the link
+stays open); file → play/pause; UDP → a fresh session listening again / the session stopped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from bpms.filter.processor import BodyPoseProcessor
+from bpms.io.calib_file import CalibrationTable
+from bpms.io.link import LinkError
+from bpms.io.options import Options
+from bpms.io.rawfile import RawFileError
+from bpms.io.recordings import open_recording
+from bpms.io.replay import ReplaySource
+from bpms.pipeline.session import LiveSession
+from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
+
+MODES = ("suit", "udp", "file", "sim")
+MODE_LABELS = {
+    "suit": "Suit (serial / Bluetooth)",
+    "udp": "UDP client",
+    "file": "Raw-file playback",
+    "sim": "Simulated suit",
+}
+
+
+class ModeError(Exception):
+    """The chosen mode cannot start; the message says what to check (one line)."""
+
+
+@dataclass
+class ModeConfig:
+    """What the start-up window chose. ``port`` empty = discover; ``baud`` in bit/s;
+    ``listen`` host:port; ``group`` a multicast group or empty; ``path`` a raw recording."""
+
+    mode: str = "sim"
+    port: str = ""
+    baud: int = 1_000_000
+    listen: str = "0.0.0.0:5005"
+    group: str = ""
+    path: str = ""
+    sim_seed: int = 0
+    recording_dir: str | None = None
+
+
+class SimulatedSuit:
+    """``bpms.firmware.sim``'s arbiter served on a pty in this process (real time, 50 Hz)."""
+
+    def __init__(self, seed: int = 0) -> None:
+        from bpms.firmware.sim.arbiter import Arbiter, MotionSource
+        from bpms.firmware.sim.server import PtyServer
+
+        self.arbiter = Arbiter(MotionSource.simulated(seed=seed), seed=seed)
+        self.server = PtyServer(self.arbiter).start()
+        self.path: str = self.server.path
+
+    def close(self) -> None:
+        self.server.stop()
+
+
+class SessionRunner:
+    """One mode's session for the main window. ``session`` is None until :meth:`prepare`."""
+
+    def __init__(self, config: ModeConfig, options: Options,
+                 calibration: CalibrationTable | None = None) -> None:
+        if config.mode not in MODES:
+            raise ModeError(f"unknown mode {config.mode!r} (one of {', '.join(MODES)})")
+        self.config = config
+        self.options = options
+        self.calibration = calibration
+        self.session: LiveSession | None = None
+        self.replay: ReplaySource | None = None
+        self.suit: SuitFrameSource | None = None
+        self.sim: SimulatedSuit | None = None
+        self._data_on = False
+        self._udp_stopped = False
+
+    @property
+    def mode(self) -> str:
+        return self.config.mode
+
+    @property
+    def data_on(self) -> bool:
+        """Start Data pressed and not stopped since."""
+        return self._data_on
+
+    def _new_session(self, source) -> LiveSession:
+        processor = BodyPoseProcessor(calibration=self.calibration, options=self.options)
+        return LiveSession(source, self.options, processor,
+                           recording_dir=self.config.recording_dir,
+                           notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
+
+    def prepare(self) -> LiveSession:
+        """Open the source (blocking: run it off the GUI thread). Raises ModeError."""
+        cfg = self.config
+        if cfg.mode == "file":
+            if not cfg.path:
+                raise ModeError("choose a raw recording to play")
+            try:
+                recording = open_recording(cfg.path)
+            except (RawFileError, OSError) as exc:
+                raise ModeError(f"cannot play {cfg.path}: {exc}") from None
+            if len(recording) == 0:
+                raise ModeError(f"{cfg.path} holds no frames")
+            self.replay = ReplaySource(recording, speed=1.0, autoplay=False)
+            self.session = self._new_session(self.replay)
+        elif cfg.mode == "udp":
+            self.session = self._new_session(self._udp_source())
+        else:
+            port = cfg.port or None
+            if cfg.mode == "sim":
+                self.sim = SimulatedSuit(cfg.sim_seed)
+                port = self.sim.path
+            serial = self.options.serial
+            serial.baud = cfg.baud
+            source = SuitFrameSource(port, serial)
+            source.stop_stream()  # connect without streaming; Start Data starts it
+            try:
+                source.connect()
+            except LinkError as exc:
+                self.close()
+                where = f"port {port}" if port else "any serial port"
+                raise ModeError(
+                    f"no suit on {where}: {exc}. Check that the suit is paired over Bluetooth, "
+                    "switched on, its battery charged, and that the port and baud rate are "
+                    "right"
+                ) from None
+            self.suit = source
+            self.session = self._new_session(source)
+        return self.session
+
+    def _udp_source(self) -> UdpFrameSource:
+        try:
+            return UdpFrameSource(self.config.listen, self.config.group or None)
+        except (OSError, ValueError) as exc:
+            raise ModeError(f"cannot listen on UDP {self.config.listen}: {exc}") from None
+
+    def start_data(self) -> LiveSession:
+        """Start Data. Returns the (possibly new) session. Raises ModeError (UDP rebind)."""
+        assert self.session is not None, "prepare() first"
+        if self.mode == "udp" and self._udp_stopped:
+            self.session = self._new_session(self._udp_source())
+            self._udp_stopped = False
+        if self.suit is not None:
+            self.suit.start_stream()
+        if self.replay is not None:
+            if self.replay.ended:
+                self.replay.seek(0)
+            self.replay.play()
+        if not self.session.running:
+            self.session.start()
+        self._data_on = True
+        return self.session
+
+    def stop_data(self) -> None:
+        """Stop Data: suit stream stopped, playback paused, UDP session stopped."""
+        self._data_on = False
+        if self.session is None:
+            return
+        if self.suit is not None:
+            self.suit.stop_stream()
+        elif self.replay is not None:
+            self.replay.pause()
+        else:
+            self.session.stop()
+            self._udp_stopped = True
+
+    def close(self) -> None:
+        """Stop everything (threads joined, files closed, the simulated suit shut down)."""
+        if self.session is not None:
+            self.session.stop()
+        elif self.suit is not None:
+            self.suit.close()
+        if self.sim is not None:
+            self.sim.close()
+            self.sim = None
+        self._data_on = False
+
+
+def recording_folder(options: Options, config: ModeConfig) -> Path:
+    """Where Start Logging writes."""
+    return Path(config.recording_dir or options.logging.directory)

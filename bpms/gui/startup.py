@@ -1,0 +1,519 @@
+"""The start-up window: choose the mode, load or edit options, load a calibration file, start
+the sensor-calibration tool, GO.
+
+Blocking work (suit discovery, opening the port, reading a recording) runs in a worker thread
+polled by a timer, so the window stays responsive. A failure to start says what to check and
+leaves this window open; closing the main window brings it back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from PyQt6.QtCore import QTimer, pyqtSignal
+from PyQt6.QtWidgets import (
+    QButtonGroup,
+    QCheckBox,
+    QComboBox,
+    QDialog,
+    QDialogButtonBox,
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QMessageBox,
+    QPushButton,
+    QRadioButton,
+    QScrollArea,
+    QSpinBox,
+    QStackedWidget,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from bpms.gui.main_window import MainWindow, optional_module
+from bpms.gui.modes import MODE_LABELS, MODES, ModeConfig, ModeError, SessionRunner
+from bpms.io.calib_file import CalibrationTable, load_calibration
+from bpms.io.link import discover_suit, list_candidate_ports
+from bpms.io.options import Options, load_options, options_from_dict, save_options
+from bpms.io.problems import FileProblem
+
+
+def show_problems(parent: QWidget | None, title: str, problems: list[FileProblem],
+                  fallback: str) -> QMessageBox:
+    """A non-blocking warning dialog listing every problem (file, where, what, fallback)."""
+    box = QMessageBox(QMessageBox.Icon.Warning, title,
+                      f"{len(problems)} problem(s) found; {fallback}.", parent=parent)
+    box.setDetailedText("\n".join(str(p) for p in problems))
+    box.setInformativeText("\n".join(f"• {p.where}: {p.message} ({p.fallback})"
+                                     for p in problems[:12])
+                           + (f"\n… and {len(problems) - 12} more" if len(problems) > 12
+                              else ""))
+    box.open()
+    return box
+
+
+def show_error(parent: QWidget | None, title: str, text: str) -> QMessageBox:
+    """A non-blocking warning with one message."""
+    box = QMessageBox(QMessageBox.Icon.Warning, title, text, parent=parent)
+    box.open()
+    return box
+
+
+class _Worker:
+    """Runs ``fn`` in a daemon thread; ``done(result, error)`` is called in the GUI thread."""
+
+    def __init__(self, parent: QWidget, fn: Callable[[], Any],
+                 done: Callable[[Any, BaseException | None], None]) -> None:
+        self.result: Any = None
+        self.error: BaseException | None = None
+        self._done = done
+        self._thread = threading.Thread(target=self._run, daemon=True, name="bpms-gui-worker")
+        self._fn = fn
+        self._timer = QTimer(parent)
+        self._timer.setInterval(30)
+        self._timer.timeout.connect(self._poll)
+        self._thread.start()
+        self._timer.start()
+
+    def _run(self) -> None:
+        try:
+            self.result = self._fn()
+        except BaseException as exc:
+            self.error = exc
+
+    def _poll(self) -> None:
+        if self._thread.is_alive():
+            return
+        self._timer.stop()
+        self._done(self.result, self.error)
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive() or self._timer.isActive()
+
+
+# -- the options form ---------------------------------------------------------------------
+def _field_text(value: Any) -> str:
+    if isinstance(value, list):
+        return ", ".join(str(v) for v in value)
+    return str(value)
+
+
+def _parse_field(text: str, default: Any) -> Any:
+    """The form's text → a value of the default's type (bad text is left for
+    ``options_from_dict`` to report)."""
+    text = text.strip()
+    try:
+        if isinstance(default, bool):
+            return text.lower() in ("true", "1", "yes", "on")
+        if isinstance(default, int):
+            return int(text)
+        if isinstance(default, float):
+            return float(text)
+        if isinstance(default, list):
+            items = [t.strip() for t in text.split(",") if t.strip()]
+            if default and isinstance(default[0], float):
+                return [float(t) for t in items]
+            return items
+    except ValueError:
+        return text
+    return text
+
+
+class OptionsDialog(QDialog):
+    """A form generated from the Options dataclasses (help text with units on each field).
+
+    ``options()`` checks the values like the options file does; ``problems`` lists what was
+    rejected (factory values used instead).
+    """
+
+    def __init__(self, options: Options, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("BPMS options")
+        self.base = options
+        self.editors: dict[tuple[str, str], QWidget] = {}
+        self.defaults: dict[tuple[str, str], Any] = {}
+        tabs = QTabWidget()
+        for name, section in options.sections().items():
+            page = QWidget()
+            form = QFormLayout(page)
+            for f in dataclasses.fields(section):
+                value = getattr(section, f.name)
+                help_text = f.metadata.get("help", "")
+                if isinstance(value, bool):
+                    editor: QWidget = QCheckBox()
+                    editor.setChecked(value)
+                elif "choices" in f.metadata:
+                    editor = QComboBox()
+                    editor.addItems([str(c) for c in f.metadata["choices"]])
+                    editor.setCurrentText(str(value))
+                else:
+                    editor = QLineEdit(_field_text(value))
+                editor.setToolTip(help_text)
+                self.editors[(name, f.name)] = editor
+                self.defaults[(name, f.name)] = f.default if f.default is not dataclasses.MISSING \
+                    else f.default_factory()  # type: ignore[misc]
+                label = QLabel(f"<b>{f.name}</b><br><small>{help_text}</small>")
+                form.addRow(label, editor)
+            scroll = QScrollArea()
+            scroll.setWidget(page)
+            scroll.setWidgetResizable(True)
+            tabs.addTab(scroll, name)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok
+                                   | QDialogButtonBox.StandardButton.Cancel)
+        self.save_button = buttons.addButton("Save as…", QDialogButtonBox.ButtonRole.ActionRole)
+        self.save_button.clicked.connect(self._save_as)
+        buttons.accepted.connect(self.accept)
+        buttons.rejected.connect(self.reject)
+        layout = QVBoxLayout(self)
+        layout.addWidget(tabs)
+        layout.addWidget(buttons)
+        self.resize(640, 560)
+        self.problems: list[FileProblem] = []
+
+    def form_data(self) -> dict[str, dict[str, Any]]:
+        data: dict[str, dict[str, Any]] = {}
+        for (section, key), editor in self.editors.items():
+            default = self.defaults[(section, key)]
+            if isinstance(editor, QCheckBox):
+                value: Any = editor.isChecked()
+            elif isinstance(editor, QComboBox):
+                value = editor.currentText()
+            else:
+                assert isinstance(editor, QLineEdit)
+                value = _parse_field(editor.text(), default)
+            data.setdefault(section, {})[key] = value
+        return data
+
+    def options(self) -> Options:
+        """The form's values, checked (bad ones replaced by factory values, in problems)."""
+        options = options_from_dict(self.form_data(), "options form")
+        self.problems = list(options.problems)
+        options.source = self.base.source + " (edited)"
+        return options
+
+    def save(self, path: str | Path) -> Options:
+        options = self.options()
+        save_options(options, path)
+        return options
+
+    def _save_as(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Save options", "options.toml",
+                                              "TOML (*.toml)")
+        if path:
+            self.save(path)
+
+
+# -- the start-up window ------------------------------------------------------------------
+class StartupWindow(QWidget):
+    """Mode, options, calibration, GO. ``mainWindowOpened(MainWindow)`` after a good GO."""
+
+    mainWindowOpened = pyqtSignal(object)
+
+    def __init__(self, options: Options | None = None,
+                 calibration: CalibrationTable | None = None,
+                 recording_dir: str | None = None, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("BPMS Suite — start")
+        self.options = options or Options()
+        self.calibration = calibration
+        self.recording_dir = recording_dir
+        self.main_window: MainWindow | None = None
+        self.last_dialog: QMessageBox | None = None
+        self.calibration_wizard: QWidget | None = None
+        self._worker: _Worker | None = None
+
+        layout = QVBoxLayout(self)
+        # -- mode --------------------------------------------------------------------------
+        mode_box = QGroupBox("Mode")
+        mode_layout = QVBoxLayout(mode_box)
+        self.mode_group = QButtonGroup(self)
+        self.mode_buttons: dict[str, QRadioButton] = {}
+        radios = QHBoxLayout()
+        self.pages = QStackedWidget()
+        for k, mode in enumerate(MODES):
+            button = QRadioButton(MODE_LABELS[mode])
+            self.mode_group.addButton(button, k)
+            self.mode_buttons[mode] = button
+            radios.addWidget(button)
+        self.mode_group.idToggled.connect(
+            lambda k, on: on and self.pages.setCurrentIndex(k))
+        mode_layout.addLayout(radios)
+        mode_layout.addWidget(self.pages)
+        self.pages.addWidget(self._suit_page())
+        self.pages.addWidget(self._udp_page())
+        self.pages.addWidget(self._file_page())
+        self.pages.addWidget(self._sim_page())
+        layout.addWidget(mode_box)
+
+        # -- options and calibration -------------------------------------------------------
+        files_box = QGroupBox("Options and calibration")
+        form = QFormLayout(files_box)
+        self.options_label = QLabel()
+        row = QHBoxLayout()
+        load_opt = QPushButton("Load options…")
+        load_opt.clicked.connect(self._choose_options)
+        edit_opt = QPushButton("Edit options…")
+        edit_opt.clicked.connect(self.edit_options)
+        row.addWidget(self.options_label, 1)
+        row.addWidget(load_opt)
+        row.addWidget(edit_opt)
+        form.addRow("Options", row)
+        self.calibration_label = QLabel()
+        row = QHBoxLayout()
+        load_cal = QPushButton("Load calibration…")
+        load_cal.clicked.connect(self._choose_calibration)
+        self.wizard_button = QPushButton("Sensor calibration…")
+        self.wizard_button.clicked.connect(self.open_calibration_wizard)
+        self._wizard_module, why = optional_module("bpms.gui.calibration_wizard")
+        if self._wizard_module is None or not hasattr(self._wizard_module, "CalibrationWizard"):
+            self.wizard_button.setEnabled(False)
+            self.wizard_button.setToolTip(why or "no CalibrationWizard in "
+                                                 "bpms.gui.calibration_wizard")
+        else:
+            self.wizard_button.setToolTip("Calibrate the IMUs' sensors (writes a Calib.cfg)")
+        row.addWidget(self.calibration_label, 1)
+        row.addWidget(load_cal)
+        row.addWidget(self.wizard_button)
+        form.addRow("Calibration", row)
+        layout.addWidget(files_box)
+
+        # -- GO ----------------------------------------------------------------------------
+        bottom = QHBoxLayout()
+        self.status_label = QLabel("")
+        self.status_label.setWordWrap(True)
+        self.go_button = QPushButton("GO")
+        self.go_button.setDefault(True)
+        self.go_button.setMinimumWidth(120)
+        self.go_button.setToolTip("Open the main window (Enter)")
+        self.go_button.clicked.connect(self.go)
+        bottom.addWidget(self.status_label, 1)
+        bottom.addWidget(self.go_button)
+        layout.addLayout(bottom)
+        self._show_files()
+        self.refresh_ports()
+        self.select_mode("suit" if self.port_combo.count() else "sim")
+        self.resize(760, 420)
+
+    # -- pages -----------------------------------------------------------------------------
+    def _suit_page(self) -> QWidget:
+        page = QWidget()
+        form = QFormLayout(page)
+        self.port_combo = QComboBox()
+        self.port_combo.setEditable(True)
+        self.port_combo.setToolTip("Serial port or pyserial URL; empty = discover at GO")
+        row = QHBoxLayout()
+        row.addWidget(self.port_combo, 1)
+        refresh = QPushButton("Refresh")
+        refresh.clicked.connect(self.refresh_ports)
+        self.discover_button = QPushButton("Discover")
+        self.discover_button.setToolTip("Ask every port for the suit's 'BPMS' answer")
+        self.discover_button.clicked.connect(self.discover)
+        row.addWidget(refresh)
+        row.addWidget(self.discover_button)
+        form.addRow("Port", row)
+        self.baud_spin = QSpinBox()
+        self.baud_spin.setRange(1200, 4_000_000)
+        self.baud_spin.setSuffix(" bit/s")
+        self.baud_spin.setValue(self.options.serial.baud)
+        form.addRow("Baud", self.baud_spin)
+        self.discover_label = QLabel("")
+        form.addRow(self.discover_label)
+        return page
+
+    def _udp_page(self) -> QWidget:
+        page = QWidget()
+        form = QFormLayout(page)
+        self.listen_edit = QLineEdit(self.options.udp.listen)
+        self.listen_edit.setToolTip("host:port to listen on (0.0.0.0 = every interface)")
+        self.group_edit = QLineEdit()
+        self.group_edit.setPlaceholderText("optional, e.g. 239.1.2.3")
+        form.addRow("Listen on", self.listen_edit)
+        form.addRow("Multicast group", self.group_edit)
+        return page
+
+    def _file_page(self) -> QWidget:
+        page = QWidget()
+        form = QFormLayout(page)
+        row = QHBoxLayout()
+        self.file_edit = QLineEdit()
+        self.file_edit.setPlaceholderText("a .bpmsraw recording or a legacy raw file")
+        browse = QPushButton("Browse…")
+        browse.clicked.connect(self._choose_file)
+        row.addWidget(self.file_edit, 1)
+        row.addWidget(browse)
+        form.addRow("Recording", row)
+        return page
+
+    def _sim_page(self) -> QWidget:
+        page = QWidget()
+        form = QFormLayout(page)
+        self.seed_spin = QSpinBox()
+        self.seed_spin.setRange(0, 1_000_000)
+        form.addRow("Seed", self.seed_spin)
+        form.addRow(QLabel("The simulated suit (bpms.firmware.sim) on a pseudo-terminal in this "
+                           "process, streaming its scripted motion at 50 frames/s."))
+        return page
+
+    # -- mode ------------------------------------------------------------------------------
+    @property
+    def mode(self) -> str:
+        return MODES[self.mode_group.checkedId()]
+
+    def select_mode(self, mode: str) -> None:
+        self.mode_buttons[mode].setChecked(True)
+
+    def refresh_ports(self) -> None:
+        current = self.port_combo.currentText()
+        self.port_combo.clear()
+        self.port_combo.addItems(list_candidate_ports())
+        if current:
+            self.port_combo.setCurrentText(current)
+        elif self.options.serial.port:
+            self.port_combo.setCurrentText(self.options.serial.port)
+
+    def discover(self) -> None:
+        """Look for the suit in a worker thread; none found → the simulated suit."""
+        ports = [self.port_combo.itemText(i) for i in range(self.port_combo.count())]
+        self.discover_button.setEnabled(False)
+        self.discover_label.setText(f"asking {len(ports)} port(s)…")
+        timeout, baud = self.options.serial.discovery_timeout_s, self.baud_spin.value()
+
+        def done(port: str | None, error: BaseException | None) -> None:
+            self.discover_button.setEnabled(True)
+            if port:
+                self.port_combo.setCurrentText(port)
+                self.discover_label.setText(f"suit found on {port}")
+                self.select_mode("suit")
+            else:
+                why = f" ({error})" if error else ""
+                self.discover_label.setText(f"no suit answered{why}: check pairing, power and "
+                                            "battery; the simulated suit is selected")
+                self.select_mode("sim")
+
+        self._worker = _Worker(self, lambda: discover_suit(ports, timeout, baud), done)
+
+    def config(self) -> ModeConfig:
+        return ModeConfig(mode=self.mode, port=self.port_combo.currentText().strip(),
+                          baud=self.baud_spin.value(), listen=self.listen_edit.text().strip(),
+                          group=self.group_edit.text().strip(),
+                          path=self.file_edit.text().strip(), sim_seed=self.seed_spin.value(),
+                          recording_dir=self.recording_dir)
+
+    # -- files -----------------------------------------------------------------------------
+    def _show_files(self) -> None:
+        self.options_label.setText(f"{self.options.source}")
+        self.calibration_label.setText(self.calibration.source if self.calibration
+                                       else "factory")
+
+    def load_options_file(self, path: str | Path) -> Options:
+        """Load options; problems → the warning dialog, factory values used for them."""
+        self.options = load_options(path)
+        self.baud_spin.setValue(self.options.serial.baud)
+        self.listen_edit.setText(self.options.udp.listen)
+        self._show_files()
+        if self.options.problems:
+            self.last_dialog = show_problems(self, "Options file", self.options.problems,
+                                             "factory values used for these")
+        return self.options
+
+    def load_calibration_file(self, path: str | Path) -> CalibrationTable:
+        """Load a Calib.cfg; problems → the warning dialog, factory values used for them."""
+        self.calibration = load_calibration(path)
+        self._show_files()
+        if self.calibration.problems:
+            self.last_dialog = show_problems(self, "Calibration file", self.calibration.problems,
+                                             "factory values used for these")
+        return self.calibration
+
+    def _choose_options(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Load options", "", "TOML (*.toml);;All (*)")
+        if path:
+            self.load_options_file(path)
+
+    def _choose_calibration(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Load calibration", "",
+                                              "Calibration (*.cfg);;All (*)")
+        if path:
+            self.load_calibration_file(path)
+
+    def _choose_file(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Raw recording", "",
+                                              "Raw recordings (*.bpmsraw *.txt);;All (*)")
+        if path:
+            self.file_edit.setText(path)
+
+    def edit_options(self) -> OptionsDialog:
+        """Open the options form; OK applies it (problems → the warning dialog)."""
+        dialog = OptionsDialog(self.options, self)
+
+        def accepted() -> None:
+            self.options = dialog.options()
+            self._show_files()
+            if dialog.problems:
+                self.last_dialog = show_problems(self, "Options", dialog.problems,
+                                                 "factory values used for these")
+
+        dialog.accepted.connect(accepted)
+        dialog.open()
+        return dialog
+
+    def open_calibration_wizard(self) -> QWidget | None:
+        if self._wizard_module is None or not self.wizard_button.isEnabled():
+            return None
+        wizard = self._wizard_module.CalibrationWizard(self.options, self)
+        wizard.show()
+        self.calibration_wizard = wizard
+        return wizard
+
+    # -- GO --------------------------------------------------------------------------------
+    @property
+    def busy(self) -> bool:
+        return self._worker is not None and self._worker.running
+
+    def go(self) -> None:
+        """Prepare the session in a worker thread, then open the main window."""
+        if self.busy:
+            return
+        try:
+            runner = SessionRunner(self.config(), self.options, self.calibration)
+        except ModeError as exc:
+            self.last_dialog = show_error(self, "Cannot start", str(exc))
+            return
+        self.go_button.setEnabled(False)
+        self.status_label.setText(f"starting {MODE_LABELS[runner.mode]}…")
+
+        def done(_result: Any, error: BaseException | None) -> None:
+            self.go_button.setEnabled(True)
+            if error is not None:
+                message = str(error) if isinstance(error, ModeError) else \
+                    f"{type(error).__name__}: {error}"
+                self.status_label.setText(message)
+                self.last_dialog = show_error(self, "Cannot start", message)
+                self.show()
+                return
+            self.status_label.setText("")
+            self.open_main_window(runner)
+
+        self._worker = _Worker(self, runner.prepare, done)
+
+    def open_main_window(self, runner: SessionRunner) -> MainWindow:
+        window = MainWindow(runner)
+        window.closed.connect(self._main_closed)
+        self.main_window = window
+        window.show()
+        self.hide()
+        self.mainWindowOpened.emit(window)
+        return window
+
+    def _main_closed(self) -> None:
+        self.main_window = None
+        self.show()

@@ -1,0 +1,196 @@
+"""Whole GUI sessions (pytest-qt, offscreen): start-up → GO → Start Data → Reset Zero →
+select cells → plot → logging raw + filtered → stop, in simulated-suit, file and UDP modes."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PyQt6.QtCore import Qt
+
+from bpms.firmware.sim.session import simulate
+from bpms.gui.data_table import COLUMNS
+from bpms.gui.main_window import MainWindow
+from bpms.gui.startup import StartupWindow
+from bpms.io.filtered_file import read_filtered
+from bpms.io.rawfile import new_header, read_raw, write_raw
+
+ROOT = Path(__file__).resolve().parents[1]
+SIX_CELLS = [(0, 0), (4, 9), (5, 13), (8, 18), (12, 19), (17, 20)]  # raw, cal, euler
+
+
+@pytest.fixture(scope="module")
+def recording_path(tmp_path_factory) -> Path:
+    rec = simulate(duration_s=12.0, seed=2)
+    path = tmp_path_factory.mktemp("rec") / "Raw_sim_001.bpmsraw"
+    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(notes="simulated"))
+    return path
+
+
+def _go(qtbot, startup: StartupWindow) -> MainWindow:
+    with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
+        startup.go_button.click()
+    window = blocker.args[0]
+    qtbot.addWidget(window)
+    return window
+
+
+def _frames(window: MainWindow) -> int:
+    status = window.model.last_status
+    return status.processed if status is not None else 0
+
+
+def _rows(window: MainWindow) -> int:
+    recording = window.runner.session.status().recording
+    return recording.filtered_rows if recording is not None else 0
+
+
+def _plot_six(qtbot, window: MainWindow):
+    window.table.select_cells(SIX_CELLS)
+    assert window.table.selected_cells() == SIX_CELLS
+    plot = window.plot_selection()
+    labels = [c.name() for c in plot.curves]
+    assert labels[0] == "Right Leg raw ax [counts]"
+    assert labels[1] == "Right Arm ax [m/s²]"
+    assert labels[3] == "Spine roll [deg]"
+    qtbot.waitUntil(lambda: len(plot.buffer) > 20, timeout=10000)
+    x, y = plot.curves[3].getData()
+    assert len(x) > 20 and np.isfinite(y[-5:]).all()
+    return plot
+
+
+def _log(qtbot, window: MainWindow, raw: bool, name: str):
+    panel = window.file_panel
+    panel.name_edit.setText(name)
+    panel.raw_box.setChecked(raw)
+    panel.filtered_box.setChecked(True)
+    panel.log_button.click()
+    assert panel.logging
+    qtbot.waitUntil(lambda: _rows(window) >= 60, timeout=15000)
+    panel.log_button.click()
+    assert not panel.logging
+    return panel.last_recording
+
+
+def test_simulated_suit_session(qtbot, tmp_path):
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.select_mode("sim")
+    window = _go(qtbot, startup)
+    assert not startup.isVisible()
+    assert window.udp_panel is not None and window.playback_panel is None
+    assert not window.status_panel.reset_button.isEnabled()
+    window.status_panel.data_button.click()
+    assert window.status_panel.reset_button.isEnabled()
+    qtbot.waitUntil(lambda: _frames(window) > 25, timeout=15000)
+    assert window.model.last_status.source.battery_v == pytest.approx(3.35, abs=0.05)
+    window.status_panel.reset_button.click()
+    # the table shows the newest sample, units in the headers
+    model = window.table_model
+    assert model.headerData(18, Qt.Orientation.Horizontal) \
+        == "roll [deg]"
+    window.unit_combo.setCurrentText("rad")
+    assert COLUMNS[18].label(model.angle_unit) == "roll [rad]"
+    assert abs(model.value(8, 18)) < 2 * np.pi
+    window.unit_combo.setCurrentText("deg")
+    _plot_six(qtbot, window)
+    joints = window.open_joint_plot()
+    assert len(joints.curves) == 28
+    rec = _log(qtbot, window, raw=True, name="guisim")
+    window.status_panel.data_button.click()  # Stop Data
+    assert not window.runner.data_on
+    raw = read_raw(rec.raw_path)
+    filtered = read_filtered(rec.filtered_path)
+    assert rec.raw_path.name == "Raw_guisim_1.bpmsraw"
+    assert len(raw) == rec.raw_records >= 60
+    assert len(filtered.t) >= 60
+    # the simulated suit's frames, in order: consecutive motion samples
+    motion = window.runner.sim.arbiter.source
+    frames = raw.frames.tobytes()
+    first = next(j for j in range(len(motion)) if motion.frame(j) == frames[:340])
+    assert frames == b"".join(motion.frame(first + j) for j in range(len(raw)))
+    window.close()
+    assert window.runner.session is not None and not window.runner.session.running
+    assert startup.isVisible()  # back to the start-up window
+
+
+def test_file_mode_session(qtbot, tmp_path, recording_path):
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.select_mode("file")
+    startup.file_edit.setText(str(recording_path))
+    window = _go(qtbot, startup)
+    panel = window.playback_panel
+    assert panel is not None and window.udp_panel is None
+    assert not window.file_panel.raw_box.isEnabled()  # raw recording disabled in file mode
+    panel.slider.setValue(100)  # seek to 2 s while stopped
+    assert window.runner.replay.position == 100
+    window.status_panel.data_button.click()  # play
+    qtbot.waitUntil(lambda: not panel.slider.isEnabled(), timeout=5000)
+    assert not panel.speed_combo.isEnabled()
+    qtbot.waitUntil(lambda: window.model.latest is not None, timeout=10000)
+    assert window.model.latest.index >= 100
+    window.status_panel.reset_button.click()
+    plot = _plot_six(qtbot, window)
+    assert plot.buffer.view()[0, 0] >= 2.0  # time axis: frame index × 20 ms
+    window.status_panel.data_button.click()  # pause
+    assert not window.runner.replay.playing
+    qtbot.waitUntil(lambda: panel.slider.isEnabled(), timeout=5000)
+    panel.speed_combo.setCurrentIndex(6)  # max
+    assert window.runner.replay.speed is None
+    rec = _log_during_play(qtbot, window)
+    assert rec.raw_path is None
+    filtered = read_filtered(rec.filtered_path)
+    assert len(filtered.t) >= 60
+    # the time column is the file's frame index × 20 ms: rows of this recording
+    assert filtered.t[0] >= 2.0 and filtered.t[-1] <= 12.0
+    window.close()
+
+
+def _log_during_play(qtbot, window: MainWindow):
+    panel = window.file_panel
+    panel.filtered_box.setChecked(True)
+    panel.name_edit.setText("guifile")
+    panel.log_button.click()
+    window.status_panel.data_button.click()  # play on
+    qtbot.waitUntil(lambda: _rows(window) >= 60, timeout=15000)
+    window.status_panel.data_button.click()  # pause
+    panel.log_button.click()
+    return panel.last_recording
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_udp_client_session(qtbot, tmp_path, recording_path):
+    port = _free_udp_port()
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.select_mode("udp")
+    startup.listen_edit.setText(f"127.0.0.1:{port}")
+    window = _go(qtbot, startup)
+    window.status_panel.data_button.click()
+    sender = subprocess.Popen(
+        [sys.executable, "-m", "bpms", "replay", str(recording_path), "--udp",
+         f"127.0.0.1:{port}", "--speed", "2", "--loop"],
+        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        qtbot.waitUntil(lambda: _frames(window) > 25, timeout=20000)
+        window.status_panel.reset_button.click()
+        _plot_six(qtbot, window)
+        rec = _log(qtbot, window, raw=False, name="guiudp")
+    finally:
+        sender.terminate()
+        sender.wait(10)
+    filtered = read_filtered(rec.filtered_path)
+    assert len(filtered.t) >= 60
+    window.status_panel.data_button.click()  # Stop Data: the session stops
+    assert not window.runner.session.running
+    window.close()

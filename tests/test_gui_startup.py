@@ -1,0 +1,91 @@
+"""The start-up window's files and checks, and ``bpms gui`` without a display."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from PyQt6.QtWidgets import QLineEdit
+
+from bpms.gui.modes import ModeConfig, ModeError, SessionRunner
+from bpms.gui.startup import OptionsDialog, StartupWindow
+from bpms.io.calib_file import load_factory_calibration
+from bpms.io.options import Options, load_options
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_bpms_without_display_says_so_in_one_line():
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
+    for args in ([], ["gui"], ["gui", "--sim"]):
+        done = subprocess.run([sys.executable, "-m", "bpms", *args], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1, done.stderr
+        assert "no display" in lines[0] and "bpms monitor" in lines[0]
+        assert "bpms record" in lines[0] and "bpms replay" in lines[0]
+        assert "Traceback" not in done.stderr and done.stdout == ""
+
+
+def test_bad_options_and_calibration_files_warn_and_use_factory_values(qtbot, tmp_path):
+    startup = StartupWindow()
+    qtbot.addWidget(startup)
+    bad_options = tmp_path / "options.toml"
+    bad_options.write_text("[filter]\nkp_yaw = -3.0\n[display]\nrefresh_hz = 'fast'\n")
+    options = startup.load_options_file(bad_options)
+    box = startup.last_dialog
+    assert box is not None and box.isVisible()
+    assert "filter.kp_yaw" in box.detailedText() and "display.refresh_hz" in box.detailedText()
+    assert options.filter.kp_yaw == Options().filter.kp_yaw
+    assert options.display.refresh_hz == Options().display.refresh_hz
+    box.close()
+    bad_cal = tmp_path / "Calib.cfg"
+    bad_cal.write_text("this is not a calibration file")
+    table = startup.load_calibration_file(bad_cal)
+    box = startup.last_dialog
+    assert box.isVisible() and str(bad_cal) in box.detailedText()
+    assert (table.values == load_factory_calibration().values).all()
+    box.close()
+
+
+def test_options_form_round_trip_and_rejects_bad_values(qtbot, tmp_path):
+    dialog = OptionsDialog(Options())
+    qtbot.addWidget(dialog)
+    kp = dialog.editors[("filter", "kp_yaw")]
+    assert isinstance(kp, QLineEdit) and "gain" in kp.toolTip()
+    kp.setText("0.8")
+    dialog.editors[("udp", "forward_to")].setText("127.0.0.1:6000, 127.0.0.1:6001")
+    path = tmp_path / "edited.toml"
+    dialog.save(path)
+    saved = load_options(path)
+    assert not saved.problems
+    assert saved.filter.kp_yaw == 0.8
+    assert saved.udp.forward_to == ["127.0.0.1:6000", "127.0.0.1:6001"]
+    dialog.editors[("display", "refresh_hz")].setText("-5")
+    options = dialog.options()
+    assert [p.where for p in dialog.problems] == ["display.refresh_hz"]
+    assert options.display.refresh_hz == Options().display.refresh_hz
+
+
+def test_a_missing_suit_says_what_to_check_and_keeps_the_start_up_window(qtbot, tmp_path):
+    runner = SessionRunner(ModeConfig(mode="suit", port=str(tmp_path / "ttyNOPE")), Options())
+    try:
+        runner.prepare()
+    except ModeError as exc:
+        assert all(word in str(exc) for word in ("paired", "battery", "port"))
+    else:
+        raise AssertionError("prepare() should fail")
+    startup = StartupWindow()
+    qtbot.addWidget(startup)
+    startup.show()
+    startup.select_mode("suit")
+    startup.port_combo.setCurrentText(str(tmp_path / "ttyNOPE"))
+    startup.go_button.click()
+    qtbot.waitUntil(lambda: not startup.busy, timeout=10000)
+    assert startup.isVisible() and startup.main_window is None
+    assert "paired" in startup.last_dialog.text()
+    startup.last_dialog.close()
