@@ -100,6 +100,18 @@ def test_simulated_suit_session(qtbot, tmp_path):
     _plot_six(qtbot, window)
     joints = window.open_joint_plot()
     assert len(joints.curves) == 28
+    # gains at run time reach the filter bank (applied between two frames)
+    window.gains_panel.boxes["kp_yaw"].setValue(0.5)
+    bank = window.runner.session.processor.bank
+    qtbot.waitUntil(lambda: bank.params[2] == 0.5, timeout=5000)
+    # UDP server: the live stream goes to the configured target
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sink:
+        sink.bind(("127.0.0.1", 0))
+        sink.settimeout(5.0)
+        window.udp_panel.targets_edit.setText(f"127.0.0.1:{sink.getsockname()[1]}")
+        window.udp_panel.button.click()
+        assert len(sink.recv(2048)) > 340
+        window.udp_panel.button.click()
     rec = _log(qtbot, window, raw=True, name="guisim")
     window.status_panel.data_button.click()  # Stop Data
     assert not window.runner.data_on

@@ -12,14 +12,15 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import Qt
+from PyQt6.QtCore import QPointF, Qt
 from PyQt6.QtGui import QKeySequence, QShortcut
-from PyQt6.QtWidgets import QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+from PyQt6.QtWidgets import QApplication, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.joints import JOINT_ANGLE_NAMES
@@ -188,11 +189,22 @@ class PlotWindow(QWidget):
                 curve.setSkipFiniteCheck(False)
                 self.curves.append(curve)
             self.plots.append(plot)
+        self._last_click = (0.0, QPointF())
         self.graphics.scene().sigMouseClicked.connect(self._clicked)
 
     def _clicked(self, event) -> None:
-        if event.double():
+        # A double click: pyqtgraph flags it, or (depending on the event sequence the platform
+        # sends) two single clicks within the double-click interval.
+        if event.button() != Qt.MouseButton.LeftButton:
+            return
+        now, pos = time.monotonic(), event.screenPos()
+        last_t, last_pos = self._last_click
+        interval = QApplication.doubleClickInterval() / 1000.0
+        near = abs(pos.x() - last_pos.x()) + abs(pos.y() - last_pos.y()) < 6
+        if event.double() or (now - last_t < interval and near):
             self.reset_view()
+            now = 0.0
+        self._last_click = (now, pos)
 
     def reset_view(self) -> None:
         """Back to auto-range on every plot (follows the data again)."""

@@ -1,0 +1,76 @@
+"""Plot windows: the ring buffer, curve labels, pause/resume, legend click, view reset."""
+
+from __future__ import annotations
+
+import numpy as np
+from PyQt6.QtCore import QPoint, Qt
+from PyQt6.QtTest import QTest
+
+from bpms.filter.joints import JOINT_ANGLE_NAMES
+from bpms.gui.plots import RingBuffer, TickBlock, cells_plot, joint_angle_groups
+
+
+def _block(t0: float, n: int) -> TickBlock:
+    t = t0 + np.arange(n) * 0.02
+    raw = np.zeros((n, 18, 9), np.int16)
+    raw[:, 0, 0] = np.arange(n)
+    euler = np.zeros((n, 18, 3))
+    euler[:, 8, 0] = np.radians(10.0)
+    return TickBlock(t, raw, raw.astype(float), euler, np.zeros((n, 28)))
+
+
+def test_ring_buffer_keeps_the_newest_rows_in_order():
+    ring = RingBuffer(7, 2)
+    everything = []
+    rng = np.random.default_rng(1)
+    for _ in range(40):
+        n = int(rng.integers(0, 12))
+        rows = rng.normal(size=(n, 2))
+        everything.extend(rows)
+        ring.extend(rows)
+        expected = np.array(everything[-7:]).reshape(-1, 2)
+        np.testing.assert_array_equal(ring.view(), expected)
+    ring.clear()
+    assert len(ring) == 0 and ring.view().shape == (0, 2)
+
+
+def test_joint_angle_groups_hold_all_28_angles_once():
+    labels = [spec.label for _, specs in joint_angle_groups("deg") for spec in specs]
+    assert sorted(labels) == sorted(f"{n} [deg]" for n in JOINT_ANGLE_NAMES)
+
+
+def test_plot_window_pause_legend_and_reset(qtbot):
+    window = cells_plot([(0, 0), (8, 18)], "deg", history_s=2.0)
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    window.append(_block(0.0, 50))
+    x, y = window.curves[1].getData()
+    assert len(x) == 50 and np.allclose(y, 10.0)  # Euler in the window's unit (deg)
+    window.pause_button.click()
+    window.append(_block(1.0, 150))  # beyond the 2 s history while paused
+    assert len(window.curves[0].getData()[0]) == 50  # drawing frozen
+    window.pause_button.click()
+    x, _ = window.curves[0].getData()
+    assert len(x) == 100 and x[-1] == 1.0 + 149 * 0.02  # newest 2 s after resume
+    window.append(_block(0.5, 5))  # time went back (seek): the history starts again
+    assert len(window.buffer) == 5
+    # legend click hides the curve
+    legend = window.plots[0].legend
+    sample, _label = legend.items[0]
+    view = window.graphics
+    centre = view.mapFromScene(sample.sceneBoundingRect().center())
+    QTest.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=QPoint(centre.x(),
+                                                                            centre.y()))
+    qtbot.waitUntil(lambda: not window.curves[0].isVisible(), timeout=2000)
+    # zoom, then double-click resets to auto-range
+    box = window.plots[0].getViewBox()
+    box.setRange(xRange=(0.0, 0.01), yRange=(0.0, 0.01))
+    assert not any(box.autoRangeEnabled())
+    mid = view.mapFromScene(box.sceneBoundingRect().center())
+    at = QPoint(mid.x(), mid.y())
+    # the event sequence of a real double click: press, release, double-click, release
+    QTest.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
+    QTest.mouseDClick(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
+    QTest.mouseRelease(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
+    qtbot.waitUntil(lambda: all(box.autoRangeEnabled()), timeout=2000)
