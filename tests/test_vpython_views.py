@@ -124,3 +124,33 @@ def test_browser_view_draws_the_figure_and_follows_the_model(qtbot, monkeypatch)
     finally:
         view.close(timeout=10)
     assert view.process.returncode is not None
+
+
+@pytest.mark.skipif(vpython_problem() is not None, reason=str(vpython_problem()))
+def test_script_plays_a_recording_with_a_single_imu_box(tmp_path):
+    pytest.importorskip("websocket", reason="websocket-client is needed as the fake browser")
+    from bpms.firmware.sim.session import simulate
+    from bpms.io.rawfile import new_header, write_raw
+
+    rec = simulate(duration_s=3.0, seed=1)
+    path = tmp_path / "Raw_sim_1.bpmsraw"
+    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(notes="simulated"))
+    port = _free_port()
+    env = {**os.environ, "VPYTHON_NO_LAUNCH_BROWSER": "1", "VPYTHON_HTTP_PORT": str(port)}
+    proc = subprocess.Popen([sys.executable, "-m", "bpms.gui.vpython_views", str(path),
+                             "--imu", "4", "--mode", "box", "--rate", "200"], env=env)
+    try:
+        browser = FakeBrowser(port)
+        assert browser.poll_until(lambda: browser.count("box") == 1)
+        box = next(c for c in browser.cmds if c.get("cmd") == "box")
+        # The box turns with the right arm: its axis ('f') and up ('b') are updated.
+        assert browser.poll_until(
+            lambda: sum(a.startswith(f"a{box['idx']}f") for a in browser.attrs) > 5)
+        assert browser.count("canvas") >= 2  # the body scene and the IMU's own canvas
+        assert browser.count("cylinder") == len(SEGMENTS)
+        browser.ws.close()  # closing the "tab" ends the script, as in vpython
+        assert proc.wait(timeout=15) is not None
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
