@@ -8,7 +8,7 @@ stays right-handed and the figure stands on the display's ground grid (z = 0).
 Keys: x, y, z look along that display axis (from +x, from +y, from above); d toggles each
 IMU's axes (a small triad at its segment's mid-point: red = segment x/forward, green = y/right,
 blue = z/down, in segment axes after Reset Zero); r resets the view. The mouse rotates (left
-drag), pans (middle drag, or Ctrl/Shift + left drag) and zooms (wheel), as pyqtgraph's
+drag), pans (middle drag, or Ctrl + left drag) and zooms (wheel), as pyqtgraph's
 ``GLViewWidget`` does.
 
 When OpenGL is unavailable (pyqtgraph.opengl or PyOpenGL cannot be imported, no GL context
@@ -255,6 +255,9 @@ class View3DWindow(QWidget):
 def open_3d_window(model: SessionModel, parent: QWidget | None = None) -> QWidget:
     """Open (show) a new independent 3D stick-figure window following ``model``.
 
+    It draws the newest sample's ``joint_positions [21, 3]`` (NED metres, lowest foot on the
+    ground) in the z-up display frame ``(x, -y, -z)`` (x north, y west, z up), redrawn on
+    ``model.samplesArrived``; keys x/y/z/d/r as in the module doc.
     Each call makes another top-level window. With ``parent`` the window closes with it;
     without, the caller keeps the returned reference. When OpenGL is unavailable the window
     shows a one-line reason instead of the figure.
