@@ -348,7 +348,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(problem, file=sys.stderr)
         return 2
     if args.stdin:
-        return _serve_stdin()
+        code = _serve_stdin()
+        # vpython's server threads are not daemons on Linux: end now that the GUI closed us.
+        sys.stdout.flush()
+        os._exit(code)
     if not args.file:
         parser.error("give a recording to play, or --stdin")
     return _play_file(args.file, args.rate, args.imu, args.mode)
