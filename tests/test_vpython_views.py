@@ -155,3 +155,20 @@ def test_script_plays_a_recording_with_a_single_imu_box(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait(5)
+
+
+@pytest.mark.skipif(vpython_problem() is not None, reason=str(vpython_problem()))
+def test_a_browser_that_never_connects_costs_dropped_poses_not_a_blocked_gui(monkeypatch):
+    from bpms.gui.vpython_views import BrowserView
+
+    monkeypatch.setenv("VPYTHON_NO_LAUNCH_BROWSER", "1")
+    monkeypatch.setenv("VPYTHON_HTTP_PORT", str(_free_port()))
+    view = BrowserView()  # vpython waits for a page that never comes: stdin is not read
+    try:
+        C = np.broadcast_to(np.eye(3), (18, 3, 3))
+        results = [view.send(C) for _ in range(200)]  # 200 × 1296 B > a 64 KiB pipe
+        assert view.sent + view.dropped == 200
+        assert view.dropped > 0 and not all(results)
+    finally:
+        view.close(timeout=1)
+    assert view.process.returncode is not None

@@ -269,14 +269,11 @@ class BrowserView:
         """Send one pose ``C [18, 3, 3]``; False (dropped) when the pipe is full or closed."""
         data = np.ascontiguousarray(C, dtype="<f8").tobytes()
         try:
-            written = os.write(self._fd, data)
-        except (BlockingIOError, BrokenPipeError, OSError):
+            # ≤ PIPE_BUF (4096) bytes: POSIX writes it whole or not at all (EAGAIN).
+            os.write(self._fd, data)
+        except OSError:  # BlockingIOError (child lagging), BrokenPipeError (child gone)
             self.dropped += 1
             return False
-        if written < len(data):  # a partial message: finish it (rare; the pipe holds 64 KiB)
-            os.set_blocking(self._fd, True)
-            os.write(self._fd, data[written:])
-            os.set_blocking(self._fd, False)
         self.sent += 1
         return True
 
