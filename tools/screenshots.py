@@ -74,7 +74,7 @@ def standalone_3d(app: QApplication, recording: Path, folder: Path) -> None:
     model.attach(session)
     session.start()
     window = open_3d_window(model)
-    wait_for(app, lambda: model.latest is not None and model.latest.index > 1200, 40)
+    wait_for(app, lambda: model.latest is not None and model.latest.index >= 745, 40)
     save_3d(window, "3d-view.png")
     window.view.toggle_axes()
     pump(app, 0.2)
@@ -127,23 +127,18 @@ def main() -> int:
     view = window.open_3d_view()
     if view is not None:
         view.move(300, 200)
-    wait_for(app, lambda: window.model.latest is not None and window.model.latest.index > 1200,
-             40)
-    pump(app, 0.5)
-    save_widget(window, "main-window.png")
-    screen = app.primaryScreen()
-    if view is not None:
-        view.hide()
-    pump(app, 0.3)
-    screen.grabWindow(0).save(str(OUT / "main-window-with-plots.png"))
-    print(f"saved {OUT / 'main-window-with-plots.png'}")
-    if view is not None:
-        view.show()
-        pump(app, 0.5)
+        # 14.9 s into the simulated script: both arms raised sideways.
+        wait_for(app, lambda: window.model.latest.index >= 745, 40)
         save_3d(view, "3d-view.png")
         view.gl_view.toggle_axes()
         pump(app, 0.2)
         save_3d(view, "3d-view-imu-axes.png")
+        view.hide()
+    wait_for(app, lambda: window.model.latest.index > 1200, 40)
+    pump(app, 0.5)
+    save_widget(window, "main-window.png")
+    app.primaryScreen().grabWindow(0).save(str(OUT / "main-window-with-plots.png"))
+    print(f"saved {OUT / 'main-window-with-plots.png'}")
     window.shutdown()
     window.close()
     return 0
