@@ -11,6 +11,7 @@ to stderr for long files.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -21,12 +22,14 @@ from bpms.commands import CliError
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.filtered_file import FilteredWriter, default_output_path
 from bpms.io.frames import decode_frames
-from bpms.io.options import Options, load_options, options_from_dict
+from bpms.io.options import FilterOptions, Options, load_options, options_from_dict
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_recording
 
 CHUNK_FRAMES = 15_000  # 5 min of recording per kernel call (keeps memory flat)
 PROGRESS_ABOVE_FRAMES = 30_000
+FILTER_CHOICES = tuple(next(f for f in dataclasses.fields(FilterOptions)
+                            if f.name == "algorithm").metadata["choices"])
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -45,6 +48,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--options", metavar="options.toml",
                         help="options file (default: the options stored in the recording)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    parser.add_argument("--filter", metavar="NAME", choices=FILTER_CHOICES,
+                        help="attitude filter for all 18 IMUs: " + ", ".join(FILTER_CHOICES)
+                             + " (default: the options' [filter] algorithm, normally mahony; "
+                             "docs/filters.md)")
     parser.set_defaults(run=run)
     return parser
 
@@ -87,9 +94,16 @@ def run(args: argparse.Namespace) -> int:
     if out_path.exists() and not args.force:
         raise CliError(f"{out_path} exists (use --force to overwrite)")
     from bpms.filter.processor import BodyPoseProcessor  # numba: only when filtering
+    from bpms.filter.vqf_filter import VqfMissingError
 
-    proc = BodyPoseProcessor(_calibration(args, recording.header),
-                             _options(args, recording.header))
+    options = _options(args, recording.header)
+    if args.filter:
+        options = options or Options()
+        options.filter.algorithm = args.filter
+    try:
+        proc = BodyPoseProcessor(_calibration(args, recording.header), options)
+    except VqfMissingError as exc:
+        raise CliError(str(exc)) from exc
     for problem in proc.problems:
         print(f"bpms filter: warning: {problem}", file=sys.stderr)
     show = n > PROGRESS_ABOVE_FRAMES

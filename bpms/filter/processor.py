@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.bank import FilterBank
+from bpms.filter.algorithms import make_bank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
@@ -137,7 +137,8 @@ class BodyPoseProcessor:
         self.table = _load_table(calibration)
         self.options = _load_options(options)
         self.sensor_calibration = SensorCalibration.from_table(self.table, self.options.sensors)
-        self.bank = FilterBank(self.sensor_calibration.gravity, self.options.filter)
+        # options.filter.algorithm: 'mahony' (FilterBank, the original) or another filter
+        self.bank = make_bank(self.sensor_calibration.gravity, self.options.filter)
         cal = self.sensor_calibration
         self._cal_params = tuple(np.ascontiguousarray(v, dtype=np.float64) for v in (
             cal.accel_offset, cal.accel_scale * cal.accel_signs, cal.mag_offset,
@@ -168,8 +169,20 @@ class BodyPoseProcessor:
 
     def set_gains(self, **gains: float) -> None:
         """Change ``kp_rollpitch``, ``ki_rollpitch``, ``kp_yaw``, ``ki_yaw``, ``dt`` (s)
-        from the next frame on."""
+        from the next frame on (Mahony); the other filters take their
+        :class:`bpms.io.options.FilterOptions` names (``observer_k_incl``, ``vqf_tau_acc_s``,
+        ...)."""
         self.bank.set_gains(**gains)
+
+    def select_filter(self, algorithm: str) -> None:
+        """Switch all 18 IMUs to another attitude filter (``FilterOptions.algorithm``
+        choices); the new filters align on their next valid frame, Reset Zero is kept.
+        Raises ValueError for an unknown name, ``VqfMissingError`` without the vqf package."""
+        from dataclasses import replace
+
+        options = replace(self.options.filter, algorithm=algorithm)
+        self.bank = make_bank(self.sensor_calibration.gravity, options)
+        self.options.filter = options
 
     # -- running ------------------------------------------------------------------------
     def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

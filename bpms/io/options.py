@@ -30,7 +30,10 @@ def _opt(default: Any, help: str, **checks: Any) -> Any:
 class FilterOptions:
     """Attitude filter settings (SPEC §5); changeable at run time."""
 
-    algorithm: str = _opt("mahony", "attitude filter for all 18 IMUs", choices=("mahony",))
+    algorithm: str = _opt(
+        "mahony", "attitude filter for all 18 IMUs: 'mahony' (the original DCM filter), "
+        "'observer' (quaternion observer with gyro-bias and body-acceleration estimation), "
+        "'vqf' (the vqf package); docs/filters.md", choices=("mahony", "observer", "vqf"))
     kp_rollpitch: float = _opt(0.02, "roll/pitch proportional gain (per accel count)", min=0.0)
     ki_rollpitch: float = _opt(0.00002, "roll/pitch integral gain (per accel count)", min=0.0)
     kp_yaw: float = _opt(1.2, "yaw proportional gain", min=0.0)
@@ -39,6 +42,22 @@ class FilterOptions:
     failed_sensor: str = _opt(
         "hold", "a sensor flagged failed: 'hold' its last good value", choices=("hold",)
     )
+    observer_k_incl: float = _opt(0.5, "observer: inclination correction gain, 1/s", min=0.0)
+    observer_k_head: float = _opt(0.2, "observer: heading (magnetometer) correction gain, 1/s",
+                                  min=0.0)
+    observer_k_bias: float = _opt(0.01, "observer: gyro-bias estimation gain, 1/s²", min=0.0)
+    observer_tau_acc_s: float = _opt(
+        1.5, "observer: gravity low-pass time constant (body-acceleration estimate), s",
+        min=0.0)
+    observer_mag_norm_th: float = _opt(
+        0.05, "observer: magnetic field norm change that counts as disturbed, fraction",
+        min=0.0)
+    observer_mag_dip_th_deg: float = _opt(
+        5.0, "observer: magnetic dip change that counts as disturbed, degrees", min=0.0)
+    observer_mag_new_time_s: float = _opt(
+        10.0, "observer: a steady new magnetic field is accepted after, s", min=0.0)
+    vqf_tau_acc_s: float = _opt(3.0, "vqf: accelerometer low-pass time constant, s", min=0.0)
+    vqf_tau_mag_s: float = _opt(9.0, "vqf: magnetometer correction time constant, s", min=0.0)
 
 
 @dataclass

@@ -1,0 +1,207 @@
+"""The three selectable attitude filters on the BROAD subset (real IMU data, optical truth).
+
+Run: ``.venv/bin/python bench/broad.py [--data DIR] [--trials SUBSTR ...] [--max-s S]``.
+Data: ``../shared/data/broad`` beside the repository root (README there). Each filter runs on
+each trial at the trial's own rate (≈ 285.7 Hz) and resampled to the suit's 50 Hz (linear
+interpolation of the IMU signals at k·20 ms, truth and movement mask taken at the nearest
+sample), with its factory settings, starting from the first sample (each filter aligns
+itself). Units handed to each filter as it expects them: Mahony (SPEC §5) gets the
+accelerometer in counts of 1 g pointing down (Gravity = 256 counts/g), the magnetometer
+scaled to ±100 and gyro rad/s; the observer and VQF get specific force in m/s², the field in
+µT/50 and rad/s. Outputs are rotated from NED to BROAD's ENU. Nothing is aligned that the
+dataset's metric does not align: ``q_err = q_imu ⊗ q_opt⁻¹`` (earth frame), total error
+``2 acos|w|``, heading ``2 atan|z/w|``, inclination ``2 acos √(w² + z²)``, RMSE in degrees over
+the movement phases (samples without optical truth skipped), as the dataset's own code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bpms.filter.algorithms import ALGORITHMS, observer_gains
+from bpms.filter.bank import FilterBank
+from bpms.filter.observer import Observer
+from bpms.filter.rotations import dcm_to_quaternion
+from bpms.filter.vqf_filter import Q_ENU_TO_NED, VqfFilters, quat_mul
+from bpms.io.options import FilterOptions
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = REPO.parent / "shared" / "data" / "broad"
+SUIT_RATE_HZ = 50.0
+MAHONY_GRAVITY = 256.0  # counts per g handed to the original filter
+#: Published averages over all 39 trials (total, heading, inclination RMSE, degrees).
+PUBLISHED = {"Madgwick (β = 0.12)": (4.96, 3.92, 2.71),
+             "Mahony (Kp = 0.74, Ki = 0.0012)": (7.49, 6.30, 3.70),
+             "VQF (paper, several datasets)": (2.9, float("nan"), float("nan"))}
+
+
+@dataclass
+class Trial:
+    name: str
+    rate: float
+    gyr: np.ndarray   # [N, 3] rad/s
+    acc: np.ndarray   # [N, 3] m/s², specific force
+    mag: np.ndarray   # [N, 3] µT
+    opt_quat: np.ndarray  # [N, 4] body → ENU, NaN where missing
+    movement: np.ndarray  # [N] bool
+
+
+@dataclass
+class Row:
+    """RMSE in degrees of one filter on one trial at one rate."""
+
+    trial: str
+    filter: str
+    rate: float
+    total: float
+    heading: float
+    inclination: float
+    seconds: float  # processing time
+
+
+def find_data(data: str | Path | None = None) -> Path | None:
+    """The BROAD folder (``data`` or the default beside the repository), None when absent."""
+    path = Path(data) if data else DEFAULT_DATA
+    return path if path.is_dir() and any(path.glob("*.hdf5")) else None
+
+
+def load_trial(path: Path, max_s: float | None = None) -> Trial:
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        rate = float(f.attrs["sampling_rate"])
+        n = len(f["imu_gyr"]) if max_s is None else min(len(f["imu_gyr"]), round(max_s * rate))
+        get = lambda key: np.asarray(f[key][:n], dtype=np.float64)  # noqa: E731
+        return Trial(path.stem, rate, get("imu_gyr"), get("imu_acc"), get("imu_mag"),
+                     get("opt_quat"), np.asarray(f["movement"][:n], dtype=bool))
+
+
+def resample(trial: Trial, rate: float) -> Trial:
+    """The trial at ``rate`` Hz: IMU signals linearly interpolated, truth/movement nearest."""
+    t_src = np.arange(len(trial.gyr)) / trial.rate
+    t = np.arange(0.0, t_src[-1], 1.0 / rate)
+    interp = lambda x: np.stack([np.interp(t, t_src, x[:, k]) for k in range(3)], 1)  # noqa: E731
+    near = np.clip(np.rint(t * trial.rate).astype(int), 0, len(t_src) - 1)
+    return Trial(trial.name, rate, interp(trial.gyr), interp(trial.acc), interp(trial.mag),
+                 trial.opt_quat[near], trial.movement[near])
+
+
+def _ned_to_enu(q_ned: np.ndarray) -> np.ndarray:
+    # the ENU ↔ NED rotation is its own inverse (180°)
+    return quat_mul(np.broadcast_to(Q_ENU_TO_NED, q_ned.shape), q_ned)
+
+
+def run_filter(name: str, trial: Trial) -> np.ndarray:
+    """Body → ENU quaternions ``[N, 4]`` of filter ``name`` on ``trial``."""
+    dt = 1.0 / trial.rate
+    options = FilterOptions(dt=dt)
+    if name == "mahony":
+        bank = FilterBank(np.array([MAHONY_GRAVITY]), options)
+        out = bank.process((-trial.acc * MAHONY_GRAVITY / 9.81)[:, None],
+                           (trial.mag * 2.0)[:, None], trial.gyr[:, None])
+        q_ned = dcm_to_quaternion(out.R[:, 0])
+    elif name == "observer":
+        obs = Observer(1, observer_gains(options))
+        q_ned = obs.process(trial.acc[:, None], (trial.mag / 50.0)[:, None], trial.gyr[:, None],
+                            store_q=True).q[:, 0]
+    elif name == "vqf":
+        vqf = VqfFilters(1, dt, options.vqf_tau_acc_s, options.vqf_tau_mag_s)
+        q_ned = vqf.process_imu(0, trial.acc, trial.mag / 50.0, trial.gyr)
+    else:
+        raise ValueError(name)
+    return _ned_to_enu(q_ned)
+
+
+def errors(q_imu: np.ndarray, q_opt: np.ndarray, movement: np.ndarray) -> tuple[float, ...]:
+    """(total, heading, inclination) RMSE in degrees, the dataset's definitions."""
+    q_imu = q_imu / np.linalg.norm(q_imu, axis=1, keepdims=True)
+    q_opt = q_opt / np.linalg.norm(q_opt, axis=1, keepdims=True)
+    inv = q_opt * np.array([1.0, -1.0, -1.0, -1.0])
+    e = quat_mul(q_imu, inv)
+    e = e / np.linalg.norm(e, axis=1, keepdims=True)
+    w, z = e[:, 0], e[:, 3]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        total = 2 * np.arccos(np.clip(np.abs(w), 0, 1))
+        heading = 2 * np.arctan(np.abs(z / w))
+        incl = 2 * np.arccos(np.clip(np.sqrt(w**2 + z**2), 0, 1))
+    rmse = lambda x: float(np.degrees(np.sqrt(np.nanmean(x[movement] ** 2))))  # noqa: E731
+    return rmse(total), rmse(heading), rmse(incl)
+
+
+def evaluate(data: Path, trials: list[str] | None = None, max_s: float | None = None,
+             filters: tuple[str, ...] = ALGORITHMS, rates: tuple[str, ...] = ("own", "50"),
+             progress: bool = False) -> list[Row]:
+    """Every filter on every (matching) trial at each rate."""
+    rows = []
+    paths = sorted(p for p in data.glob("*.hdf5")
+                   if not trials or any(s in p.stem for s in trials))
+    for path in paths:
+        original = load_trial(path, max_s)
+        for rate in rates:
+            trial = original if rate == "own" else resample(original, SUIT_RATE_HZ)
+            for name in filters:
+                t0 = time.perf_counter()
+                q = run_filter(name, trial)
+                took = time.perf_counter() - t0
+                rows.append(Row(trial.name, name, trial.rate,
+                                *errors(q, trial.opt_quat, trial.movement), took))
+                if progress:
+                    print(f"  {trial.name} {name} {trial.rate:.1f} Hz: {took:.2f} s",
+                          file=sys.stderr)
+    return rows
+
+
+def print_table(rows: list[Row]) -> None:
+    filters = list(dict.fromkeys(r.filter for r in rows))
+    rates = sorted({r.rate for r in rows}, reverse=True)
+    print("RMSE in degrees over the movement phases, total / heading / inclination\n")
+    print("| trial | rate | " + " | ".join(filters) + " |")
+    print("|---|---|" + "---|" * len(filters))
+    for trial in dict.fromkeys(r.trial for r in rows):
+        for rate in rates:
+            cells = []
+            for f in filters:
+                r = [x for x in rows if x.trial == trial and x.filter == f and x.rate == rate]
+                cells.append(f"{r[0].total:.2f} / {r[0].heading:.2f} / {r[0].inclination:.2f}"
+                             if r else "–")
+            print(f"| {trial} | {rate:.1f} Hz | " + " | ".join(cells) + " |")
+    for rate in rates:
+        cells = []
+        for f in filters:
+            sel = [x for x in rows if x.filter == f and x.rate == rate]
+            m = [np.mean([getattr(x, k) for x in sel]) for k in ("total", "heading",
+                                                                   "inclination")]
+            cells.append(f"**{m[0]:.2f}** / {m[1]:.2f} / {m[2]:.2f}")
+        print(f"| **average** | {rate:.1f} Hz | " + " | ".join(cells) + " |")
+    print("\nPublished averages over all 39 BROAD trials (total / heading / inclination):")
+    for name, (a, b, c) in PUBLISHED.items():
+        print(f"- {name}: {a:.2f} / {b:.2f} / {c:.2f}".replace("nan", "–"))
+    took = {f: sum(x.seconds for x in rows if x.filter == f) for f in filters}
+    print("\nprocessing time: " + ", ".join(f"{f} {s:.1f} s" for f, s in took.items()))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--data", help=f"BROAD folder (default {DEFAULT_DATA})")
+    parser.add_argument("--trials", nargs="*", help="only trials whose name contains these")
+    parser.add_argument("--max-s", type=float, help="only the first S seconds of each trial")
+    args = parser.parse_args(argv)
+    data = find_data(args.data)
+    if data is None:
+        print(f"broad.py: no BROAD data in {args.data or DEFAULT_DATA}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    rows = evaluate(data, args.trials, args.max_s, progress=True)
+    print_table(rows)
+    print(f"total run time {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

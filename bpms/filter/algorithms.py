@@ -1,0 +1,292 @@
+"""Selectable attitude filters behind one interface (``FilterOptions.algorithm``).
+
+Every bank filters ``n`` IMUs from the calibrated filter-frame vectors of
+:meth:`bpms.filter.calibration.SensorCalibration.calibrate` (accel in Gravity counts pointing
+down, mag ±100, gyro rad/s, ``[N, n, 3]`` batch or ``[n, 3]`` live) and returns
+:class:`bpms.filter.bank.BankOutput` (DCM filter frame → NED ``[.., n, 3, 3]``, Euler
+``[.., n, 3]`` rad, NaN while an IMU is not initialised). All banks share the suite's rules:
+the first valid frame of a stream (or after :meth:`reset`) aligns the filter, a failed sensor
+holds its last good value (counted in ``held_count``), gains change from the next frame on.
+
+- ``mahony``: :class:`bpms.filter.bank.FilterBank`, the original (SPEC §5), unchanged;
+- ``observer``: :class:`ObserverBank` over :mod:`bpms.filter.observer`;
+- ``vqf``: :class:`VqfBank` over :mod:`bpms.filter.vqf_filter` (needs the ``vqf`` package).
+
+Unit conversion (inside the adapters): specific force ``f = −a · 9.81 / Gravity`` m/s² (the
+suite's accel is the gravity direction, counts of 1 g), magnetometer ``m / 100`` (≈ unit
+norm; only directions and relative norms are used), gyro unchanged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from itertools import pairwise
+from typing import Protocol
+
+import numpy as np
+
+from bpms.filter.bank import BankOutput, FilterBank
+from bpms.filter.observer import ObserverGains, ObserverState
+from bpms.filter.observer import run_batch as observer_batch
+from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
+from bpms.filter.vqf_filter import VqfFilters
+from bpms.io.options import FilterOptions
+
+ALGORITHMS = ("mahony", "observer", "vqf")
+G_MS2 = 9.81
+MAG_UNIT = 100.0
+
+
+class AttitudeBank(Protocol):
+    """What the processor needs from a filter bank."""
+
+    n: int
+
+    def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+                errors: np.ndarray | None = None,
+                resets: np.ndarray | None = None) -> BankOutput: ...
+
+    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+             errors: np.ndarray | None = None) -> BankOutput: ...
+
+    def reset(self, imu: int | None = None) -> None: ...
+
+    def set_gains(self, **gains: float) -> None: ...
+
+    @property
+    def initialised(self) -> np.ndarray: ...
+
+    @property
+    def held_count(self) -> np.ndarray: ...
+
+
+def make_bank(gravity: np.ndarray, options: FilterOptions) -> AttitudeBank:
+    """The bank of ``options.algorithm`` for IMUs with accelerometer ``gravity[n]`` counts/g.
+    Raises ValueError for an unknown name and
+    :class:`bpms.filter.vqf_filter.VqfMissingError` when ``vqf`` is chosen but not installed."""
+    name = options.algorithm
+    if name == "mahony":
+        return FilterBank(gravity, options)
+    if name == "observer":
+        return ObserverBank(gravity, options)
+    if name == "vqf":
+        return VqfBank(gravity, options)
+    raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
+
+
+def observer_gains(options: FilterOptions) -> ObserverGains:
+    return ObserverGains(k_incl=options.observer_k_incl, k_head=options.observer_k_head,
+                         k_bias=options.observer_k_bias, tau_acc=options.observer_tau_acc_s,
+                         dt=options.dt, mag_norm_th=options.observer_mag_norm_th,
+                         mag_dip_th_deg=options.observer_mag_dip_th_deg,
+                         mag_new_time_s=options.observer_mag_new_time_s)
+
+
+class _PhysicalBank:
+    """Common parts of the non-Mahony banks: options, unit conversion, pending resets."""
+
+    def __init__(self, gravity: np.ndarray, options: FilterOptions | None) -> None:
+        self.gravity = np.ascontiguousarray(gravity, dtype=np.float64)
+        self.n = len(self.gravity)
+        self.options = dataclasses.replace(options or FilterOptions())
+        self._pending_reset = np.zeros(self.n, dtype=np.bool_)
+        self._acc_factor = (-G_MS2 / self.gravity)[:, None]
+
+    def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Suite units → (specific force m/s², mag ≈ unit, gyro rad/s), float64 contiguous."""
+        f = np.ascontiguousarray(np.asarray(acc, dtype=np.float64) * self._acc_factor)
+        m = np.ascontiguousarray(np.asarray(mag, dtype=np.float64) / MAG_UNIT)
+        g = np.ascontiguousarray(gyr, dtype=np.float64)
+        return f, m, g
+
+    def set_gains(self, **gains: float) -> None:
+        """Change settings by their :class:`FilterOptions` names (e.g. ``observer_k_incl``,
+        ``vqf_tau_acc_s``, ``dt``) from the next frame on; other filters' gains are kept for
+        when they are selected."""
+        self.options = dataclasses.replace(self.options, **gains)
+        self._apply_options()
+
+    def set_options(self, options: FilterOptions) -> None:
+        self.options = dataclasses.replace(options)
+        self._apply_options()
+
+    def _apply_options(self) -> None:  # pragma: no cover - overridden
+        pass
+
+    def reset(self, imu: int | None = None) -> None:
+        """Re-initialise IMU ``imu`` (all when None) at its next valid frame."""
+        if imu is None:
+            self._pending_reset[:] = True
+        else:
+            self._pending_reset[imu] = True
+
+    def _resets(self, n: int, resets: np.ndarray | None) -> np.ndarray:
+        if resets is None and not self._pending_reset.any():
+            return np.zeros((0, self.n), np.bool_)
+        rs = (np.zeros((n, self.n), np.bool_) if resets is None
+              else np.array(resets, dtype=np.bool_))
+        if n:
+            rs[0] |= self._pending_reset
+            self._pending_reset[:] = False
+        return rs
+
+
+class ObserverBank(_PhysicalBank):
+    """The quaternion observer (:mod:`bpms.filter.observer`) for ``n`` IMUs."""
+
+    def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
+        super().__init__(gravity, options)
+        self.state = ObserverState(self.n)
+        self._apply_options()
+
+    def _apply_options(self) -> None:
+        self.params = observer_gains(self.options).params()
+
+    @property
+    def initialised(self) -> np.ndarray:
+        return self.state.initialised.copy()
+
+    @property
+    def held_count(self) -> np.ndarray:
+        return self.state.held_count.copy()
+
+    def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+                errors: np.ndarray | None = None,
+                resets: np.ndarray | None = None) -> BankOutput:
+        """Filter N frames in one kernel call (errors ``[N, n, 3]``, resets ``[N, n]``)."""
+        f, m, g = self.physical(acc, mag, gyr)
+        n = f.shape[0]
+        err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
+               else np.ascontiguousarray(errors, dtype=np.bool_))
+        rs = self._resets(n, resets)
+        out_R = np.empty((n, self.n, 3, 3))
+        out_e = np.empty((n, self.n, 3))
+        observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
+                       np.empty((0, self.n, 4)), np.empty((0, self.n, 3)))
+        return BankOutput(out_R, out_e)
+
+    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+             errors: np.ndarray | None = None) -> BankOutput:
+        """One live frame (``[n, 3]`` each)."""
+        out = self.process(np.asarray(acc)[None], np.asarray(mag)[None], np.asarray(gyr)[None],
+                           None if errors is None else np.asarray(errors)[None])
+        return BankOutput(out.R[0], out.euler[0])
+
+
+class VqfBank(_PhysicalBank):
+    """``n`` VQF filters (:mod:`bpms.filter.vqf_filter`) with the suite's hold/reset rules."""
+
+    def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
+        super().__init__(gravity, options)
+        o = self.options
+        self.vqf = VqfFilters(self.n, o.dt, o.vqf_tau_acc_s, o.vqf_tau_mag_s)
+        self._init = np.zeros(self.n, dtype=np.bool_)
+        self._held = np.full((self.n, 3, 3), np.nan)
+        self._held_count = np.zeros((self.n, 3), dtype=np.int64)
+
+    def _apply_options(self) -> None:
+        o = self.options
+        if o.dt != self.vqf.dt:  # a new sample period needs new filters
+            self.vqf = VqfFilters(self.n, o.dt, o.vqf_tau_acc_s, o.vqf_tau_mag_s)
+            self._init[:] = False
+        else:
+            self.vqf.set_time_constants(o.vqf_tau_acc_s, o.vqf_tau_mag_s)
+
+    @property
+    def initialised(self) -> np.ndarray:
+        return self._init.copy()
+
+    @property
+    def held_count(self) -> np.ndarray:
+        return self._held_count.copy()
+
+    def _fill(self, i: int, data: tuple[np.ndarray, ...], err: np.ndarray | None
+              ) -> tuple[list[np.ndarray], np.ndarray]:
+        """Forward-fill failed samples of IMU ``i`` with the last good value; valid mask."""
+        n = data[0].shape[0]
+        filled = []
+        valid = np.ones(n, dtype=np.bool_)
+        for s, arr in enumerate(data):
+            x = arr[:, i]
+            if err is not None and err[:, i, s].any():
+                good = ~err[:, i, s]
+                valid &= good
+                idx = np.maximum.accumulate(np.where(good, np.arange(n), -1))
+                x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self._held[i, s])
+            filled.append(np.ascontiguousarray(x))
+            if n:
+                self._held[i, s] = x[-1]
+        return filled, valid
+
+    def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+                errors: np.ndarray | None = None,
+                resets: np.ndarray | None = None) -> BankOutput:
+        """Filter N frames (VQF's batch API per IMU and per run between resets)."""
+        data = self.physical(acc, mag, gyr)
+        n = data[0].shape[0]
+        err = None if errors is None else np.asarray(errors, dtype=np.bool_)
+        rs = self._resets(n, resets)
+        q = np.full((n, self.n, 4), np.nan)
+        for i in range(self.n):
+            (f, m, g), valid = self._fill(i, data, err)
+            cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
+            for a, b in pairwise(cuts):
+                if b <= a:
+                    continue
+                if len(rs) and rs[a, i]:
+                    self._init[i] = False
+                start = a
+                if not self._init[i]:
+                    ok = np.flatnonzero(valid[a:b])
+                    if len(ok) == 0:
+                        continue
+                    start = a + int(ok[0])
+                    self.vqf.reset(i)
+                    self._init[i] = True
+                    first = start + 1  # the aligning frame is not a step
+                else:
+                    first = start
+                if err is not None:
+                    self._held_count[i] += err[first:b, i].sum(axis=0)
+                q[start:b, i] = self.vqf.process_imu(i, f[start:b], m[start:b], g[start:b])
+        return _outputs(q)
+
+    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+             errors: np.ndarray | None = None) -> BankOutput:
+        """One live frame (VQF's per-sample API)."""
+        f, m, g = self.physical(np.asarray(acc)[None], np.asarray(mag)[None],
+                                np.asarray(gyr)[None])
+        err = None if errors is None else np.asarray(errors, dtype=np.bool_)
+        q = np.full((self.n, 4), np.nan)
+        for i in range(self.n):
+            if self._pending_reset[i]:
+                self._init[i] = False
+            bad = np.zeros(3, np.bool_) if err is None else err[i]
+            for s, arr in enumerate((f, m, g)):
+                if not bad[s]:
+                    self._held[i, s] = arr[0, i]
+            if not self._init[i]:
+                if bad.any() or not np.isfinite(self._held[i]).all():
+                    continue
+                self.vqf.reset(i)
+                self._init[i] = True
+            else:
+                self._held_count[i] += bad
+            q[i] = self.vqf.step_imu(i, *self._held[i])
+        self._pending_reset[:] = False
+        out = _outputs(q[None])
+        return BankOutput(out.R[0], out.euler[0])
+
+
+def _outputs(q: np.ndarray) -> BankOutput:
+    """Quaternions ``[N, n, 4]`` (NaN rows allowed) → DCM and Euler."""
+    R = np.full((*q.shape[:-1], 3, 3), np.nan)
+    ok = np.isfinite(q).all(axis=-1)
+    if ok.any():
+        R[ok] = quaternion_to_dcm(q[ok])
+    return BankOutput(R, dcm_to_euler(R))
+
+
+__all__ = ["ALGORITHMS", "AttitudeBank", "ObserverBank", "VqfBank", "make_bank",
+           "observer_gains"]

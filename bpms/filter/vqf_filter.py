@@ -1,0 +1,101 @@
+"""Adapter over the ``vqf`` package (D. Laidig, T. Seel, "VQF", Information Fusion 2023):
+``n`` independent 9D VQF filters with batch (``VQF.updateBatch``) and per-sample
+(``VQF.update``) APIs, returning the suite's conventions.
+
+Inputs in physical units: specific force ``f`` m/s² (reads (0, 0, −9.81) level in a Z-down
+body frame), magnetometer in any unit, gyro rad/s. VQF's earth frame is ENU (x east, y north,
+z up); outputs here are rotated to NED: ``R_ned = M R_enu`` with ``M`` swapping x, y and
+negating z. ``vqf`` is a run-time dependency of this choice only: :func:`require_vqf` raises
+:class:`VqfMissingError` with a one-line message when it is not installed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: ENU → NED coordinates (a proper rotation: 180° about (1, 1, 0)/√2).
+ENU_TO_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+#: The same as a quaternion (w, x, y, z).
+Q_ENU_TO_NED = np.array([0.0, 1.0, 1.0, 0.0]) / np.sqrt(2.0)
+
+
+class VqfMissingError(RuntimeError):
+    """The ``vqf`` package is not installed."""
+
+
+def require_vqf():
+    """The ``vqf.VQF`` class, or :class:`VqfMissingError` with a clear message."""
+    try:
+        from vqf import VQF
+    except ImportError as exc:
+        raise VqfMissingError("the 'vqf' filter needs the vqf package (pip install vqf); "
+                         "choose 'mahony' or 'observer' otherwise") from exc
+    return VQF
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of quaternions ``[..., 4]`` (w, x, y, z)."""
+    a0, a1, a2, a3 = np.moveaxis(a, -1, 0)
+    b0, b1, b2, b3 = np.moveaxis(b, -1, 0)
+    return np.stack([a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+                     a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+                     a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+                     a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0], axis=-1)
+
+
+def enu_to_ned(q_enu: np.ndarray) -> np.ndarray:
+    """Body → ENU quaternions ``[..., 4]`` → body → NED."""
+    return quat_mul(np.broadcast_to(Q_ENU_TO_NED, q_enu.shape), q_enu)
+
+
+class VqfFilters:
+    """``n`` VQF filters sharing dt and time constants.
+
+    dt: sample period, s; tau_acc, tau_mag: VQF's accelerometer and magnetometer time
+    constants, s (package defaults 3 s and 9 s).
+    """
+
+    def __init__(self, n: int, dt: float, tau_acc: float = 3.0, tau_mag: float = 9.0) -> None:
+        self._cls = require_vqf()
+        self.n = n
+        self.dt = float(dt)
+        self.tau_acc = float(tau_acc)
+        self.tau_mag = float(tau_mag)
+        self.filters = [self._new() for _ in range(n)]
+
+    def _new(self):
+        return self._cls(self.dt, tauAcc=self.tau_acc, tauMag=self.tau_mag)
+
+    def reset(self, imu: int) -> None:
+        """Start IMU ``imu`` afresh (its next sample aligns it)."""
+        self.filters[imu].resetState()
+
+    def set_time_constants(self, tau_acc: float | None = None,
+                           tau_mag: float | None = None) -> None:
+        if tau_acc is not None:
+            self.tau_acc = float(tau_acc)
+            for f in self.filters:
+                f.setTauAcc(self.tau_acc)
+        if tau_mag is not None:
+            self.tau_mag = float(tau_mag)
+            for f in self.filters:
+                f.setTauMag(self.tau_mag)
+
+    def process_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """Filter ``[N, 3]`` samples of one IMU (batch API); body → NED quaternions ``[N, 4]``."""
+        out = self.filters[imu].updateBatch(
+            np.ascontiguousarray(g, dtype=np.float64), np.ascontiguousarray(f, dtype=np.float64),
+            np.ascontiguousarray(m, dtype=np.float64))
+        return enu_to_ned(out["quat9D"])
+
+    def step_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """One sample of one IMU (per-sample API); body → NED quaternion ``[4]``."""
+        flt = self.filters[imu]
+        flt.update(np.ascontiguousarray(g, dtype=np.float64),
+                   np.ascontiguousarray(f, dtype=np.float64),
+                   np.ascontiguousarray(m, dtype=np.float64))
+        return enu_to_ned(np.asarray(flt.getQuat9D()))
+
+
+__all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned", "quat_mul",
+           "require_vqf"]
