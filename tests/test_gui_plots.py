@@ -66,11 +66,13 @@ def test_plot_window_pause_legend_and_reset(qtbot):
     # zoom, then double-click resets to auto-range
     box = window.plots[0].getViewBox()
     box.setRange(xRange=(0.0, 0.01), yRange=(0.0, 0.01))
-    assert not any(box.autoRangeEnabled())
+    assert not box.autoRangeEnabled()[1]
     mid = view.mapFromScene(box.sceneBoundingRect().center())
     at = QPoint(mid.x(), mid.y())
     # the event sequence of a real double click: press, release, double-click, release
     QTest.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
     QTest.mouseDClick(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
     QTest.mouseRelease(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
-    qtbot.waitUntil(lambda: all(box.autoRangeEnabled()), timeout=2000)
+    qtbot.waitUntil(lambda: box.autoRangeEnabled()[1], timeout=2000)
+    x_range = box.viewRange()[0]
+    assert x_range[0] <= 0.5 and x_range[1] >= 0.5 + 4 * 0.02  # the data in view again

@@ -68,6 +68,14 @@ def error_text(flags: np.ndarray) -> str:
     return " ".join(name for name, bad in zip(SENSOR_NAMES, flags, strict=True) if bad)
 
 
+_DISPLAY = Qt.ItemDataRole.DisplayRole
+_ALIGN = Qt.ItemDataRole.TextAlignmentRole
+_FOREGROUND = Qt.ItemDataRole.ForegroundRole
+_RIGHT = Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter
+_RED = Qt.GlobalColor.red
+_ERRORS_COLUMN = len(COLUMNS) - 1
+
+
 class ImuTableModel(QAbstractTableModel):
     """Numbers of the newest sample; refreshed by :meth:`update` once per display tick."""
 
@@ -81,6 +89,7 @@ class ImuTableModel(QAbstractTableModel):
         self.euler = np.full((N_IMUS, 3), np.nan)
         self.errors = np.zeros((N_IMUS, 3), bool)
         self.has_data = False
+        self._text: list[list[str]] = []
 
     # -- updates ------------------------------------------------------------------------
     def update(self, sample: PoseSample) -> None:
@@ -90,13 +99,30 @@ class ImuTableModel(QAbstractTableModel):
         self.euler = sample.euler
         self.errors = sample.errors
         self.has_data = True
+        self._format()
         self.dataChanged.emit(self.index(0, 0), self.index(N_IMUS - 1, len(COLUMNS) - 1))
+
+    def _format(self) -> None:
+        # All 18 × 22 strings once per tick: Qt then asks for each visible cell (several
+        # roles each), and a list lookup keeps those calls cheap.
+        deg = self.angle_unit == "deg"
+        euler = np.degrees(self.euler) if deg else self.euler
+        efmt = "{:.2f}" if deg else "{:.3f}"
+        rows = []
+        for i in range(N_IMUS):
+            raw = [str(v) for v in self.raw[i].tolist()]
+            cal = ["–" if v != v else f"{v:.3f}" for v in self.cal[i].tolist()]
+            eul = ["–" if v != v else efmt.format(v) for v in euler[i].tolist()]
+            rows.append([*raw, *cal, *eul, error_text(self.errors[i])])
+        self._text = rows
 
     def set_angle_unit(self, unit: str) -> None:
         """"deg" or "rad": Euler cells and headers change at once."""
         if unit not in ("deg", "rad"):
             raise ValueError(f"angle unit must be 'deg' or 'rad', not {unit!r}")
         self.angle_unit = unit
+        if self.has_data:
+            self._format()
         self.headerDataChanged.emit(Qt.Orientation.Horizontal, 0, len(COLUMNS) - 1)
         self.dataChanged.emit(self.index(0, 0), self.index(N_IMUS - 1, len(COLUMNS) - 1))
 
@@ -119,25 +145,13 @@ class ImuTableModel(QAbstractTableModel):
         angle = float(self.euler[row, column.k])
         return float(np.degrees(angle)) if self.angle_unit == "deg" else angle
 
-    def data(self, index: QModelIndex, role: int = Qt.ItemDataRole.DisplayRole):
-        if not index.isValid():
-            return None
-        row, col = index.row(), index.column()
-        if role == Qt.ItemDataRole.DisplayRole:
-            if not self.has_data:
-                return ""
-            value = self.value(row, col)
-            if isinstance(value, (str, int)):
-                return str(value)
-            if np.isnan(value):
-                return "–"
-            group = COLUMNS[col].group
-            digits = 2 if group == "euler" and self.angle_unit == "deg" else 3
-            return f"{value:.{digits}f}"
-        if role == Qt.ItemDataRole.TextAlignmentRole:
-            return Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter
-        if role == Qt.ItemDataRole.ForegroundRole and COLUMNS[col].group == "errors":
-            return Qt.GlobalColor.red
+    def data(self, index: QModelIndex, role: int = _DISPLAY):
+        if role == _DISPLAY:
+            return self._text[index.row()][index.column()] if self.has_data else ""
+        if role == _ALIGN:
+            return _RIGHT
+        if role == _FOREGROUND and index.column() == _ERRORS_COLUMN:
+            return _RED
         return None
 
     def headerData(self, section: int, orientation: Qt.Orientation,

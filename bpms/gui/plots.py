@@ -28,6 +28,9 @@ from bpms.gui.data_table import COLUMNS, calibrated, column_values
 from bpms.io.frames import FRAME_PERIOD_S, FRAME_RATE_HZ, IMU_NAMES
 from bpms.pipeline.session import PoseSample
 
+#: The time axis of a following plot moves by this much at a time, s.
+PAGE_S = 5.0
+
 
 @dataclass
 class TickBlock:
@@ -153,8 +156,11 @@ class PlotWindow(QWidget):
         self.setWindowTitle(title)
         self.specs = [spec for _, specs in groups for spec in specs]
         self.buffer = RingBuffer(max(1, round(history_s * FRAME_RATE_HZ)), 1 + len(self.specs))
+        self.history_s = history_s
         self.paused = False
         self.closed = False
+        self.follow = True  # x range follows the newest data (until the user zooms or pans)
+        self._x_end: float | None = None
 
         layout = QVBoxLayout(self)
         bar = QHBoxLayout()
@@ -172,21 +178,23 @@ class PlotWindow(QWidget):
         QShortcut(QKeySequence(Qt.Key.Key_Space), self, activated=self.pause_button.toggle)
 
         self.plots: list[pg.PlotItem] = []
-        self.curves: list[pg.PlotDataItem] = []
+        self.curves: list[pg.PlotCurveItem] = []
         n = len(self.specs)
         for row, (group_title, specs) in enumerate(groups):
             plot = self.graphics.addPlot(row=row, col=0, title=group_title or None)
             plot.addLegend(offset=(5, 5))
-            plot.showGrid(x=True, y=True, alpha=0.3)
             plot.setLabel("bottom", "time", units="s")
             plot.getViewBox().setMouseMode(pg.ViewBox.RectMode)
+            plot.getViewBox().sigRangeChangedManually.connect(self._manual_range)
+            plot.enableAutoRange(axis="x", enable=False)
             for spec in specs:
-                curve = plot.plot(name=spec.label,
-                                  pen=pg.mkPen(pg.intColor(len(self.curves), hues=max(n, 6)),
-                                               width=1.5))
-                curve.setClipToView(True)
-                curve.setDownsampling(auto=True, method="peak")
-                curve.setSkipFiniteCheck(False)
+                # PlotCurveItem, not PlotDataItem: a history of ≤ 60 s × 50 Hz needs no
+                # downsampling, and its setData costs a third. Pens 1 px wide: wider ones are
+                # much slower to draw.
+                curve = pg.PlotCurveItem(
+                    name=spec.label, connect="finite",
+                    pen=pg.mkPen(pg.intColor(len(self.curves), hues=max(n, 6)), width=1))
+                plot.addItem(curve)
                 self.curves.append(curve)
             self.plots.append(plot)
         self._last_click = (0.0, QPointF())
@@ -207,9 +215,29 @@ class PlotWindow(QWidget):
         self._last_click = (now, pos)
 
     def reset_view(self) -> None:
-        """Back to auto-range on every plot (follows the data again)."""
+        """Back to following the data: y auto-range, x the newest history."""
+        self.follow = True
+        self._x_end = None
         for plot in self.plots:
-            plot.enableAutoRange()
+            plot.enableAutoRange(axis="y")
+        self.redraw()
+
+    def _manual_range(self, *_args) -> None:
+        self.follow = False
+
+    def _follow_time(self, t: np.ndarray) -> None:
+        # The time axis moves in pages of PAGE_S, not at every tick: redrawing an axis's
+        # tick labels is the costliest part of a plot's paint (text rendering).
+        if not self.follow or len(t) == 0:
+            return
+        page = min(PAGE_S, self.history_s / 4)
+        end = float(np.ceil(t[-1] / page + 1e-9) * page)
+        if end == self._x_end:
+            return
+        self._x_end = end
+        start = max(float(np.floor(t[0])), end - self.history_s - page)
+        for plot in self.plots:
+            plot.setXRange(start, end, padding=0.0)
 
     def set_paused(self, paused: bool) -> None:
         self.paused = paused
@@ -237,6 +265,7 @@ class PlotWindow(QWidget):
     def redraw(self) -> None:
         data = self.buffer.view()
         t = data[:, 0]
+        self._follow_time(t)
         for k, curve in enumerate(self.curves):
             curve.setData(t, data[:, k + 1])
 
