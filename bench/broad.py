@@ -35,6 +35,9 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "broad"
 SUIT_RATE_HZ = 50.0
 MAHONY_GRAVITY = 256.0  # counts per g handed to the original filter
+#: Extra row (--extra): the original filter with the published BROAD Mahony gains
+#: (Kp 0.74, Ki 0.0012 per unit vector error → per accel count: ÷ Gravity). Not a default.
+MAHONY_TUNED = "mahony-kp0.74"
 #: Published averages over all 39 trials (total, heading, inclination RMSE, degrees).
 PUBLISHED = {"Madgwick (β = 0.12)": (4.96, 3.92, 2.71),
              "Mahony (Kp = 0.74, Ki = 0.0012)": (7.49, 6.30, 3.70),
@@ -101,7 +104,11 @@ def run_filter(name: str, trial: Trial) -> np.ndarray:
     """Body → ENU quaternions ``[N, 4]`` of filter ``name`` on ``trial``."""
     dt = 1.0 / trial.rate
     options = FilterOptions(dt=dt)
-    if name == "mahony":
+    if name == MAHONY_TUNED:  # the published Mahony gains in the suite's units (not a default)
+        options = FilterOptions(dt=dt, kp_rollpitch=0.74 / MAHONY_GRAVITY,
+                                ki_rollpitch=0.0012 / MAHONY_GRAVITY, kp_yaw=0.74,
+                                ki_yaw=0.0012)
+    if name in ("mahony", MAHONY_TUNED):
         bank = FilterBank(np.array([MAHONY_GRAVITY]), options)
         out = bank.process((-trial.acc * MAHONY_GRAVITY / 9.81)[:, None],
                            (trial.mag * 2.0)[:, None], trial.gyr[:, None])
@@ -186,19 +193,63 @@ def print_table(rows: list[Row]) -> None:
     print("\nprocessing time: " + ", ".join(f"{f} {s:.1f} s" for f, s in took.items()))
 
 
+def print_simulated(seed: int = 0) -> None:
+    """The simulated suit (``simulate(seed)``, 18 IMUs at 50 Hz, factory options but the
+    filter choice): RMS inclination / heading / joint-angle errors in degrees from t = 1 s,
+    undisturbed, magnetically disturbed (``mag_disturbance=True``) and the walk phase."""
+    sys.path.insert(0, str(REPO / "bench"))
+    from accuracy import accuracy
+
+    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.firmware.sim.session import simulate
+    from bpms.io.options import Options
+
+    recs = {"undisturbed": simulate(seed=seed), "magnet": simulate(seed=seed,
+                                                                   mag_disturbance=True)}
+    rms = lambda x: float(np.sqrt(np.mean(x**2)))  # noqa: E731
+    print(f"Simulated suit, seed {seed}: RMS errors in degrees from t = 1 s "
+          "(inclination / heading / joint angles)\n")
+    print("| filter | undisturbed | magnet | walk 59.2–69.1 s | magnet 17–25 s |")
+    print("|---|---|---|---|---|")
+    for name in ALGORITHMS:
+        cells = []
+        acc = {}
+        for case, rec in recs.items():
+            options = Options()
+            options.filter.algorithm = name
+            result = BodyPoseProcessor(rec.calibration, options).process(rec.raw, rec.errors)
+            acc[case] = accuracy(rec, result, 1.0)
+        for case, lo, hi in (("undisturbed", 0, 1e9), ("magnet", 0, 1e9),
+                             ("undisturbed", 59.2, 69.1), ("magnet", 17.0, 25.0)):
+            a = acc[case]
+            k = (a.t >= lo) & (a.t < hi)
+            cells.append(f"{rms(a.incl_all[k]):.2f} / {rms(a.head_all[k]):.2f} / "
+                         f"{rms(a.joint_all[k]):.2f}")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--data", help=f"BROAD folder (default {DEFAULT_DATA})")
     parser.add_argument("--trials", nargs="*", help="only trials whose name contains these")
     parser.add_argument("--max-s", type=float, help="only the first S seconds of each trial")
+    parser.add_argument("--extra", action="store_true",
+                        help=f"add {MAHONY_TUNED}: the original filter with the published "
+                             "Mahony gains (a reference, not a selectable default)")
+    parser.add_argument("--sim", action="store_true",
+                        help="also the simulated suit (undisturbed, magnet, walk) per filter")
     args = parser.parse_args(argv)
     data = find_data(args.data)
     if data is None:
         print(f"broad.py: no BROAD data in {args.data or DEFAULT_DATA}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    rows = evaluate(data, args.trials, args.max_s, progress=True)
+    filters = (*ALGORITHMS, MAHONY_TUNED) if args.extra else ALGORITHMS
+    rows = evaluate(data, args.trials, args.max_s, filters=filters, progress=True)
     print_table(rows)
+    if args.sim:
+        print()
+        print_simulated()
     print(f"total run time {time.perf_counter() - t0:.1f} s")
     return 0
 
