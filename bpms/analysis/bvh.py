@@ -1,0 +1,108 @@
+"""BVH export of the stick figure (:mod:`bpms.filter.body_model`), for Blender and other
+animation tools.
+
+- One BVH joint per body-model segment, named after the segment (:func:`joint_name`:
+  ``low_spine``, ``mid_spine``, ``neck``, ``head``, ``shoulder_r``, ``arm_r``, ``forearm_r``,
+  ``hand_r``, ``hip_r``, ``thigh_r``, ``shank_r``, ``foot_r`` and the left side), placed at the
+  segment's start point (``thigh_r`` at the hip joint); its rotation is the segment orientation
+  ``C[imu]`` relative to its parent joint's. Leaf segments end in an ``End Site``. The
+  root ``pelvis`` carries the pelvis position (``joint_positions``, lowest foot on the
+  ground) and ``C[6]``.
+- Axes: BVH/Blender's y-up frame, ``x = north (forward), y = up, z = east (right)`` — NED
+  rotated +90° about X, the same as the OpenSim export. Offsets and positions in
+  **centimetres** (Blender's BVH importer: scale 0.01 for metres).
+- Channels: root ``Xposition Yposition Zposition Zrotation Xrotation Yrotation``, joints
+  ``Zrotation Xrotation Yrotation`` (degrees, local ``R = Rz Rx Ry``).
+- The rest pose is the calibration pose (every segment orientation = identity), with the
+  per-subject lengths of ``Options.body``. Frames where the figure is not yet defined (before
+  the first Reset Zero) are written in the rest pose.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from bpms.filter.body_model import BODY_POINTS
+from bpms.io.options import BodyOptions
+
+#: NED → BVH (x forward, y up, z right).
+NED_TO_BVH = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+CM_PER_M = 100.0
+ROOT_IMU = 6
+
+
+def _children() -> dict[str, list[int]]:
+    """Point name → indices of the segments starting there."""
+    out: dict[str, list[int]] = {}
+    for k, p in enumerate(BODY_POINTS):
+        out.setdefault(p.parent, []).append(k)
+    return out
+
+
+def joint_name(k: int) -> str:
+    """BVH joint name of body-model segment ``k`` (``BODY_POINTS[k]``)."""
+    p = BODY_POINTS[k]
+    side = p.name[-2:] if p.name[-2:] in ("_r", "_l") else ""
+    return p.length + ("" if p.length.endswith(side) else side)
+
+
+def zxy_angles(R: np.ndarray) -> np.ndarray:
+    """``R[..., 3, 3] = Rz(z) Rx(x) Ry(y)`` → ``[..., 3]`` (z, x, y) in degrees."""
+    x = np.arcsin(np.clip(R[..., 2, 1], -1.0, 1.0))
+    y = np.arctan2(-R[..., 2, 0], R[..., 2, 2])
+    z = np.arctan2(-R[..., 0, 1], R[..., 1, 1])
+    return np.degrees(np.stack([z, x, y], axis=-1))
+
+
+def write_bvh(path: str | Path, C: np.ndarray, pelvis: np.ndarray,
+              body: BodyOptions | None = None, frame_time_s: float = 0.02) -> int:
+    """Write segment orientations ``C[N, 18, 3, 3]`` (segment → NED) and the pelvis position
+    ``pelvis[N, 3]`` (m, NED) as a BVH file. Returns the number of frames."""
+    body = body or BodyOptions()
+    C = np.array(C, dtype=np.float64)
+    bad = ~np.isfinite(C).all(axis=(-1, -2, -3))
+    C[bad] = np.eye(3)
+    pelvis = np.where(np.isfinite(pelvis), pelvis, 0.0)
+    G = NED_TO_BVH @ C @ NED_TO_BVH.T  # global rotations in BVH axes
+    children = _children()
+    lines: list[str] = ["HIERARCHY"]
+    order: list[tuple[int, int]] = []  # (imu of this joint, imu of the parent joint)
+
+    def fmt(v: np.ndarray) -> str:
+        return " ".join(f"{c:.6f}" for c in v)
+
+    def emit(k: int, parent_imu: int, offset: np.ndarray, depth: int) -> None:
+        p = BODY_POINTS[k]
+        pad = "  " * depth
+        lines.append(f"{pad}JOINT {joint_name(k)}")
+        lines.append(f"{pad}{{")
+        lines.append(f"{pad}  OFFSET {fmt(offset)}")
+        lines.append(f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation")
+        order.append((p.imu, parent_imu))
+        vec = NED_TO_BVH @ np.array(p.direction) * getattr(body, p.length) * CM_PER_M
+        kids = children.get(p.name, [])
+        for c in kids:
+            emit(c, p.imu, vec, depth + 1)
+        if not kids:
+            lines.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {fmt(vec)}",
+                          f"{pad}  }}"])
+        lines.append(f"{pad}}}")
+
+    lines += ["ROOT pelvis", "{", "  OFFSET 0.000000 0.000000 0.000000",
+              "  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"]
+    for k in children["pelvis"]:
+        emit(k, ROOT_IMU, np.zeros(3), 1)
+    lines.append("}")
+    n = len(C)
+    columns = [(pelvis @ NED_TO_BVH.T) * CM_PER_M, zxy_angles(G[:, ROOT_IMU])]
+    for imu, parent in order:
+        local = np.swapaxes(G[:, parent], -1, -2) @ G[:, imu]
+        columns.append(zxy_angles(local))
+    motion = np.concatenate(columns, axis=1)
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write("\n".join(lines) + "\n")
+        f.write(f"MOTION\nFrames: {n}\nFrame Time: {frame_time_s:.6f}\n")
+        np.savetxt(f, motion, fmt="%.5f", delimiter=" ")
+    return n

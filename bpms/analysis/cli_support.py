@@ -1,0 +1,29 @@
+"""Shared by the analysis commands: filter a recording with CLI error handling."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+from bpms.commands import CliError
+
+
+def processed(command: str, path: str, calibration: str | None = None,
+              options: str | None = None, zero_at_s: Sequence[float] = ()):
+    """:func:`bpms.analysis.source.process_recording` (a raw recording, or a filtered CSV),
+    problems as warnings on stderr."""
+    from bpms.analysis.source import process_recording
+    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.rawfile import RawFileError
+
+    try:
+        p = process_recording(path, calibration, options, zero_at_s)
+    except (RawFileError, FilteredFileError) as exc:
+        raise CliError(str(exc)) from exc
+    except OSError as exc:
+        raise CliError(f"{path}: {exc.strerror or exc}") from exc
+    if len(p.result) == 0:
+        raise CliError(f"{path}: the recording holds no frames")
+    for problem in p.result.problems:
+        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    return p

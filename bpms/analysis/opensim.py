@@ -1,0 +1,76 @@
+"""OpenSim OpenSense orientations file (``.sto``, ``DataType=Quaternion``).
+
+Each cell is one IMU's orientation ``w,x,y,z``: the segment orientation after Reset Zero
+(``Result.segment_quaternions``), segment axes → world NED. In the calibration pose every such
+"sensor" frame is the body's frame (x forward, y right, z down), so in the IMU placer use
+``base_imu_label = pelvis_imu``, ``base_heading_axis = x`` and
+``sensor_to_opensim_rotations = SENSOR_TO_OPENSIM_ROTATIONS`` (NED z-down → OpenSim y-up).
+Rows before the first Reset Zero capture (no segment orientation yet) are left out.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+#: IMU id → OpenSim body (Rajagopal 2015 / gait2392 names) + "_imu".
+OPENSIM_IMUS: dict[int, str] = {
+    6: "pelvis_imu",
+    8: "torso_imu",
+    4: "humerus_r_imu",
+    5: "radius_r_imu",
+    3: "hand_r_imu",
+    0: "femur_r_imu",
+    2: "tibia_r_imu",
+    1: "calcn_r_imu",
+    10: "humerus_l_imu",
+    11: "radius_l_imu",
+    9: "hand_l_imu",
+    12: "femur_l_imu",
+    14: "tibia_l_imu",
+    13: "calcn_l_imu",
+}
+#: For models with a head and neck (e.g. full-body models with cervical bodies).
+OPENSIM_HEAD_IMUS: dict[int, str] = {7: "neck_imu", 17: "head_imu"}
+
+#: Space-fixed X, Y, Z rotations (rad) for the IMU placer: world NED (x north, y east,
+#: z down) → OpenSim ground (x forward, y up, z right) is a rotation of +90° about X.
+SENSOR_TO_OPENSIM_ROTATIONS = (math.pi / 2, 0.0, 0.0)
+
+
+def imu_columns(head_neck: bool = False) -> dict[int, str]:
+    """IMU id → column name of the orientations file."""
+    return {**OPENSIM_IMUS, **(OPENSIM_HEAD_IMUS if head_neck else {})}
+
+
+def write_orientations(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
+                       rate_hz: float = 50.0, head_neck: bool = False,
+                       opensim_version: str = "4.5") -> int:
+    """Write ``quaternions[N, 18, 4]`` (w, x, y, z) at times ``t[N]`` s as an OpenSense
+    orientations file; rows where a mapped IMU has no orientation (NaN) are skipped.
+    Returns the number of rows written. Each quaternion is normalised."""
+    cols = imu_columns(head_neck)
+    ids = list(cols)
+    q = np.asarray(quaternions, dtype=np.float64)[:, ids, :]
+    keep = np.isfinite(q).all(axis=(1, 2))
+    q = q[keep]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    times = np.asarray(t, dtype=np.float64)[keep]
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write(f"DataRate={rate_hz:.6f}\nDataType=Quaternion\nversion=3\n"
+                f"OpenSimVersion={opensim_version}\nendheader\n")
+        f.write("\t".join(["time", *(cols[i] for i in ids)]) + "\n")
+        for k in range(len(times)):
+            cells = [f"{times[k]:.6f}"]
+            cells += [",".join(f"{v:.8f}" for v in q[k, j]) for j in range(len(ids))]
+            f.write("\t".join(cells) + "\n")
+    return int(keep.sum())
+
+
+def calibration_window(settle_frames: int, window_frames: int, n: int) -> tuple[int, int]:
+    """Frame range ``[lo, hi)`` of the calibration pose: the averaging window of the automatic
+    Reset Zero (``settle`` frames after the start, ``window`` frames long; SPEC §6)."""
+    lo = min(n, max(0, settle_frames))
+    return lo, min(n, lo + max(1, window_frames))

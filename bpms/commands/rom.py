@@ -1,0 +1,73 @@
+"""``bpms rom RAW_FILE... [--from T0 --to T1] [--reset-at T]``: range of motion (SPEC §7) — min,
+max and range of every joint angle over a window, as CSV + Markdown tables and one PNG figure
+per joint group; several files give a side-by-side comparison. See docs/analysis.md."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bpms.commands import CliError
+
+
+def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "rom", help="range-of-motion report (CSV, Markdown, PNG)",
+        description="Range of motion of every joint angle (min, max, range in degrees) over a "
+                    "time window; several recordings are compared side by side.")
+    parser.add_argument("raw_files", nargs="+", metavar="RAW_FILE",
+                        help="raw recording(s) or filtered .csv file(s)")
+    parser.add_argument("--from", dest="t0", type=float, metavar="T0",
+                        help="window start, s since the recording started (default: start)")
+    parser.add_argument("--to", dest="t1", type=float, metavar="T1",
+                        help="window end, s (default: end)")
+    parser.add_argument("--reset-at", type=float, action="append", default=[], metavar="T",
+                        help="extra Reset Zero at T s (repeatable; same for every file)")
+    parser.add_argument("--label", action="append", default=[],
+                        help="label per file, in order (default: the file stems)")
+    parser.add_argument("-o", "--output-dir", metavar="DIR", default=".",
+                        help="folder for rom.csv, rom.md and rom_<group>.png (default: .)")
+    parser.add_argument("--name", default="rom", help="file name stem of the outputs")
+    parser.add_argument("--calibration", metavar="Calib.cfg",
+                        help="calibration file (default: the one stored in each recording)")
+    parser.add_argument("--options", metavar="options.toml",
+                        help="options file (default: the options stored in each recording)")
+    parser.add_argument("--no-figures", action="store_true", help="tables only")
+    parser.set_defaults(run=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    from bpms.analysis.cli_support import processed
+    from bpms.analysis.rom import markdown, range_of_motion, write_csv
+
+    if args.t0 is not None and args.t1 is not None and args.t1 <= args.t0:
+        raise CliError(f"--to ({args.t1} s) must be after --from ({args.t0} s)")
+    if args.label and len(args.label) != len(args.raw_files):
+        raise CliError(f"{len(args.label)} labels for {len(args.raw_files)} files")
+    labels = args.label or [Path(f).stem for f in args.raw_files]
+    tables = []
+    for path, label in zip(args.raw_files, labels, strict=True):
+        p = processed("rom", path, args.calibration, args.options, args.reset_at)
+        try:
+            tables.append(range_of_motion(label, p.result.t, p.result.joint_angles, args.t0,
+                                          args.t1))
+        except ValueError as exc:
+            raise CliError(str(exc)) from exc
+    out = Path(args.output_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        write_csv(out / f"{args.name}.csv", tables)
+        text = markdown(tables)
+        (out / f"{args.name}.md").write_text(text, encoding="utf-8")
+        figures = []
+        if not args.no_figures:
+            from bpms.analysis.plots import rom_figures
+
+            figures = rom_figures(tables, out, args.name)
+    except OSError as exc:
+        raise CliError(f"cannot write to {out}: {exc.strerror or exc}") from exc
+    sys.stdout.write(text)
+    print(f"{out / args.name}.csv, .md and {len(figures)} figures written", file=sys.stderr)
+    return 0

@@ -1,0 +1,90 @@
+"""``bpms track RAW_FILE [--declination DEG]``: the dead-reckoning walked path (SPEC §8) —
+heel-strike times, per-step vectors and the 3-D track as CSV, plus a PNG plan view.
+Thresholds come from the options (``[track]``) and can be overridden here.
+See docs/analysis.md."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from bpms.commands import CliError
+
+
+def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "track", help="walked path by dead reckoning (CSV + PNG)",
+        description="Heel strikes, per-step vectors and the 3-D walked path of a recording.")
+    parser.add_argument("raw_file", metavar="RAW_FILE", help="raw recording")
+    parser.add_argument("--declination", type=float, metavar="DEG",
+                        help="magnetic declination, deg east (default: options track."
+                             "declination_deg)")
+    parser.add_argument("--threshold-g", type=float, metavar="G",
+                        help="heel-strike threshold, g (default: options track.heel_strike_g)")
+    parser.add_argument("--min-interval", type=float, metavar="S",
+                        help="minimum time between heel strikes, s (default: options)")
+    parser.add_argument("--include-hips", action="store_true",
+                        help="feet measured from the pelvis centre (dissertation eq. 3.13): "
+                             "the path zig-zags by the hip width")
+    parser.add_argument("--from", dest="t0", type=float, metavar="T0", help="start, s")
+    parser.add_argument("--to", dest="t1", type=float, metavar="T1", help="end, s")
+    parser.add_argument("-o", "--output", metavar="OUT.csv",
+                        help="track CSV (default: <raw stem>_track.csv); the PNG beside it")
+    parser.add_argument("--calibration", metavar="Calib.cfg",
+                        help="calibration file (default: the one stored in the recording)")
+    parser.add_argument("--options", metavar="options.toml",
+                        help="options file (default: the options stored in the recording)")
+    parser.add_argument("--no-figure", action="store_true", help="CSV only")
+    parser.set_defaults(run=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    from bpms.analysis.cli_support import processed
+    from bpms.analysis.track import FOOT_IMUS, walked_path
+
+    p = processed("track", args.raw_file, args.calibration, args.options)
+    if p.raw is None:
+        raise CliError(f"{args.raw_file}: heel strikes need the foot accelerometers: give the "
+                       "raw recording, not a filtered file")
+    opts = p.processor.options.track
+    threshold = opts.heel_strike_g if args.threshold_g is None else args.threshold_g
+    interval = opts.min_step_interval_s if args.min_interval is None else args.min_interval
+    declination = opts.declination_deg if args.declination is None else args.declination
+    res = p.result
+    acc, _, _ = p.processor.calibrate(p.raw)
+    gravity = p.processor.sensor_calibration.gravity
+    window = np.ones(len(res), dtype=bool)
+    if args.t0 is not None:
+        window &= res.t >= args.t0
+    if args.t1 is not None:
+        window &= res.t <= args.t1
+    accel_g = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i], 0.0)
+               for side, i in FOOT_IMUS.items()}
+    track = walked_path(res.t, accel_g, res.joint_positions, threshold, interval, declination,
+                        args.include_hips)
+    out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")
+    out = out if out.suffix == ".csv" else out.with_name(out.name + "_track.csv")
+    try:
+        with open(out, "w", encoding="utf-8", newline="\n") as f:
+            f.write("step,time_s,side,peak_g,step_north_m,step_east_m,step_down_m,"
+                    "north_m,east_m,down_m\n")
+            for k in range(len(track.times)):
+                s, pos = track.steps[k], track.positions[k]
+                f.write(f"{k + 1},{track.times[k]:.3f},{track.sides[k]},{track.peaks[k]:.3f},"
+                        f"{s[0]:.4f},{s[1]:.4f},{s[2]:.4f},{pos[0]:.4f},{pos[1]:.4f},"
+                        f"{pos[2]:.4f}\n")
+        figure = None
+        if not args.no_figure:
+            from bpms.analysis.plots import track_figure
+
+            figure = track_figure(track, out.with_suffix(".png"), Path(args.raw_file).name)
+    except OSError as exc:
+        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from exc
+    print(f"{len(track.times)} heel strikes (threshold {threshold:.2f} g, ≥ {interval:.2f} s "
+          f"apart), path {track.length_m:.2f} m, declination {declination:.1f}° → {out}"
+          + (f", {figure}" if figure else ""), file=sys.stderr)
+    return 0
