@@ -29,7 +29,7 @@ from bpms.filter.bank import BankOutput, FilterBank
 from bpms.filter.observer import ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
 from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
-from bpms.filter.vqf_filter import VqfFilters
+from bpms.filter.vqf_filter import VqfFilters, enu_to_ned
 from bpms.io.options import FilterOptions
 
 ALGORITHMS = ("mahony", "observer", "vqf")
@@ -275,7 +275,7 @@ class VqfBank(_PhysicalBank):
                 self._held_count[i] += bad
             q[i] = self.vqf.step_imu(i, *self._held[i])
         self._pending_reset[:] = False
-        out = _outputs(q[None])
+        out = _outputs(enu_to_ned(q)[None])
         return BankOutput(out.R[0], out.euler[0])
 
 

@@ -89,12 +89,13 @@ class VqfFilters:
         return enu_to_ned(out["quat9D"])
 
     def step_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """One sample of one IMU (per-sample API); body → NED quaternion ``[4]``."""
+        """One sample of one IMU (per-sample API); body → **ENU** quaternion ``[4]`` (VQF's
+        own frame: convert many at once with :func:`enu_to_ned`)."""
         flt = self.filters[imu]
         flt.update(np.ascontiguousarray(g, dtype=np.float64),
                    np.ascontiguousarray(f, dtype=np.float64),
                    np.ascontiguousarray(m, dtype=np.float64))
-        return enu_to_ned(np.asarray(flt.getQuat9D()))
+        return flt.getQuat9D()
 
 
 __all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned", "quat_mul",
