@@ -206,3 +206,33 @@ def test_udp_client_session(qtbot, tmp_path, recording_path):
     window.status_panel.data_button.click()  # Stop Data: the session stops
     assert not window.runner.session.running
     window.close()
+
+
+def test_a_udp_flood_does_not_freeze_the_gui(qtbot, tmp_path, recording_path):
+    """Frames as fast as `bpms replay --speed 0` sends them: the display timer keeps running,
+    each tick drains a bounded mailbox, and what cannot be shown is counted, not queued."""
+    port = _free_udp_port()
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.select_mode("udp")
+    startup.listen_edit.setText(f"127.0.0.1:{port}")
+    window = _go(qtbot, startup)
+    window.status_panel.data_button.click()
+    window.table.select_cells(SIX_CELLS)
+    window.plot_selection()
+    batches: list[int] = []
+    window.model.samplesArrived.connect(lambda samples: batches.append(len(samples)))
+    sender = subprocess.Popen(
+        [sys.executable, "-m", "bpms", "replay", str(recording_path), "--udp",
+         f"127.0.0.1:{port}", "--speed", "0", "--loop"],
+        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        qtbot.waitUntil(lambda: sum(batches) > 1500, timeout=30000)
+        ticks_before = len(batches)
+        qtbot.waitUntil(lambda: len(batches) >= ticks_before + 5, timeout=20000)
+    finally:
+        sender.terminate()
+        sender.wait(10)
+    assert max(batches) <= 3000  # the mailbox bound: never an unbounded backlog in the GUI
+    assert max(batches) > 2  # several frames per tick: one redraw per tick, not per frame
+    window.close()
