@@ -55,7 +55,8 @@ def test_the_figure_is_drawn_after_reset_zero(run):
     assert results["status_text"].startswith(f"frame {results['frames'] - 1}")
     for w, shots in enumerate(results["windows"]):
         for step, shot in shots.items():
-            assert shot["left"] > 100 and shot["right"] > 100, step  # both sides visible
+            # Both sides visible (fewer pixels from above, where limbs are foreshortened).
+            assert shot["left"] > 30 and shot["right"] > 30, step
             assert shot["non_background"] > 5000, step
             assert (out / f"w{w}_{step}.png").stat().st_size > 1000
 

@@ -20,9 +20,11 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import time
+import weakref
 
 import numpy as np
-from PyQt6.QtCore import Qt
+from PyQt6.QtCore import QEvent, Qt, QTimer
 from PyQt6.QtGui import QGuiApplication, QKeyEvent, QOffscreenSurface, QOpenGLContext
 from PyQt6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
@@ -47,10 +49,16 @@ VIEW_DISTANCE_M = 3.0
 HOME_VIEW = (15.0, 35.0)
 AXIS_VIEWS = {"x": (0.0, 0.0), "y": (0.0, 90.0), "z": (90.0, 0.0)}
 
+#: Share of the GUI thread all 3D windows together may spend painting. With hardware GL a
+#: paint takes ~1 ms and this never bites; with software GL (llvmpipe, Xvfb, VMs) a paint takes
+#: 10-20 ms and the windows then redraw less often than the display timer, newest pose first.
+GL_TIME_BUDGET = 0.4
+
 WAITING_TEXT = "Waiting for Reset Zero: grey figure = calibration pose"
 
 
 _gl_problem: str | None = None
+_OPEN_WINDOWS: weakref.WeakSet[QWidget] = weakref.WeakSet()
 _gl_checked = False
 
 
@@ -200,7 +208,7 @@ class View3DWindow(QWidget):
         super().__init__(parent, Qt.WindowType.Window)
         self.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
         self.setWindowTitle("BPMS 3D view")
-        self.resize(520, 680)
+        self.resize(440, 580)
         self.model = model
         self.view: QWidget | None = None
         layout = QVBoxLayout(self)
@@ -226,8 +234,16 @@ class View3DWindow(QWidget):
                                 "Tables, plots and recording work as usual.")
             layout.addWidget(self.status, 1)
         self.fallback_message = None if self.view is not None else self.status.text()
+        self._pending: PoseSample | None = model.latest
+        self._last_draw = 0.0
+        self.frame_s = 0.0  # smoothed cost of one redraw (GL paint + composition), s
+        self._redraw = QTimer(self)
+        self._redraw.setSingleShot(True)
+        self._redraw.timeout.connect(self.draw_pending)
+        if self.view is not None:
+            _OPEN_WINDOWS.add(self)
         model.samplesArrived.connect(self.on_samples)
-        self.on_samples([model.latest] if model.latest is not None else [])
+        self.on_samples([])
 
     @property
     def gl_view(self) -> QWidget | None:
@@ -235,10 +251,40 @@ class View3DWindow(QWidget):
         return self.view
 
     def on_samples(self, samples: list[PoseSample]) -> None:
-        """Draw the newest sample (slot of ``samplesArrived``; one redraw per display tick)."""
+        """Slot of ``samplesArrived``: draw the newest sample, at most once per display tick
+        and no more often than :data:`GL_TIME_BUDGET` allows (a late pose is drawn when due)."""
         if self.view is None:
             return
-        sample = samples[-1] if samples else None
+        if samples:
+            self._pending = samples[-1]
+        wait = self._last_draw + self.min_interval_s() - time.monotonic()
+        if wait <= 0:
+            self.draw_pending()
+        elif not self._redraw.isActive():
+            self._redraw.start(max(1, round(wait * 1000)))
+
+    def min_interval_s(self) -> float:
+        """Shortest time between redraws so that all open 3D windows together paint for at
+        most GL_TIME_BUDGET of the time, s."""
+        if self.view is None:
+            return 0.0
+        return self.frame_s * max(1, len(_OPEN_WINDOWS)) / GL_TIME_BUDGET
+
+    def event(self, event: QEvent | None) -> bool:
+        # A top-level update renders the GL view and composes the window (with software GL
+        # most of the cost is there, not in paintGL): time it for the redraw budget.
+        if event is None or event.type() != QEvent.Type.UpdateRequest:
+            return super().event(event)
+        start = time.perf_counter()
+        handled = super().event(event)
+        spent = time.perf_counter() - start
+        self.frame_s = spent if self.frame_s == 0.0 else 0.8 * self.frame_s + 0.2 * spent
+        return handled
+
+    def draw_pending(self) -> None:
+        self._redraw.stop()
+        self._last_draw = time.monotonic()
+        sample = self._pending
         self.view.show_pose(sample)
         if self.view.waiting:
             self.status.setText(WAITING_TEXT)
@@ -247,6 +293,8 @@ class View3DWindow(QWidget):
                                 "d IMU axes, r reset")
 
     def closeEvent(self, event: object) -> None:
+        _OPEN_WINDOWS.discard(self)
+        self._redraw.stop()
         with contextlib.suppress(TypeError, RuntimeError):
             self.model.samplesArrived.disconnect(self.on_samples)
         super().closeEvent(event)
