@@ -10,7 +10,7 @@ Filter frame: X forward, Y right, Z down, after the IMU's pre-rotation R* (SPEC 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -37,6 +37,17 @@ assert PRE_ROTATIONS.shape == (N_IMUS, 3, 3)
 
 
 @dataclass(frozen=True)
+class MagEllipsoid:
+    """A magnetometer ellipsoid fit (hard and soft iron, as the Razor AHRS extended
+    calibration): ``m = matrix @ (raw - center)`` lies on the sphere of radius 100 (calibrated
+    units), in board axes before the sign vector. ``center`` ``[3]`` raw counts; ``matrix``
+    ``[3, 3]`` calibrated units per count (symmetric)."""
+
+    center: np.ndarray
+    matrix: np.ndarray
+
+
+@dataclass(frozen=True)
 class SensorCalibration:
     """Per-axis offsets and scales of all 18 IMUs, plus sign vectors and pre-rotations.
 
@@ -53,13 +64,28 @@ class SensorCalibration:
     mag_signs: np.ndarray  # [3]
     gyro_signs: np.ndarray  # [3]
     pre_rotations: np.ndarray = field(default_factory=PRE_ROTATIONS.copy)  # [18, 3, 3]
+    #: Optional magnetometer ellipsoid correction (hard + soft iron): when set, the board
+    #: magnetometer is ``signs * (mag_matrix @ (raw - mag_center))`` instead of the per-axis
+    #: min/max formula. ``[18, 3, 3]`` and ``[18, 3]``; IMUs without an ellipsoid carry the
+    #: min/max values as a diagonal matrix. None (the default) keeps the SPEC §4 path untouched.
+    mag_matrix: np.ndarray | None = None
+    mag_center: np.ndarray | None = None
 
     @classmethod
     def from_table(
-        cls, table: CalibrationTable, sensors: SensorOptions | None = None
+        cls, table: CalibrationTable, sensors: SensorOptions | None = None,
+        ellipsoids: dict[int, MagEllipsoid] | None = None,
     ) -> SensorCalibration:
         """Offsets ``(min+max)/2``; accel scale ``Gravity/(max-offset)``; mag scale
-        ``100/(max-offset)`` (SPEC §4)."""
+        ``100/(max-offset)`` (SPEC §4). ``ellipsoids``: optional per-IMU magnetometer
+        ellipsoid fits that replace the min/max magnetometer values of those IMUs."""
+        cal = cls._from_table(table, sensors)
+        return cal.with_ellipsoids(ellipsoids) if ellipsoids else cal
+
+    @classmethod
+    def _from_table(
+        cls, table: CalibrationTable, sensors: SensorOptions | None = None
+    ) -> SensorCalibration:
         sensors = sensors or SensorOptions()
         acc = table.accel_min_max
         mag = table.mag_min_max
@@ -78,13 +104,56 @@ class SensorCalibration:
             gyro_signs=np.asarray(sensors.gyro_signs, dtype=np.float64),
         )
 
+    # -- magnetometer ellipsoid ------------------------------------------------------------
+    def with_ellipsoids(self, ellipsoids: dict[int, MagEllipsoid]) -> SensorCalibration:
+        """A copy whose magnetometer uses ``ellipsoids[imu]`` for the IMUs given (the others
+        keep their min/max offset and scale, written as a diagonal matrix)."""
+        matrix = (self.mag_matrix.copy() if self.mag_matrix is not None
+                  else np.stack([np.diag(s) for s in self.mag_scale]))
+        center = (self.mag_center.copy() if self.mag_center is not None
+                  else self.mag_offset.copy())
+        for imu, ell in ellipsoids.items():
+            matrix[imu] = ell.matrix
+            center[imu] = ell.center
+        return replace(self, mag_matrix=matrix, mag_center=center)
+
+    def mag_correction(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The ellipsoid correction as an affine map on the *default* (min/max) filter-frame
+        magnetometer: ``m_ellipsoid = K @ m_default + c``, ``K [18, 3, 3]``, ``c [18, 3]``
+        (calibrated units). None without ellipsoids. Lets a compiled min/max pass (the
+        processor's ``calibrate_batch``) be corrected afterwards, exactly."""
+        if self.mag_matrix is None or self.mag_center is None:
+            return None
+        rot = self.pre_rotations
+        signs = np.diag(self.mag_signs)
+        # default: P (raw - o), P = rot S diag(scale); new: rot S A (raw - b)
+        P_inv = np.einsum("kij,jl->kil", np.stack([np.diag(1.0 / s) for s in self.mag_scale]),
+                          signs) @ np.swapaxes(rot, -1, -2)
+        new = rot @ signs @ self.mag_matrix
+        K = new @ P_inv
+        c = np.einsum("kij,kj->ki", new, self.mag_offset - self.mag_center)
+        return K, c
+
+    def correct_mag(self, mag: np.ndarray) -> np.ndarray:
+        """Apply :meth:`mag_correction` to default filter-frame magnetometer values
+        ``[..., 18, 3]`` (returned unchanged without ellipsoids)."""
+        corr = self.mag_correction()
+        if corr is None:
+            return mag
+        K, c = corr
+        return np.einsum("kij,...kj->...ki", K, mag) + c
+
     # -- raw counts → filter units -------------------------------------------------------
     def board_units(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Raw ``[..., 18, 9]`` → (accel, mag, gyro) ``[..., 18, 3]`` in filter units, signed,
         in board axes (before the pre-rotation)."""
         raw = np.asarray(raw, dtype=np.float64)
         acc = (raw[..., 0:3] - self.accel_offset) * self.accel_scale * self.accel_signs
-        mag = (raw[..., 3:6] - self.mag_offset) * self.mag_scale * self.mag_signs
+        if self.mag_matrix is None or self.mag_center is None:
+            mag = (raw[..., 3:6] - self.mag_offset) * self.mag_scale * self.mag_signs
+        else:
+            mag = np.einsum("kij,...kj->...ki", self.mag_matrix,
+                            raw[..., 3:6] - self.mag_center) * self.mag_signs
         gyr = (raw[..., 6:9] - self.gyro_avg) * GYRO_RAD_S_PER_COUNT * self.gyro_signs
         return acc, mag, gyr
 
@@ -116,6 +185,10 @@ class SensorCalibration:
         mag_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(mag, dtype=np.float64))
         gyr_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(gyr, dtype=np.float64))
         raw_acc = acc_b * self.accel_signs / self.accel_scale + self.accel_offset
-        raw_mag = mag_b * self.mag_signs / self.mag_scale + self.mag_offset
+        if self.mag_matrix is None or self.mag_center is None:
+            raw_mag = mag_b * self.mag_signs / self.mag_scale + self.mag_offset
+        else:
+            inv = np.linalg.inv(self.mag_matrix)
+            raw_mag = np.einsum("kij,...kj->...ki", inv, mag_b * self.mag_signs) + self.mag_center
         raw_gyr = gyr_b * self.gyro_signs / GYRO_RAD_S_PER_COUNT + self.gyro_avg
         return np.concatenate([raw_acc, raw_mag, raw_gyr], axis=-1)

@@ -1,0 +1,106 @@
+"""The calibration wizard walked through gyro, accel and mag with the simulated suit holding
+the poses asked for (frames produced in-process, faster than real time)."""
+
+from __future__ import annotations
+
+import numpy as np
+from PyQt6.QtWidgets import QWizard
+
+from bpms.firmware.sim.calibration_poses import (
+    CalibrationSuit,
+    ScriptedCalibrationSource,
+    changed_table,
+)
+from bpms.gui.calibration_wizard import (
+    PAGE_ACCEL,
+    PAGE_GYRO,
+    PAGE_MAG,
+    PAGE_SUMMARY,
+    CalibrationWizard,
+)
+from bpms.io.calib_file import load_calibration, load_factory_calibration, save_legacy
+from bpms.io.calib_modern import load_modern, modern_path
+from bpms.io.options import Options
+
+IMUS = [2, 7]
+
+
+def test_wizard_walks_through_all_three_steps(qtbot, tmp_path):
+    out = tmp_path / "Calib.cfg"
+    existing = load_factory_calibration()
+    save_legacy(existing, out)
+    truth = changed_table()
+    source = ScriptedCalibrationSource(CalibrationSuit(truth, seed=2), speed=0, burst=100)
+    wizard = CalibrationWizard(Options(), source=source, output=out, poll_ms=5)
+    qtbot.addWidget(wizard)
+    wizard.sim_move_gyro = True
+    setup = wizard.setup
+    for i, box in enumerate(setup.imu_boxes):
+        box.setChecked(i in IMUS)
+    setup.gyro_samples.setValue(200)
+    setup.accel_samples.setValue(100)
+    setup.sweep_s.setValue(60.0)
+    setup.ellipsoid.setChecked(True)
+    wizard.show()
+    wizard.next()
+    assert wizard.currentId() == PAGE_GYRO
+    gyro = wizard.gyro_page
+    assert not gyro.isComplete()
+    gyro.start.click()  # the simulated suit is moved: refused
+    qtbot.waitUntil(lambda: gyro.proc.state == "rejected", timeout=10_000)
+    assert "Refused" in gyro.message.text() and gyro.start.isEnabled()
+    gyro.start.click()
+    qtbot.waitUntil(gyro.isComplete, timeout=10_000)
+    wizard.next()
+    assert wizard.currentId() == PAGE_ACCEL
+    accel = wizard.accel_page
+    while not accel.proc.done:
+        step = accel.proc.index
+        qtbot.waitUntil(lambda: accel.proc.at_extreme and accel.proc.still, timeout=10_000)
+        accel.capture.click()
+        qtbot.waitUntil(lambda s=step: accel.proc.index != s, timeout=10_000)
+    assert accel.isComplete() and accel.steps.count() == 12
+    assert "counts" in accel.steps.item(0).text()
+    wizard.next()
+    assert wizard.currentId() == PAGE_MAG
+    mag = wizard.mag_page
+    mag.start.click()
+    qtbot.waitUntil(mag.isComplete, timeout=20_000)
+    assert mag.table.item(0, 4).text().endswith("%")
+    wizard.next()
+    assert wizard.currentId() == PAGE_SUMMARY
+    summary = wizard.summary_page
+    rows = summary.table.rowCount()  # changed values only (a value may come out the same)
+    assert 2 * 12 <= rows <= 2 * 16
+    assert {summary.table.item(r, 0).text() for r in range(rows)} == {"2", "7"}
+    assert "sphere residual" in summary.quality.text()
+    wizard.button(QWizard.WizardButton.FinishButton).click()
+    assert wizard.saved is not None
+    new = load_calibration(out)
+    others = [i for i in range(18) if i not in IMUS]
+    assert np.array_equal(new.values[others], existing.values[others])
+    for imu in IMUS:
+        gravity = truth.values[imu, 0]
+        assert abs(new.values[imu, 0] - gravity) < 0.01 * gravity
+        assert np.abs(new.values[imu, 13:16] - truth.values[imu, 13:16]).max() < 2.0
+    modern = load_modern(modern_path(out))
+    assert set(modern.ellipsoids) == set(IMUS)
+
+
+def test_wizard_skips_unchosen_sensors(qtbot, tmp_path):
+    source = ScriptedCalibrationSource(speed=0, burst=100)
+    wizard = CalibrationWizard(Options(), source=source, output=tmp_path / "C.cfg", poll_ms=5)
+    qtbot.addWidget(wizard)
+    wizard.setup.sensor_boxes["gyro"].setChecked(False)
+    wizard.setup.sensor_boxes["accel"].setChecked(False)
+    for i, box in enumerate(wizard.setup.imu_boxes):
+        box.setChecked(i == 0)
+    wizard.show()
+    wizard.next()
+    assert wizard.currentId() == PAGE_MAG
+    folder = tmp_path / "dir.cfg"
+    folder.mkdir()
+    wizard.back()
+    wizard.setup.output.setText(str(folder))
+    wizard.next()
+    assert wizard.currentId() != PAGE_MAG and "folder" in wizard.setup.status.text()
