@@ -89,3 +89,31 @@ def test_a_missing_suit_says_what_to_check_and_keeps_the_start_up_window(qtbot, 
     assert startup.isVisible() and startup.main_window is None
     assert "paired" in startup.last_dialog.text()
     startup.last_dialog.close()
+
+
+def test_discover_finds_a_suit_on_a_pty_or_falls_back_to_the_simulated_suit(qtbot, tmp_path):
+    from bpms.gui.modes import SimulatedSuit
+
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.port_combo.clear()
+    startup.port_combo.addItems([str(tmp_path / "ttyNOPE")])
+    startup.select_mode("suit")
+    startup.discover_button.click()
+    qtbot.waitUntil(lambda: startup.discover_button.isEnabled(), timeout=10000)
+    assert startup.mode == "sim" and "no suit answered" in startup.discover_label.text()
+    suit = SimulatedSuit()  # a suit on a real pty, found like any serial port
+    try:
+        startup.port_combo.addItems([suit.path])
+        startup.discover_button.click()
+        qtbot.waitUntil(lambda: startup.discover_button.isEnabled(), timeout=10000)
+        assert startup.mode == "suit" and startup.port_combo.currentText() == suit.path
+        with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
+            startup.go_button.click()
+        window = blocker.args[0]
+        window.status_panel.data_button.click()
+        qtbot.waitUntil(lambda: window.model.latest is not None, timeout=10000)
+        assert window.model.last_status.source.description == f"suit {suit.path}"
+        window.close()
+    finally:
+        suit.close()

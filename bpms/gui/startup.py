@@ -14,7 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PyQt6.QtCore import QTimer, pyqtSignal
+from PyQt6.QtCore import Qt, QTimer, pyqtSignal
+from PyQt6.QtGui import QKeySequence, QShortcut
 from PyQt6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
@@ -297,6 +298,8 @@ class StartupWindow(QWidget):
         self.go_button.clicked.connect(self.go)
         bottom.addWidget(self.status_label, 1)
         bottom.addWidget(self.go_button)
+        for key in (Qt.Key.Key_Return, Qt.Key.Key_Enter):
+            QShortcut(QKeySequence(key), self, activated=self.go)
         layout.addLayout(bottom)
         self._show_files()
         self.refresh_ports()
