@@ -5,7 +5,8 @@ Run: ``.venv/bin/python bench/analysis.py [--minutes 30]``.
 The recording is the simulated suit's scripted motion (``simulate(seed=1)``, 74 s) looped to
 the requested length and written as a native raw file with its calibration. Each command runs
 in this process through ``bpms.cli.main`` (numba kernels already loaded by a warm-up on a short
-file), and the wall time of each is printed with the output sizes. Figures only.
+file), and the wall time of each is printed with the size of what it wrote. Also printed: the
+load average, since the figures scale with what else the machine runs. Figures only.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import os
 import sys
 import tempfile
 import time
@@ -37,6 +39,10 @@ def run(argv: list[str]) -> float:
     return time.perf_counter() - t0
 
 
+def _sizes(folder: Path) -> dict[Path, int]:
+    return {p: p.stat().st_size for p in folder.rglob("*") if p.is_file()}
+
+
 def main_bench() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=30.0)
@@ -53,6 +59,7 @@ def main_bench() -> None:
         raw = folder / "Raw_long_001.bpmsraw"
         write_raw(raw, 1.7e9 + np.arange(n) * FRAME_PERIOD_S, rec.frames * loops,
                   new_header(calibration=rec.calibration.values))
+        print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
         print(f"recording: {n} frames = {n * FRAME_PERIOD_S / 60:.1f} min, "
               f"{raw.stat().st_size / 1e6:.1f} MB")
         jobs = [
@@ -67,10 +74,10 @@ def main_bench() -> None:
             ("track (CSV + PNG)", ["track", str(raw), "-o", str(folder / "t.csv")]),
         ]
         for label, argv in jobs:
+            before = _sizes(folder)
             elapsed = run(argv)
-            outs = [p for p in folder.rglob("*") if p.is_file() and p.stat().st_mtime
-                    >= time.time() - elapsed - 1 and p.suffix != ".bpmsraw"]
-            size = sum(p.stat().st_size for p in outs) / 1e6
+            after = _sizes(folder)
+            size = sum(v for k, v in after.items() if before.get(k) != v) / 1e6
             print(f"{label:36s} {elapsed:6.2f} s  ({size:.1f} MB written)")
         filtered = folder / "Filtered_long_001.csv"
         run(["filter", str(raw), "-o", str(filtered)])

@@ -118,3 +118,18 @@ def test_matlab_csv_has_a_header_and_the_api_values(trial):
                                equal_nan=True)
     r = cols.index("imu6_hip_yaw_deg")
     np.testing.assert_allclose(data[:, r], np.degrees(res.euler[:, 6, 2]), rtol=1e-6)
+
+
+def test_long_tables_show_progress_on_stderr(tmp_path, capsys):
+    import io
+
+    from bpms.analysis.textout import write_rows
+
+    buffer = io.StringIO()
+    write_rows(buffer, np.arange(30_001 * 2, dtype=float).reshape(-1, 2), "%.1f", ",",
+               "writing long.csv")
+    err = capsys.readouterr().err
+    assert "writing long.csv: 100% (30001/30001 frames)" in err and " 33% " in err
+    assert buffer.getvalue().count("\n") == 30_001
+    write_rows(io.StringIO(), np.zeros((100, 2)), "%.1f")
+    assert capsys.readouterr().err == ""

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bpms.analysis.textout import write_rows
 from bpms.filter.body_model import BODY_POINTS
 from bpms.io.options import BodyOptions
 
@@ -104,5 +105,5 @@ def write_bvh(path: str | Path, C: np.ndarray, pelvis: np.ndarray,
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write("\n".join(lines) + "\n")
         f.write(f"MOTION\nFrames: {n}\nFrame Time: {frame_time_s:.6f}\n")
-        np.savetxt(f, motion, fmt="%.5f", delimiter=" ")
+        write_rows(f, motion, "%.5f", " ", f"writing {Path(path).name}")
     return n

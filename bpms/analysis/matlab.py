@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from bpms.analysis.extract import slug
+from bpms.analysis.textout import write_rows
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.io.frames import IMU_NAMES, N_IMUS
 
@@ -38,5 +39,5 @@ def write_matlab_csv(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
     data = np.concatenate([np.asarray(t)[:, None], per_imu, joint_angles * scale], axis=1)
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(",".join(matlab_columns(degrees)) + "\n")
-        np.savetxt(f, data, fmt="%.8g", delimiter=",")
+        write_rows(f, data, "%.8g", ",", f"writing {Path(path).name}")
     return n

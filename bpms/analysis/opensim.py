@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bpms.analysis.textout import write_rows
+
 #: IMU id → OpenSim body (Rajagopal 2015 / gait2392 names) + "_imu".
 OPENSIM_IMUS: dict[int, str] = {
     6: "pelvis_imu",
@@ -62,10 +64,10 @@ def write_orientations(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
         f.write(f"DataRate={rate_hz:.6f}\nDataType=Quaternion\nversion=3\n"
                 f"OpenSimVersion={opensim_version}\nendheader\n")
         f.write("\t".join(["time", *(cols[i] for i in ids)]) + "\n")
-        for k in range(len(times)):
-            cells = [f"{times[k]:.6f}"]
-            cells += [",".join(f"{v:.8f}" for v in q[k, j]) for j in range(len(ids))]
-            f.write("\t".join(cells) + "\n")
+        if len(times):
+            row = "\t".join(["%.6f", *(["%.8f,%.8f,%.8f,%.8f"] * len(ids))])
+            write_rows(f, np.concatenate([times[:, None], q.reshape(len(q), -1)], axis=1),
+                       row, "\t", f"writing {Path(path).name}")
     return int(keep.sum())
 
 

@@ -20,7 +20,7 @@ Progress = Callable[[str, int, int], None]
 
 
 def stderr_progress(label: str, done: int, total: int) -> None:
-    """Progress line on stderr (``label: 42% (n/N frames)``), for files above 30,000 frames."""
+    """Progress line on stderr (``label: 42% (n/N frames)``), for more than 30,000 frames."""
     if total <= 30_000:
         return
     end = "\n" if done >= total else ""
