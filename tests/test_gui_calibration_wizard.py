@@ -104,3 +104,23 @@ def test_wizard_skips_unchosen_sensors(qtbot, tmp_path):
     wizard.setup.output.setText(str(folder))
     wizard.next()
     assert wizard.currentId() != PAGE_MAG and "folder" in wizard.setup.status.text()
+
+
+def test_wizard_connects_in_the_background_and_reports_failure(qtbot, tmp_path):
+    wizard = CalibrationWizard(Options(), output=tmp_path / "C.cfg", poll_ms=5)
+    qtbot.addWidget(wizard)
+    wizard.setup.use_sim.setChecked(True)
+    wizard.show()
+    wizard.next()
+    qtbot.waitUntil(lambda: wizard.currentId() == PAGE_GYRO, timeout=10_000)
+    assert isinstance(wizard.source, ScriptedCalibrationSource)
+    wizard.reject()
+    options = Options()
+    options.serial.port = str(tmp_path / "no-such-port")
+    bad = CalibrationWizard(options, output=tmp_path / "C.cfg", poll_ms=5)
+    qtbot.addWidget(bad)
+    bad.show()
+    bad.next()
+    assert "connecting" in bad.setup.status.text()
+    qtbot.waitUntil(lambda: "Cannot connect" in bad.setup.status.text(), timeout=10_000)
+    assert bad.currentId() == 0 and len(bad.setup.status.text().splitlines()) == 1

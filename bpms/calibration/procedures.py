@@ -173,6 +173,7 @@ class AccelProcedure:
         self.captures: dict[tuple[int, int, int], AccelCapture] = {}
         self.skipped: set[tuple[int, int, int]] = set()
         self.live = np.zeros(3)
+        self.best = float("nan")  # the most extreme reading of the axis in this step, counts
         self._recent: list[np.ndarray] = []
         self._capturing = False
         self._buffer: list[np.ndarray] = []
@@ -237,6 +238,7 @@ class AccelProcedure:
         self.index = index
         self.captures.pop(self.steps[index], None)
         self.skipped.discard(self.steps[index])
+        self.best = float("nan")
         self._capturing = False
         self._buffer = []
 
@@ -244,6 +246,7 @@ class AccelProcedure:
         self._capturing = False
         self._buffer = []
         self._recent = []
+        self.best = float("nan")
         self.index += 1
         while not self.done and (self.steps[self.index] in self.captures):
             self.index += 1
@@ -256,6 +259,8 @@ class AccelProcedure:
             return
         value = np.asarray(raw[imu, ACC], dtype=np.float64)
         self.live = value
+        if not np.isfinite(self.best) or sign * value[axis] > sign * self.best:
+            self.best = float(value[axis])
         self._recent = [*self._recent[-(self.check.window - 1):], value]
         std = np.std(self._recent, axis=0).max() if len(self._recent) > 2 else 0.0
         self.still = bool(len(self._recent) >= self.check.window // 2

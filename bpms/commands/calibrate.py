@@ -247,7 +247,7 @@ def _accel(drv: Driver, args, imus: list[int]) -> AccelProcedure:
             "still" if proc.still else "moving")
         where = "at extreme" if proc.at_extreme else "not at extreme"
         return (f"IMU {imu} {pose_name(axis, sign)}: a = ({v[0]:5.0f}, {v[1]:5.0f}, "
-                f"{v[2]:5.0f}) counts  {AXES[axis]} {where}  [{bar}]")
+                f"{v[2]:5.0f}) counts  {AXES[axis]} {where} (best {proc.best:.0f})  [{bar}]")
 
     while not proc.done:
         step = proc.current

@@ -9,6 +9,7 @@ tells the suit which pose to hold for the current step.
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -175,15 +176,17 @@ class GyroPage(QWizardPage):
     def initializePage(self) -> None:
         w = self._wizard
         self.proc = GyroProcedure(w.imus, w.setup.gyro_samples.value())
-        self.proc.state = "idle"
+        self.proc.state = "idle"  # until Start
+        self.tries = 0
         self.message.setText("")
         self.progress.setValue(0)
 
     def begin(self) -> None:
         assert self.proc is not None
         self.proc.restart()
+        self.tries += 1
         _scene(self._wizard.source, "moving" if self._wizard.sim_move_gyro and
-               self.proc.attempts == 2 else "still")  # attempts counts the idle start too
+               self.tries == 1 else "still")
         self.start.setEnabled(False)
         self.message.setText("keep the suit still…")
 
@@ -302,7 +305,7 @@ class AccelPage(QWizardPage):
         axis = proc.current[1] if not proc.done else 0
         where = "at the extreme" if proc.at_extreme else "not at the extreme"
         self.live.setText(f"raw a = ({v[0]:.0f}, {v[1]:.0f}, {v[2]:.0f}) counts; "
-                          f"{AXES[axis]}: {where}")
+                          f"{AXES[axis]}: {where} (most extreme so far {proc.best:.0f} counts)")
         self.still.setText("● still" if proc.still else "○ moving")
         self.progress.setValue(round(100 * proc.progress))
         if proc.message:
@@ -469,6 +472,12 @@ class CalibrationWizard(QWizard):
         self.timer.timeout.connect(self.poll)
         self.frames = 0
         self.last_error = ""
+        self._connecting: threading.Thread | None = None
+        self._connected: FrameSource | None = None
+        self._connect_error = ""
+        self._connect_timer = QTimer(self)
+        self._connect_timer.setInterval(50)
+        self._connect_timer.timeout.connect(self._check_connection)
         self.resize(720, 560)
 
     # -- flow --------------------------------------------------------------------------
@@ -491,15 +500,32 @@ class CalibrationWizard(QWizard):
             return False, f"{out} is a folder: give a file name such as Calib.cfg"
         existing = self._existing_path or (out if out.exists() else None)
         self.existing = load_existing(existing)
-        if self.source is None:
-            try:
-                self.source = self._open_source()
-            except Exception as exc:  # a one-line reason on the page, the wizard stays open
-                self.source = None
-                return False, f"Cannot connect: {exc}"
-        self.timer.start()
         problems = "; ".join(str(p) for p in self.existing.problems[:3])
+        if self.source is None:
+            if self._connecting is None:  # connect in a worker thread; Next again when done
+                self._connecting = threading.Thread(target=self._connect, daemon=True)
+                self._connecting.start()
+                self._connect_timer.start()
+            return False, "connecting to the suit…"
+        self.timer.start()
         return True, problems
+
+    def _connect(self) -> None:
+        try:
+            self._connected = self._open_source()
+        except Exception as exc:  # shown as one line on the page; the wizard stays open
+            self._connect_error = str(exc) or type(exc).__name__
+
+    def _check_connection(self) -> None:
+        if self._connecting is None or self._connecting.is_alive():
+            return
+        self._connect_timer.stop()
+        self._connecting = None
+        if self._connected is not None:
+            self.source, self._connected = self._connected, None
+            self.next()
+        else:
+            self.setup.status.setText(f"Cannot connect: {self._connect_error}")
 
     def _open_source(self) -> FrameSource:
         if self.setup.use_sim.isChecked():
@@ -557,6 +583,8 @@ class CalibrationWizard(QWizard):
 
     def done(self, result: int) -> None:
         self.timer.stop()
-        if self._own_source and self.source is not None:
-            self.source.close()
+        self._connect_timer.stop()
+        for source in (self._connected, self.source if self._own_source else None):
+            if source is not None:
+                source.close()
         super().done(result)
