@@ -81,6 +81,21 @@ def test_unknown_imu_lists_the_available_ids(recording, tmp_path, capsys):
     assert "no IMU '18'" in err and "17 (Head)" in err and "Traceback" not in err
 
 
+def test_empty_inputs_are_one_line_errors(tmp_path, capsys):
+    empty = tmp_path / "Raw_empty.bpmsraw"
+    write_raw(empty, np.zeros(0), b"", new_header())
+    filtered = tmp_path / "Filtered_empty.csv"
+    FilteredWriter(filtered).close()
+    for argv in (["raw", str(empty)], ["filtered", str(filtered)]):
+        assert main(["extract", *argv, "--imu", "1", "-o", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "holds no frames" in err and "holds no rows" in err and "Traceback" not in err
+    for argv in (["rom", str(empty), "-o", str(tmp_path)], ["track", str(empty)],
+                 ["export", "bvh", str(empty)]):
+        assert main(argv) == 2
+    assert capsys.readouterr().err.count("holds no frames") == 3
+
+
 def test_vicon_sample_file():
     export = read_vicon(DATA / "vicon_nexus.csv")
     assert export.rate_hz == 100 and set(export.bodies) >= {"Subject:Pelvis", "Subject:LASI"}

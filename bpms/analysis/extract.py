@@ -82,6 +82,8 @@ def raw_table(raw_path: str | Path, ids: Sequence[int], calibrated: bool = False
     recording = open_recording(raw_path)
     decoded = recording.decode()
     n = len(decoded.raw)
+    if n == 0:
+        raise ExtractError(f"{raw_path}: the recording holds no frames")
     t = np.arange(n) * 0.02
     host = recording.times - recording.times[0] if n else np.zeros(0)
     if calibrated:
@@ -110,6 +112,8 @@ def filtered_table(filtered_path: str | Path, ids: Sequence[int],
     pitch, yaw of each IMU in rad (deg with ``degrees``). Raises
     :class:`bpms.io.filtered_file.FilteredFileError` for a file that is not a filtered file."""
     data = read_filtered(filtered_path)
+    if len(data.t) == 0:
+        raise ExtractError(f"{filtered_path}: the file holds no rows of data")
     unit = "deg" if degrees else "rad"
     columns = ["time_s"]
     for i in ids:
