@@ -9,7 +9,12 @@ from pathlib import Path
 from bpms.calibration.result import CalibrationUpdate
 from bpms.filter.calibration import MagEllipsoid
 from bpms.io.calib_file import CalibrationTable, load_calibration, save_legacy
-from bpms.io.calib_modern import ModernCalibration, load_modern, modern_path, save_modern
+from bpms.io.calib_modern import (
+    ModernCalibration,
+    ellipsoids_beside,
+    modern_path,
+    save_modern,
+)
 
 
 def load_existing(path: str | Path | None) -> ModernCalibration:
@@ -20,16 +25,8 @@ def load_existing(path: str | Path | None) -> ModernCalibration:
         table = load_calibration(None)
         return ModernCalibration(table)
     table = load_calibration(path)
-    modern = modern_path(path)
-    if not modern.exists():
-        return ModernCalibration(table, problems=list(table.problems))
-    other = load_modern(modern)
-    same = [i for i in range(len(table.values))
-            if (abs(other.table.values[i] - table.values[i]) < 1e-6).all()]
-    return ModernCalibration(
-        table, {i: e for i, e in other.ellipsoids.items() if i in same},
-        {i: p for i, p in other.provenance.items() if i in same},
-        [*table.problems, *other.problems])
+    ellipsoids, provenance, problems = ellipsoids_beside(path, table)
+    return ModernCalibration(table, ellipsoids, provenance, [*table.problems, *problems])
 
 
 def save_pair(existing: ModernCalibration, update: CalibrationUpdate, path: str | Path,

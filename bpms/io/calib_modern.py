@@ -162,3 +162,19 @@ def load_modern(path: str | Path) -> ModernCalibration:
         report(problems, path, f"IMU {imu}", "missing", "factory values used")
     out.table = CalibrationTable(values, source=str(path), problems=problems)
     return out
+
+
+def ellipsoids_beside(legacy: str | Path, table: CalibrationTable
+                      ) -> tuple[dict[int, MagEllipsoid], dict[int, dict[str, Any]],
+                                 list[FileProblem]]:
+    """Ellipsoids and provenance of the modern companion of a legacy file, for the IMUs whose
+    16 numbers agree with ``table`` (the legacy file as read): a companion left stale by another
+    tool contributes nothing for the IMUs it disagrees on. No companion: empty dicts."""
+    modern = modern_path(legacy)
+    if not modern.exists():
+        return {}, {}, []
+    other = load_modern(modern)
+    same = {i for i in range(N_IMUS)
+            if (np.abs(other.table.values[i] - table.values[i]) < 1e-6).all()}
+    return ({i: e for i, e in other.ellipsoids.items() if i in same},
+            {i: p for i, p in other.provenance.items() if i in same}, other.problems)
