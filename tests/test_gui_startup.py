@@ -117,3 +117,50 @@ def test_discover_finds_a_suit_on_a_pty_or_falls_back_to_the_simulated_suit(qtbo
         window.close()
     finally:
         suit.close()
+
+
+def test_bpms_gui_sim_runs_and_quits_cleanly_on_ctrl_c(tmp_path):
+    import signal
+    import time
+
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    proc = subprocess.Popen([sys.executable, "-m", "bpms", "gui", "--sim", "--recording-dir",
+                             str(tmp_path)], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(4.0)  # imports, the simulated suit, the main window
+        assert proc.poll() is None, proc.communicate()[1]
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
+
+
+def test_optional_windows_open_when_their_modules_exist(qtbot, tmp_path):
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    try:
+        import bpms.gui.calibration_wizard
+    except ImportError:
+        assert not startup.wizard_button.isEnabled() and startup.wizard_button.toolTip()
+    else:
+        assert startup.wizard_button.isEnabled()
+        wizard = startup.open_calibration_wizard()
+        assert wizard is not None and wizard.isVisible()
+        wizard.close()
+    startup.select_mode("sim")
+    with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
+        startup.go_button.click()
+    window = blocker.args[0]
+    try:
+        import bpms.gui.view3d  # noqa: F401
+    except ImportError:
+        assert not window.view3d_button.isEnabled() and window.view3d_button.toolTip()
+    else:
+        first, second = window.open_3d_view(), window.open_3d_view()
+        assert first is not None and second is not None and first is not second
+    window.close()

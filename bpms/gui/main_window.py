@@ -77,12 +77,25 @@ class MainWindow(QMainWindow):
             self.view3d_button.setToolTip(why or "bpms.gui.view3d has no open_3d_window")
         else:
             self.view3d_button.setToolTip("An independent 3D stick-figure window (Ctrl+3)")
+        self.browser_button = QPushButton("Browser 3D view")
+        self.browser_button.clicked.connect(self.open_browser_view)
+        self.browser_views: list = []
+        self._vpython, why = optional_module("bpms.gui.vpython_views")
+        problem = why or (self._vpython.vpython_problem()  # type: ignore[union-attr]
+                          if hasattr(self._vpython, "vpython_problem") else None)
+        if problem or not hasattr(self._vpython, "open_browser_view"):
+            self.browser_button.setEnabled(False)
+            self.browser_button.setToolTip(problem or "no open_browser_view in "
+                                                      "bpms.gui.vpython_views")
+        else:
+            self.browser_button.setToolTip("The stick figure in a web browser (vpython)")
         self.unit_combo = QComboBox()
         self.unit_combo.addItems(["deg", "rad"])
         self.unit_combo.setCurrentText(self.options.display.angle_unit)
         self.unit_combo.setToolTip("Unit of Euler angles in the table and new plots (Ctrl+U)")
         self.unit_combo.currentTextChanged.connect(self.set_angle_unit)
-        for widget in (self.plot_button, self.joints_button, self.view3d_button):
+        for widget in (self.plot_button, self.joints_button, self.view3d_button,
+                       self.browser_button):
             top.addWidget(widget)
         top.addStretch(1)
         top.addWidget(QLabel("Angles"))
@@ -208,6 +221,18 @@ class MainWindow(QMainWindow):
         self.view3d_windows.append(window)
         return window
 
+    def open_browser_view(self) -> object | None:
+        """The figure in a browser (the vpython extra), fed from this window's model."""
+        if self._vpython is None or not self.browser_button.isEnabled():
+            return None
+        try:
+            view = self._vpython.open_browser_view(self.model)  # type: ignore[union-attr]
+        except (RuntimeError, OSError) as exc:
+            self.statusBar().showMessage(f"Browser 3D view: {exc}", 10000)
+            return None
+        self.browser_views.append(view)
+        return view
+
     # -- display tick ----------------------------------------------------------------------
     def _on_samples(self, samples: list) -> None:
         start = time.perf_counter()
@@ -238,6 +263,10 @@ class MainWindow(QMainWindow):
         """Close plot and 3D windows, stop the session (files closed), free the source."""
         for window in [*self.plot_windows, *self.view3d_windows]:
             window.close()
+        for view in self.browser_views:
+            self.model.samplesArrived.disconnect(view.feed)
+            view.close()
+        self.browser_views.clear()
         self.model.attach(None)
         self.runner.close()
 

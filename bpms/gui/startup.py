@@ -473,6 +473,13 @@ class StartupWindow(QWidget):
         if self._wizard_module is None or not self.wizard_button.isEnabled():
             return None
         wizard = self._wizard_module.CalibrationWizard(self.options, self)
+
+        def finished(*_args: object) -> None:
+            saved = getattr(wizard, "saved", None)
+            if saved:  # (Calib.cfg, companion): use the new calibration from now on
+                self.load_calibration_file(saved[0])
+
+        wizard.finished.connect(finished)
         wizard.show()
         self.calibration_wizard = wizard
         return wizard
