@@ -141,3 +141,14 @@ def test_live_session_runs_the_selected_filter(recording, tmp_path, algorithm):
     live = np.array([s.R for s in samples])
     api = BodyPoseProcessor(rec.calibration, _options(algorithm)).process(rec.raw, rec.errors)
     np.testing.assert_allclose(live, api.R[[s.index for s in samples]], atol=1e-9)
+
+
+def test_unknown_filter_name_is_one_line(recording, tmp_path):
+    _, path = recording
+    proc = subprocess.run([sys.executable, "-m", "bpms", "filter", str(path), "-o",
+                           str(tmp_path / "x.csv"), "--filter", "kalman"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "unknown filter 'kalman'" in lines[0], proc.stderr
+    assert not (tmp_path / "x.csv").exists()

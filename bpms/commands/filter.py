@@ -48,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--options", metavar="options.toml",
                         help="options file (default: the options stored in the recording)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
-    parser.add_argument("--filter", metavar="NAME", choices=FILTER_CHOICES,
+    parser.add_argument("--filter", metavar="NAME",
                         help="attitude filter for all 18 IMUs: " + ", ".join(FILTER_CHOICES)
                              + " (default: the options' [filter] algorithm, normally mahony; "
                              "docs/filters.md)")
@@ -90,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
     n = len(recording)
     if n == 0:
         raise CliError(f"{args.raw_file}: the recording holds no frames")
+    if args.filter is not None and args.filter not in FILTER_CHOICES:
+        raise CliError(f"unknown filter '{args.filter}' (choose {', '.join(FILTER_CHOICES)})")
     out_path = Path(args.output) if args.output else default_output_path(args.raw_file)
     if out_path.exists() and not args.force:
         raise CliError(f"{out_path} exists (use --force to overwrite)")

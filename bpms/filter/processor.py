@@ -20,8 +20,9 @@ Example::
 What happens, frame by frame (details in docs/filter.md):
 
 - raw counts → calibrated filter units (:class:`bpms.filter.calibration.SensorCalibration`);
-- 18 DCM Mahony filters (:class:`bpms.filter.bank.FilterBank`): the first frame of a stream
-  only initialises; failed sensors hold their last good value;
+- 18 attitude filters of the kind ``Options.filter.algorithm`` selects
+  (:mod:`bpms.filter.algorithms`; default the DCM Mahony :class:`bpms.filter.bank.FilterBank`):
+  the first frame of a stream only initialises; failed sensors hold their last good value;
 - Reset Zero (:class:`bpms.filter.pose.PoseCalibrator`): a provisional one-frame capture on the
   first frame where all 18 IMUs are initialised, the automatic capture 1.0 s into the stream
   (0.5 s settling + the ``Options.pose.reset_window_s`` window, averaged), and one on each
