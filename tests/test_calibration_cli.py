@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from bpms.cli import main
@@ -58,3 +60,18 @@ def test_bad_arguments_exit_2_with_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert rc == 2 and words in err and len(err.splitlines()) == 1
     assert not (tmp_path / "C.cfg").exists()
+
+
+def test_unwritable_output_keeps_the_calibration(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    rc = main(["calibrate", *FAST, "--imu", "1", "--sensor", "gyro",
+               "-o", str(blocker / "Calib.cfg")])  # a file where a folder should be
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "saved to" in err
+    saved = err.rsplit("saved to ", 1)[1].split(" instead")[0]
+    new = load_calibration(saved)
+    for path in (Path(saved), modern_path(saved)):
+        path.unlink()
+    assert new.problems == [] and not np.array_equal(
+        new.values[1, 13:], load_factory_calibration().values[1, 13:])

@@ -218,6 +218,8 @@ class AccelProcedure:
         """Confirm the pose: start averaging. False (with a message) when not at the extreme."""
         if self.done:
             return False
+        if self._capturing:
+            return True  # confirming twice does not restart the capture
         if not self.at_extreme:
             self.message = "not at the extreme: turn the IMU until the axis reads its extreme"
             return False

@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import queue
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -355,6 +356,14 @@ def run(args: argparse.Namespace) -> int:
         if answer not in ("", "y", "yes"):
             term.say("not saved")
             return 1
-    legacy, modern = save_pair(existing, update, out, sensors)
+    try:
+        legacy, modern = save_pair(existing, update, out, sensors)
+    except OSError as exc:
+        # never lose a calibration: write it somewhere that works, then say where
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        fallback = Path(tempfile.gettempdir()) / f"Calib-unsaved-{stamp}.cfg"
+        save_pair(existing, update, fallback, sensors)
+        raise CliError(f"cannot write {out} ({exc.strerror or exc}); the calibration was saved "
+                       f"to {fallback} instead") from None
     term.say(f"saved {legacy} and {modern}")
     return 0
