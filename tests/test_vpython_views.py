@@ -62,7 +62,16 @@ class FakeBrowser:
 
         page = _page(http_port)
         ws_port = re.search(r"var sock = '(\d+)'", page).group(1)
-        self.ws = websocket.create_connection(f"ws://localhost:{ws_port}/", timeout=5)
+        # vpython starts its websocket server in a thread after the HTTP one: retry briefly.
+        end = time.monotonic() + 20
+        while True:
+            try:
+                self.ws = websocket.create_connection(f"ws://localhost:{ws_port}/", timeout=5)
+                break
+            except ConnectionRefusedError:
+                if time.monotonic() > end:
+                    raise
+                time.sleep(0.1)
         self.cmds: list[dict] = []
         self.attrs: list[str] = []
 
