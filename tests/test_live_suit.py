@@ -100,7 +100,7 @@ def test_record_cli_survives_kill_9(tmp_path):
     recording = read_raw(raw)
     assert len(recording) >= 100
     assert recording.decode().raw.shape == (len(recording), 18, 9)
-    assert (np.diff(recording.times) > 0).all()
+    assert (np.diff(recording.times) >= 0).all()  # a burst shares one receive time
 
 
 def test_record_cli_ctrl_c_closes_cleanly(tmp_path):
