@@ -282,15 +282,20 @@ class BrowserView:
             self.send(samples[-1].C)
 
     def close(self, timeout: float = 5.0) -> None:
-        """Close the pipe (the child exits at EOF) and wait; kill it after ``timeout`` s."""
+        """Close the pipe (the child exits at EOF); a child still waiting for its browser
+        does not read the pipe, so it is terminated after 1 s (killed after ``timeout``)."""
         if self.process.stdin is not None and not self.process.stdin.closed:
             with contextlib.suppress(OSError):
                 self.process.stdin.close()
-        try:
-            self.process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait(timeout)
+        for stop, wait in ((None, min(1.0, timeout)), (self.process.terminate, timeout),
+                           (self.process.kill, timeout)):
+            if stop is not None:
+                stop()
+            try:
+                self.process.wait(wait)
+                return
+            except subprocess.TimeoutExpired:
+                continue
 
 
 def open_browser_view(model: Any) -> BrowserView:
