@@ -202,7 +202,7 @@ class MainWindow(QMainWindow):
     def _show_plot(self, window: PlotWindow) -> PlotWindow:
         window.destroyed.connect(lambda *_: self._forget(window))
         self.plot_windows.append(window)
-        window.resize(max(window.width(), 800), max(window.height(), 450))
+        window.resize(max(window.width(), 640), max(window.height(), 380))
         window.show()
         return window
 

@@ -20,7 +20,15 @@ import numpy as np
 import pyqtgraph as pg
 from PyQt6.QtCore import QPointF, Qt
 from PyQt6.QtGui import QKeySequence, QShortcut
-from PyQt6.QtWidgets import QApplication, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+from PyQt6.QtWidgets import (
+    QApplication,
+    QGraphicsItem,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
 
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.joints import JOINT_ANGLE_NAMES
@@ -182,7 +190,12 @@ class PlotWindow(QWidget):
         n = len(self.specs)
         for row, (group_title, specs) in enumerate(groups):
             plot = self.graphics.addPlot(row=row, col=0, title=group_title or None)
-            plot.addLegend(offset=(5, 5))
+            legend = plot.addLegend(offset=(5, 5))
+            # Text is the slowest thing to paint: the legend and the axes are drawn once into
+            # a pixmap and reused while the curves under them change.
+            legend.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+            for name in ("left", "bottom"):
+                plot.getAxis(name).setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
             plot.setLabel("bottom", "time", units="s")
             plot.getViewBox().setMouseMode(pg.ViewBox.RectMode)
             plot.getViewBox().sigRangeChangedManually.connect(self._manual_range)
