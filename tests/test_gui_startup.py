@@ -164,3 +164,18 @@ def test_optional_windows_open_when_their_modules_exist(qtbot, tmp_path):
         first, second = window.open_3d_view(), window.open_3d_view()
         assert first is not None and second is not None and first is not second
     window.close()
+
+
+def test_a_bad_recording_is_reported_and_the_start_up_window_stays(qtbot, tmp_path):
+    bad = tmp_path / "Raw_bad_1.bpmsraw"
+    bad.write_bytes(b"not a recording at all")
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.show()
+    startup.select_mode("file")
+    startup.file_edit.setText(str(bad))
+    startup.go_button.click()
+    qtbot.waitUntil(lambda: not startup.busy, timeout=10000)
+    assert startup.main_window is None and startup.isVisible()
+    assert str(bad) in startup.last_dialog.text()
+    startup.last_dialog.close()
