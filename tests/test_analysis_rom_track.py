@@ -103,3 +103,21 @@ def test_path_length_from_the_lower_body_chain_within_10_percent(script):
     walked = np.linalg.norm(p[rec.t.searchsorted(t1) - 1, :2] - p[rec.t.searchsorted(t0), :2])
     assert len(track.times) == len(rec.truth.heel_strikes)
     assert track.length_m == pytest.approx(walked, rel=0.10)
+
+
+def test_track_with_a_walking_filter_within_10_percent_of_the_true_path(tmp_path):
+    """The whole command on the simulated walk (mounting errors on) with the observer filter
+    (the original filter's accelerometer trust tilts the swinging legs: docs/analysis.md)."""
+    rec = simulate(seed=1)
+    path = tmp_path / "Raw_walk_001.bpmsraw"
+    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    out = tmp_path / "walk.csv"
+    assert main(["track", str(path), "--filter", "observer", "-o", str(out), "--no-figure"]) == 0
+    rows = [ln.split(",") for ln in out.read_text().splitlines()[1:]]
+    steps = np.array([[float(r[4]), float(r[5])] for r in rows])
+    length = np.linalg.norm(steps, axis=1).sum()
+    t0 = rec.truth.heel_strikes[0][0] - 0.5
+    p = rec.truth.pelvis_position
+    walked = np.linalg.norm(p[-1, :2] - p[rec.t.searchsorted(t0), :2])
+    assert len(rows) == len(rec.truth.heel_strikes)
+    assert length == pytest.approx(walked, rel=0.10)

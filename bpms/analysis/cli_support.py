@@ -2,14 +2,28 @@
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import sys
 from collections.abc import Sequence
 
 from bpms.commands import CliError
 
 
+def add_filter_option(parser: argparse.ArgumentParser) -> None:
+    """``--filter NAME``: the attitude filter (see docs/filters.md)."""
+    from bpms.io.options import FilterOptions
+
+    choices = next(f.metadata["choices"] for f in dataclasses.fields(FilterOptions)
+                   if f.name == "algorithm")
+    parser.add_argument("--filter", dest="filter_name", choices=choices, default=None,
+                        help="attitude filter (default: the options'; for walking 'observer' "
+                             "or 'vqf', see docs/filters.md)")
+
+
 def processed(command: str, path: str, calibration: str | None = None,
-              options: str | None = None, zero_at_s: Sequence[float] = ()):
+              options: str | None = None, zero_at_s: Sequence[float] = (),
+              algorithm: str | None = None):
     """:func:`bpms.analysis.source.process_recording` (a raw recording, or a filtered CSV),
     problems as warnings on stderr."""
     from bpms.analysis.source import process_recording
@@ -17,7 +31,7 @@ def processed(command: str, path: str, calibration: str | None = None,
     from bpms.io.rawfile import RawFileError
 
     try:
-        p = process_recording(path, calibration, options, zero_at_s)
+        p = process_recording(path, calibration, options, zero_at_s, algorithm=algorithm)
     except (RawFileError, FilteredFileError) as exc:
         raise CliError(str(exc)) from exc
     except OSError as exc:

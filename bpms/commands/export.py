@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
 
 
@@ -39,6 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--options", metavar="options.toml",
                         help="options file (default: the options stored in the recording)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    add_filter_option(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -55,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     raw = Path(args.raw_file)
     out = Path(args.output) if args.output else raw.with_suffix("")
-    p = processed("export", args.raw_file, args.calibration, args.options, args.reset_at)
+    p = processed("export", args.raw_file, args.calibration, args.options, args.reset_at,
+                  algorithm=args.filter_name)
     res = p.result
     dt = p.processor.options.filter.dt
     written: list[str] = []

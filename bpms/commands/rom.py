@@ -8,6 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
 
 
@@ -34,6 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--options", metavar="options.toml",
                         help="options file (default: the options stored in each recording)")
     parser.add_argument("--no-figures", action="store_true", help="tables only")
+    add_filter_option(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -49,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     labels = args.label or [Path(f).stem for f in args.raw_files]
     tables = []
     for path, label in zip(args.raw_files, labels, strict=True):
-        p = processed("rom", path, args.calibration, args.options, args.reset_at)
+        p = processed("rom", path, args.calibration, args.options, args.reset_at,
+                      algorithm=args.filter_name)
         try:
             tables.append(range_of_motion(label, p.result.t, p.result.joint_angles, args.t0,
                                           args.t1))

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
 
 
@@ -38,6 +39,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--options", metavar="options.toml",
                         help="options file (default: the options stored in the recording)")
     parser.add_argument("--no-figure", action="store_true", help="CSV only")
+    add_filter_option(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -46,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.analysis.cli_support import processed
     from bpms.analysis.track import FOOT_IMUS, walked_path
 
-    p = processed("track", args.raw_file, args.calibration, args.options)
+    p = processed("track", args.raw_file, args.calibration, args.options,
+                  algorithm=args.filter_name)
     if p.raw is None:
         raise CliError(f"{args.raw_file}: heel strikes need the foot accelerometers: give the "
                        "raw recording, not a filtered file")
