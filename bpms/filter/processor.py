@@ -137,7 +137,16 @@ class BodyPoseProcessor:
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
         self.table = _load_table(calibration)
         self.options = _load_options(options)
-        self.sensor_calibration = SensorCalibration.from_table(self.table, self.options.sensors)
+        ellipsoids = {}
+        if isinstance(calibration, str | Path):
+            # A magnetometer ellipsoid fit in the modern companion file (Calib.json beside
+            # Calib.cfg, docs/calibration.md) is used for the IMUs whose numbers agree.
+            from bpms.io.calib_modern import ellipsoids_beside
+
+            ellipsoids, _, problems = ellipsoids_beside(calibration, self.table)
+            self.table.problems.extend(problems)
+        self.sensor_calibration = SensorCalibration.from_table(self.table, self.options.sensors,
+                                                               ellipsoids or None)
         # options.filter.algorithm: 'mahony' (FilterBank, the original) or another filter
         self.bank = make_bank(self.sensor_calibration.gravity, self.options.filter)
         cal = self.sensor_calibration
@@ -195,6 +204,8 @@ class BodyPoseProcessor:
             raw = np.ascontiguousarray(raw, dtype=np.float64)
         outs = tuple(np.empty((raw.shape[0], N_IMUS, 3)) for _ in range(3))
         calibrate_batch(raw, *self._cal_params, *outs)
+        if self.sensor_calibration.mag_correction() is not None:
+            outs[1][:] = self.sensor_calibration.correct_mag(outs[1])
         return outs
     def _result(self, n: int, R: np.ndarray, euler: np.ndarray, C: np.ndarray,
                 captures_before: int) -> Result:
