@@ -236,3 +236,32 @@ def test_a_udp_flood_does_not_freeze_the_gui(qtbot, tmp_path, recording_path):
     assert max(batches) <= 3000  # the mailbox bound: never an unbounded backlog in the GUI
     assert max(batches) > 2  # several frames per tick: one redraw per tick, not per frame
     window.close()
+
+
+def test_each_filter_is_selectable_in_the_gui(qtbot, tmp_path, recording_path):
+    """Issue 9: the filter chosen in the options reaches the session, and the main window's
+    filter selector switches all 18 IMUs at run time; every filter gives a pose."""
+    from bpms.io.options import Options
+
+    options = Options()
+    options.filter.algorithm = "observer"
+    startup = StartupWindow(options=options, recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.select_mode("file")
+    startup.file_edit.setText(str(recording_path))
+    window = _go(qtbot, startup)
+    processor = window.runner.session.processor
+    assert processor.options.filter.algorithm == "observer"
+    combo = window.gains_panel.filter_combo
+    assert combo.currentText() == "observer"
+    window.status_panel.data_button.click()  # play
+    for algorithm in ("mahony", "vqf", "observer"):
+        combo.setCurrentText(algorithm)
+        qtbot.waitUntil(lambda a=algorithm: processor.options.filter.algorithm == a,
+                        timeout=10000)
+        after = window.model.latest.index if window.model.latest is not None else -1
+        qtbot.waitUntil(lambda a=after: window.model.latest is not None
+                        and window.model.latest.index > a + 25, timeout=15000)
+        assert np.isfinite(window.model.latest.euler).all()
+    window.status_panel.data_button.click()  # pause
+    window.close()

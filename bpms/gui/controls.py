@@ -103,14 +103,24 @@ class StatusPanel(QGroupBox):
 
 
 class GainsPanel(QGroupBox):
-    """The Mahony gains, editable at run time (applied from the next frame on)."""
+    """The attitude filter (all 18 IMUs) and the Mahony gains, editable at run time (applied
+    from the next frame on)."""
 
     gainsChanged = pyqtSignal(dict)
+    filterChanged = pyqtSignal(str)
 
     def __init__(self, options: FilterOptions, parent: QWidget | None = None) -> None:
         super().__init__("Filter gains", parent)
         form = QFormLayout(self)
         fields = {f.name: f for f in dataclasses.fields(FilterOptions)}
+        self.filter_combo = QComboBox()
+        self.filter_combo.addItems(list(fields["algorithm"].metadata["choices"]))
+        self.filter_combo.setCurrentText(options.algorithm)
+        self.filter_combo.setToolTip("mahony: the original DCM filter (SPEC §5); observer and "
+                                     "vqf keep the attitude right under body acceleration "
+                                     "(docs/filters.md)")
+        self.filter_combo.currentTextChanged.connect(self.filterChanged.emit)
+        form.addRow("filter", self.filter_combo)
         self.boxes: dict[str, QDoubleSpinBox] = {}
         for name in GAIN_NAMES:
             box = QDoubleSpinBox()

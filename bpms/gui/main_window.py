@@ -111,6 +111,7 @@ class MainWindow(QMainWindow):
         self.status_panel.resetZeroClicked.connect(self.reset_zero)
         self.gains_panel = GainsPanel(self.options.filter)
         self.gains_panel.gainsChanged.connect(self._set_gains)
+        self.gains_panel.filterChanged.connect(self.select_filter)
         self.file_panel = FilePanel(runner)
         self.playback_panel = PlaybackPanel(runner) if runner.replay is not None else None
         self.udp_panel = UdpServerPanel(runner) if runner.mode in ("suit", "sim") else None
@@ -175,6 +176,13 @@ class MainWindow(QMainWindow):
             setattr_all = self.options.filter
             for name, value in gains.items():
                 setattr(setattr_all, name, value)
+
+    def select_filter(self, algorithm: str) -> None:
+        """Switch the attitude filter of all 18 IMUs (Reset Zero is kept)."""
+        if self.runner.session is not None:
+            self.runner.session.select_filter(algorithm)
+        self.options.filter.algorithm = algorithm
+        self.statusBar().showMessage(f"filter: {algorithm}", 3000)
 
     def set_angle_unit(self, unit: str) -> None:
         self.table_model.set_angle_unit(unit)

@@ -219,6 +219,11 @@ class LiveSession:
         """Change filter gains/dt from the next frame on (see BodyPoseProcessor.set_gains)."""
         self._commands.put(lambda: self.processor.set_gains(**gains))
 
+    def select_filter(self, algorithm: str) -> None:
+        """Switch the attitude filter of all 18 IMUs (``FilterOptions.algorithm`` choices) at
+        the next frame; Reset Zero is kept. A failure (e.g. vqf not installed) is an event."""
+        self._commands.put(lambda: self.processor.select_filter(algorithm))
+
     def start_logging(self, raw: bool = True, filtered: bool = True, name: str | None = None,
                       degrees: bool = False) -> RecordingStatus:
         """Start recording with the next sequence-numbered names. Raises RecordingError when
@@ -307,6 +312,8 @@ class LiveSession:
             try:
                 events = self.source.read(0.1)
             except Exception as exc:  # a source bug must not kill the session silently
+                if self._stop.is_set():
+                    break  # the source was closed under this read: not an error
                 self.note(f"source error: {exc}")
                 time.sleep(0.1)
                 continue
