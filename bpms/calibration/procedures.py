@@ -20,6 +20,8 @@ from bpms.io.frames import N_IMUS
 #: Channel slices of a raw ``[18, 9]`` reading.
 ACC, MAG, GYR = slice(0, 3), slice(3, 6), slice(6, 9)
 AXES = "xyz"
+#: The order the guided procedure runs the sensors in (gyro first: the suit lies still).
+SENSORS = ("gyro", "accel", "mag")
 
 
 @dataclass

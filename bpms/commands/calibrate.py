@@ -34,6 +34,7 @@ from bpms.calibration.frames import read_raw
 from bpms.calibration.output import load_existing, save_pair
 from bpms.calibration.procedures import (
     AXES,
+    SENSORS,
     AccelProcedure,
     GyroProcedure,
     MagProcedure,
@@ -44,7 +45,6 @@ from bpms.commands import CliError
 from bpms.io.events import FrameSource
 from bpms.io.frames import N_IMUS
 
-SENSORS = ("gyro", "accel", "mag")
 NO_FRAMES_S = 5.0  # give up when the source is silent this long
 
 

@@ -41,6 +41,7 @@ from bpms.calibration.frames import read_raw
 from bpms.calibration.output import load_existing, save_pair
 from bpms.calibration.procedures import (
     AXES,
+    SENSORS,
     AccelProcedure,
     GyroProcedure,
     MagProcedure,
@@ -51,7 +52,6 @@ from bpms.io.events import FrameSource
 from bpms.io.frames import N_IMUS
 from bpms.io.options import Options
 
-SENSORS = ("gyro", "accel", "mag")
 PAGE_SETUP, PAGE_GYRO, PAGE_ACCEL, PAGE_MAG, PAGE_SUMMARY = range(5)
 
 
