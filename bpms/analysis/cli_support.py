@@ -11,7 +11,8 @@ from bpms.commands import CliError
 
 
 def add_filter_option(parser: argparse.ArgumentParser) -> None:
-    """``--filter NAME``: the attitude filter (see docs/filters.md)."""
+    """``--filter NAME`` (the attitude filter, docs/filters.md) and ``--heading hip|mean``
+    (the body heading reference of Reset Zero)."""
     from bpms.io.options import FilterOptions
 
     choices = next(f.metadata["choices"] for f in dataclasses.fields(FilterOptions)
@@ -19,11 +20,14 @@ def add_filter_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--filter", dest="filter_name", choices=choices, default=None,
                         help="attitude filter (default: the options'; for walking 'observer' "
                              "or 'vqf', see docs/filters.md)")
+    parser.add_argument("--heading", choices=("hip", "mean"), default=None,
+                        help="body heading at Reset Zero: the hip IMU (SPEC §6) or the mean of "
+                             "all IMUs (averages out mounting yaw errors; docs/analysis.md)")
 
 
 def processed(command: str, path: str, calibration: str | None = None,
               options: str | None = None, zero_at_s: Sequence[float] = (),
-              algorithm: str | None = None):
+              algorithm: str | None = None, heading: str | None = None):
     """:func:`bpms.analysis.source.process_recording` (a raw recording, or a filtered CSV),
     problems as warnings on stderr."""
     from bpms.analysis.source import process_recording
@@ -31,7 +35,8 @@ def processed(command: str, path: str, calibration: str | None = None,
     from bpms.io.rawfile import RawFileError
 
     try:
-        p = process_recording(path, calibration, options, zero_at_s, algorithm=algorithm)
+        p = process_recording(path, calibration, options, zero_at_s, algorithm=algorithm,
+                              heading=heading)
     except (RawFileError, FilteredFileError) as exc:
         raise CliError(str(exc)) from exc
     except OSError as exc:

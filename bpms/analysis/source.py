@@ -103,12 +103,13 @@ def process_recording(path: str | Path, calibration: str | Path | None = None,
                       options: str | Path | Options | None = None,
                       zero_at_s: Sequence[float] = (),
                       progress: Progress | None = stderr_progress,
-                      algorithm: str | None = None) -> Processed:
+                      algorithm: str | None = None, heading: str | None = None) -> Processed:
     """Filter a whole raw recording as one stream (the same numbers as
     ``BodyPoseProcessor.process_file``), chunk by chunk with progress.
 
     zero_at_s: extra Reset Zero captures, s since the stream started (fixed 50 Hz clock).
-    algorithm: the attitude filter (``FilterOptions.algorithm``), overriding the options.
+    algorithm: the attitude filter (``FilterOptions.algorithm``), overriding the options;
+    heading: the Reset Zero heading reference (``PoseOptions.heading_reference``), likewise.
     Raises :class:`bpms.io.rawfile.RawFileError` for an unreadable file.
     """
     from bpms.filter.processor import BodyPoseProcessor, Result
@@ -123,9 +124,10 @@ def process_recording(path: str | Path, calibration: str | Path | None = None,
         opts: Options | None = options
     else:
         opts = load_options(options) if options else header_options(recording)
-    if algorithm is not None:
+    if algorithm is not None or heading is not None:
         opts = opts or Options()
-        opts.filter.algorithm = algorithm
+        opts.filter.algorithm = algorithm or opts.filter.algorithm
+        opts.pose.heading_reference = heading or opts.pose.heading_reference
     proc = BodyPoseProcessor(table, opts)
     dt = proc.options.filter.dt
     zero_frames = sorted({round(t / dt) for t in zero_at_s})

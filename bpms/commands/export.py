@@ -58,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
     raw = Path(args.raw_file)
     out = Path(args.output) if args.output else raw.with_suffix("")
     p = processed("export", args.raw_file, args.calibration, args.options, args.reset_at,
-                  algorithm=args.filter_name)
+                  algorithm=args.filter_name,
+                  heading=args.heading)
     res = p.result
     dt = p.processor.options.filter.dt
     written: list[str] = []

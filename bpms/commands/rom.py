@@ -52,7 +52,8 @@ def run(args: argparse.Namespace) -> int:
     tables = []
     for path, label in zip(args.raw_files, labels, strict=True):
         p = processed("rom", path, args.calibration, args.options, args.reset_at,
-                      algorithm=args.filter_name)
+                      algorithm=args.filter_name,
+                      heading=args.heading)
         try:
             tables.append(range_of_motion(label, p.result.t, p.result.joint_angles, args.t0,
                                           args.t1))

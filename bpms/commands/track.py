@@ -49,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.analysis.track import FOOT_IMUS, walked_path
 
     p = processed("track", args.raw_file, args.calibration, args.options,
-                  algorithm=args.filter_name)
+                  algorithm=args.filter_name,
+                  heading=args.heading)
     if p.raw is None:
         raise CliError(f"{args.raw_file}: heel strikes need the foot accelerometers: give the "
                        "raw recording, not a filtered file")

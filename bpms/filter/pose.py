@@ -2,7 +2,9 @@
 
 At a capture, ``R0_i`` = the DCM of IMU i averaged over the still window that ends at the
 capture frame (the matrices are averaged and re-orthonormalised by the polar decomposition,
-via SVD); ψ0 = the yaw of the hip IMU (id 6) of its averaged ``R0``. From then on
+via SVD); ψ0 = the yaw of the hip IMU (id 6) of its averaged ``R0`` (SPEC §6; option
+``pose.heading_reference = "mean"`` takes the circular mean of all IMUs' yaws instead, which
+averages out the hip IMU's mounting yaw error). From then on
 
     ``C_i = R_i @ R0_i^T @ Rz(ψ0)``
 
@@ -71,16 +73,35 @@ class Zero:
         return np.swapaxes(self.R0, -1, -2) @ rot_z(self.yaw0)
 
 
+HEADING_REFERENCES = ("hip", "mean")
+
+
+def body_heading(R0: np.ndarray, reference: str = "hip", hip: int = HIP_IMU) -> float | None:
+    """The body's heading ψ0 (rad) at a capture, from the captured DCMs ``R0[18, 3, 3]``:
+    ``"hip"``, the yaw of the hip IMU (SPEC §6); ``"mean"``, the circular mean of the yaws of
+    every IMU (each is level in the calibration pose, so each yaw is the body heading plus that
+    IMU's mounting yaw error, which averages out). None when no IMU it needs has data."""
+    finite = np.isfinite(R0).all(axis=(-1, -2))
+    if reference == "hip":
+        return float(dcm_to_euler(R0[hip])[2]) if finite[hip] else None
+    if reference != "mean":
+        raise ValueError(f"heading reference must be one of {HEADING_REFERENCES}")
+    if not finite.any():
+        return None
+    yaws = dcm_to_euler(R0[finite])[:, 2]
+    return float(np.arctan2(np.sin(yaws).sum(), np.cos(yaws).sum()))
+
+
 def capture_zero(R_window: np.ndarray, previous: Zero | None = None, frame: int = 0,
-                 hip: int = HIP_IMU) -> Zero:
-    """A capture from the DCMs ``R_window[W, 18, 3, 3]`` (see the module docstring)."""
+                 hip: int = HIP_IMU, heading: str = "hip") -> Zero:
+    """A capture from the DCMs ``R_window[W, 18, 3, 3]`` (see the module docstring);
+    ``heading``: where ψ0 comes from (:func:`body_heading`)."""
     R0 = average_dcm(R_window)
     missing = ~np.isfinite(R0).all(axis=(-1, -2))
     if previous is not None:
         R0[missing] = previous.R0[missing]
-    if np.isfinite(R0[hip]).all():
-        yaw0 = float(dcm_to_euler(R0[hip])[2])
-    else:
+    yaw0 = body_heading(R0, heading, hip)
+    if yaw0 is None:
         yaw0 = previous.yaw0 if previous is not None else 0.0
     return Zero(R0, yaw0, frame)
 
@@ -112,11 +133,12 @@ class PoseCalibrator:
     """
 
     def __init__(self, window: int = 25, settle: int = 25, auto: bool = True,
-                 hip: int = HIP_IMU) -> None:
+                 hip: int = HIP_IMU, heading: str = "hip") -> None:
         self.window = max(1, int(window))
         self.settle = max(0, int(settle))
         self.auto = auto
         self.hip = hip
+        self.heading = heading
         self.restart()
 
     def restart(self) -> None:
@@ -170,7 +192,7 @@ class PoseCalibrator:
                 window = R[k:k + 1]
             else:
                 window = self._window_ending_at(R, k)
-            self.zero = capture_zero(window, self.zero, first + k, self.hip)
+            self.zero = capture_zero(window, self.zero, first + k, self.hip, self.heading)
             self.captures.append(self.zero)
             start = k
         C[start:] = segment_orientations(R[start:], self.zero)

@@ -157,7 +157,8 @@ class BodyPoseProcessor:
             cal.pre_rotations))
         dt = self.options.filter.dt
         self.pose = PoseCalibrator(window=round(self.options.pose.reset_window_s / dt),
-                                   settle=round(SETTLE_S / dt), auto=auto_zero)
+                                   settle=round(SETTLE_S / dt), auto=auto_zero,
+                                   heading=self.options.pose.heading_reference)
         self.frames = 0
         self.problems = [str(p) for p in (*self.table.problems, *self.options.problems)]
 

@@ -106,6 +106,9 @@ class LoggingOptions:
 class PoseOptions:
     reset_window_s: float = _opt(0.5, "Reset Zero averages the DCMs over this still window, s",
                                  min=0.0, max=10.0)
+    heading_reference: str = _opt(
+        "hip", "body heading at Reset Zero: 'hip' IMU (SPEC §6) or the 'mean' of all IMUs' "
+        "yaws (averages out mounting yaw errors)", choices=("hip", "mean"))
 
 
 @dataclass
