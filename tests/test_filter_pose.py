@@ -120,3 +120,24 @@ def test_pose_calibrator_live_equals_batch_and_captures_on_schedule():
     parts = [chunks.apply(R[lo:lo + 7], zero_at=[90 - lo] if lo <= 90 < lo + 7 else [])
              for lo in range(0, n, 7)]
     np.testing.assert_array_equal(np.concatenate(parts), C_batch)
+
+
+def test_body_heading_hip_or_mean_of_all_imus():
+    import pytest
+
+    from bpms.filter.pose import body_heading
+    from bpms.filter.rotations import euler_to_dcm
+
+    rng = np.random.default_rng(4)
+    psi = np.radians(170.0)  # near ±180°: the mean must be circular
+    errors = np.radians(rng.normal(0.0, 3.0, 18))
+    errors -= errors.mean()
+    R0 = euler_to_dcm(np.radians(rng.normal(0, 2, 18)), np.radians(rng.normal(0, 2, 18)),
+                      psi + errors)
+    assert body_heading(R0, "hip") == pytest.approx(psi + errors[6])
+    assert body_heading(R0, "mean") == pytest.approx(psi, abs=1e-3)
+    R0[6] = np.nan
+    assert body_heading(R0, "hip") is None
+    assert body_heading(R0, "mean") == pytest.approx(psi, abs=0.02)
+    with pytest.raises(ValueError):
+        body_heading(R0, "north")
