@@ -29,7 +29,7 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 def recording(tmp_path_factory):
     rec = simulate(duration_s=4.0, seed=2, error_rate=0.001)
     path = tmp_path_factory.mktemp("raw") / "Raw_x_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    rec.save_raw(path)
     return rec, path
 
 

@@ -11,7 +11,6 @@ from bpms.filter.body_model import joint_positions
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.firmware.sim.sensors import SensorModel
 from bpms.firmware.sim.session import simulate
-from bpms.io.rawfile import new_header, write_raw
 
 WALK_START_S = 56.7  # "turn to walk" starts here; the walk itself 59.2–69.1 s
 
@@ -23,7 +22,7 @@ def script(tmp_path_factory):
     rec = simulate(seed=1, model=SensorModel(mounting_error_deg=0.0))
     folder = tmp_path_factory.mktemp("script")
     path = folder / "Raw_script_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    rec.save_raw(path)
     return rec, path
 
 
@@ -110,7 +109,7 @@ def test_track_with_a_walking_filter_within_10_percent_of_the_true_path(tmp_path
     (the original filter's accelerometer trust tilts the swinging legs: docs/analysis.md)."""
     rec = simulate(seed=1)
     path = tmp_path / "Raw_walk_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    rec.save_raw(path)
     out = tmp_path / "walk.csv"
     assert main(["track", str(path), "--filter", "observer", "-o", str(out), "--no-figure"]) == 0
     rows = [ln.split(",") for ln in out.read_text().splitlines()[1:]]
@@ -130,7 +129,7 @@ def test_rom_with_mounting_errors_within_3deg_using_vqf_and_the_mean_heading(tmp
     joint angle's extremes within 3°."""
     rec = simulate(seed=2)  # the seed with the largest hip-heading cross-talk
     path = tmp_path / "Raw_mounted_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    rec.save_raw(path)
     out = tmp_path / "report"
     assert main(["rom", str(path), "--from", "0", "--to", str(WALK_START_S), "-o", str(out),
                  "--filter", "vqf", "--heading", "mean", "--no-figures"]) == 0

@@ -25,7 +25,7 @@ from bpms.io.rawfile import RECORD_SIZE, new_header, write_raw
 def recording(tmp_path_factory):
     rec = simulate(duration_s=6.0, seed=4, error_rate=0.001)
     path = tmp_path_factory.mktemp("raw") / "Raw_trial_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    rec.save_raw(path)
     return rec, path
 
 

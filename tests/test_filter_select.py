@@ -17,7 +17,7 @@ from bpms.filter.rotations import inclination_error
 from bpms.firmware.sim.session import simulate
 from bpms.io.filtered_file import read_filtered
 from bpms.io.options import FilterOptions, Options, load_options
-from bpms.io.rawfile import new_header, read_raw, write_raw
+from bpms.io.rawfile import read_raw
 from bpms.io.replay import ReplaySource
 from bpms.pipeline.session import LiveSession
 
@@ -34,7 +34,7 @@ def _options(algorithm: str) -> Options:
 def recording(tmp_path_factory):
     rec = simulate(duration_s=8.0, seed=5, error_rate=0.002)
     path = tmp_path_factory.mktemp("raw") / "Raw_select_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(calibration=rec.calibration.values))
+    rec.save_raw(path)
     return rec, path
 
 

@@ -17,7 +17,7 @@ from bpms.gui.data_table import COLUMNS
 from bpms.gui.main_window import MainWindow
 from bpms.gui.startup import StartupWindow
 from bpms.io.filtered_file import read_filtered
-from bpms.io.rawfile import new_header, read_raw, write_raw
+from bpms.io.rawfile import read_raw
 
 ROOT = Path(__file__).resolve().parents[1]
 SIX_CELLS = [(0, 0), (4, 9), (5, 13), (8, 18), (12, 19), (17, 20)]  # raw, cal, euler
@@ -27,8 +27,7 @@ SIX_CELLS = [(0, 0), (4, 9), (5, 13), (8, 18), (12, 19), (17, 20)]  # raw, cal, 
 def recording_path(tmp_path_factory) -> Path:
     rec = simulate(duration_s=12.0, seed=2)
     path = tmp_path_factory.mktemp("rec") / "Raw_sim_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(notes="simulated"))
-    return path
+    return rec.save_raw(path, notes="simulated")
 
 
 def _go(qtbot, startup: StartupWindow) -> MainWindow:
@@ -181,7 +180,8 @@ def _free_udp_port() -> int:
         return s.getsockname()[1]
 
 
-def test_udp_client_session(qtbot, tmp_path, recording_path):
+def _udp_client_window(qtbot, tmp_path) -> tuple[int, MainWindow]:
+    """GO in UDP client mode on a free port, data on: (port, main window)."""
     port = _free_udp_port()
     startup = StartupWindow(recording_dir=str(tmp_path))
     qtbot.addWidget(startup)
@@ -189,6 +189,11 @@ def test_udp_client_session(qtbot, tmp_path, recording_path):
     startup.listen_edit.setText(f"127.0.0.1:{port}")
     window = _go(qtbot, startup)
     window.status_panel.data_button.click()
+    return port, window
+
+
+def test_udp_client_session(qtbot, tmp_path, recording_path):
+    port, window = _udp_client_window(qtbot, tmp_path)
     sender = subprocess.Popen(
         [sys.executable, "-m", "bpms", "replay", str(recording_path), "--udp",
          f"127.0.0.1:{port}", "--speed", "2", "--loop"],
@@ -211,13 +216,7 @@ def test_udp_client_session(qtbot, tmp_path, recording_path):
 def test_a_udp_flood_does_not_freeze_the_gui(qtbot, tmp_path, recording_path):
     """Frames as fast as `bpms replay --speed 0` sends them: the display timer keeps running,
     each tick drains a bounded mailbox, and what cannot be shown is counted, not queued."""
-    port = _free_udp_port()
-    startup = StartupWindow(recording_dir=str(tmp_path))
-    qtbot.addWidget(startup)
-    startup.select_mode("udp")
-    startup.listen_edit.setText(f"127.0.0.1:{port}")
-    window = _go(qtbot, startup)
-    window.status_panel.data_button.click()
+    port, window = _udp_client_window(qtbot, tmp_path)
     window.table.select_cells(SIX_CELLS)
     window.plot_selection()
     batches: list[int] = []

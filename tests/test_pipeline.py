@@ -13,7 +13,7 @@ from waiting import wait_until
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
 from bpms.io.filtered_file import read_filtered
-from bpms.io.rawfile import RecordingError, new_header, read_raw, write_raw
+from bpms.io.rawfile import RecordingError, read_raw
 from bpms.io.replay import ReplaySource
 from bpms.io.udp import UdpSource
 from bpms.pipeline.session import LiveSession
@@ -24,8 +24,7 @@ from bpms.pipeline.sources import UdpFrameSource
 def recording_path(tmp_path_factory):
     rec = simulate(duration_s=16.0, seed=3)
     path = tmp_path_factory.mktemp("rec") / "Raw_sim_1.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(notes="simulated"))
-    return path
+    return rec.save_raw(path, notes="simulated")
 
 
 def test_replay_records_every_frame_and_matches_the_batch_filter(recording_path, tmp_path):

@@ -11,6 +11,7 @@ Sample k is at ``t = k * 0.02`` s. See docs/simulated-suit.md for the script and
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -72,6 +73,17 @@ class Recording:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def save_raw(self, path: str | Path, start_time: float = 1.7e9,
+                 notes: str = "simulated suit") -> Path:
+        """Write the frames as a native raw recording (receive time ``start_time + t`` s, the
+        true calibration table in the header), as a live recording of this suit would be."""
+        from bpms.io.rawfile import new_header, write_raw
+
+        path = Path(path)
+        write_raw(path, start_time + self.t, self.frames,
+                  new_header(calibration=self.calibration.values, notes=notes))
+        return path
 
 
 def default_disturbance(motion: Motion) -> MagDisturbance:
