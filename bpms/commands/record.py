@@ -14,6 +14,7 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
 from bpms.commands.sim import add_sim_options, build_arbiter
@@ -22,8 +23,9 @@ from bpms.io.link import LinkError
 from bpms.io.options import load_options
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
-from bpms.pipeline.session import LiveSession, LiveStatus
-from bpms.pipeline.sources import SuitFrameSource
+
+if TYPE_CHECKING:  # the pipeline (numba, the filter bank) loads when recording starts, so
+    from bpms.pipeline.session import LiveStatus  # `bpms --help` and the GUI start quickly
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -65,6 +67,9 @@ def status_line(status: LiveStatus, elapsed: float) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bpms.pipeline.session import LiveSession
+    from bpms.pipeline.sources import SuitFrameSource
+
     options = load_options(args.options)
     for problem in options.problems:
         print(f"warning: {problem}", file=sys.stderr)
