@@ -14,3 +14,10 @@ settings.register_profile("dev", deadline=None, max_examples=100)
 settings.register_profile("ci", deadline=None, max_examples=150, derandomize=True,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
+
+# Every test starts from a fresh, empty per-user folder: a developer's own defaults never leak
+# into the suite (bpms.io.userdirs reads these variables; subprocesses inherit them).
+_USER_ROOT = __import__("tempfile").mkdtemp(prefix="bpms-test-user-")
+for _variable, _sub in (("BPMS_CONFIG_DIR", "config"), ("BPMS_DATA_DIR", "data"),
+                        ("BPMS_LOG_DIR", "log")):
+    os.environ[_variable] = os.path.join(_USER_ROOT, _sub)
