@@ -47,7 +47,9 @@ def fit_ellipsoid(points: np.ndarray, min_points: int = 50) -> EllipsoidFit | No
     k = 1.0 + centre @ M @ centre
     Q = M / k
     evals, evecs = np.linalg.eigh(Q)
-    if not (np.isfinite(evals).all() and (evals > 0).all()):
+    # A flat sweep (a plane or a line) leaves one axis unconstrained: its eigenvalue is
+    # round-off, positive or negative depending on the machine's BLAS.
+    if not (np.isfinite(evals).all() and evals.min() > 1e-6 * evals.max()):
         return None
     root = evecs @ np.diag(np.sqrt(evals)) @ evecs.T  # in scaled units
     A = MAG_FULL_SCALE * root / s
