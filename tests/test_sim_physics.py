@@ -12,6 +12,7 @@ from bpms.filter.calibration import SensorCalibration
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.filter.rotations import dcm_to_euler
 from bpms.firmware.sim.motion import DT
+from bpms.firmware.sim.sensors import SensorModel
 from bpms.firmware.sim.session import simulate
 from bpms.io.calib_file import load_factory_calibration
 from bpms.io.frames import FRAME_SIZE, decode_frames
@@ -196,7 +197,9 @@ def test_linear_acceleration_is_second_difference(rec):
     assert others.max() < 1.0
 
 
-def test_heel_strikes_and_step_length(clean):
+def test_heel_strikes_and_step_length():
+    # ±16 g: the 2.5 g impacts are not clipped (the firmware's ±2 g clips them, see below).
+    clean = simulate(seed=3, noise=False, model=SensorModel(accel_range_g=16.0))
     cal, acc, _, _ = calibrated(clean)
     mag_g = np.linalg.norm(acc, axis=-1) / cal.gravity
     strikes = clean.truth.heel_strikes
@@ -222,6 +225,24 @@ def test_heel_strikes_and_step_length(clean):
                               - (pts[kb, POINT_INDEX["hip_r"], :2]
                                  - pts[kb, POINT_INDEX["hip_l"], :2]))
         assert advance == pytest.approx(step, rel=0.05)
+
+
+def test_accelerometer_saturates_at_its_configured_range(clean):
+    """Default ±2 g (as the firmware sets the ADXL345): counts end at -512..511 (full
+    resolution, 256 counts per g), so a 2.5 g heel strike is clipped; ±16 g passes it."""
+    assert SensorModel().accel_range_g == 2.0
+    assert SensorModel().accel_limits() == (-512, 511)
+    assert SensorModel(accel_range_g=16.0).accel_limits() == (-4096, 4095)
+    with pytest.raises(ValueError):
+        SensorModel(accel_range_g=3.0)
+    acc = clean.raw[..., 0:3].astype(int)
+    assert acc.min() >= -512 and acc.max() <= 511
+    k = round(clean.truth.heel_strikes[2][0] / DT)
+    foot = 1 if clean.truth.heel_strikes[2][1] == "right" else 13
+    assert np.isin(acc[k, foot], [-512, 511]).any()  # the strike hits the rail
+    wide = simulate(seed=3, noise=False, duration_s=k * DT + 1.0,
+                    model=SensorModel(accel_range_g=16.0))
+    assert np.abs(wide.raw[k, foot, 0:3].astype(int)).max() > 600
 
 
 def test_true_calibration_table_differs_from_host(clean):

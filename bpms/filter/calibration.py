@@ -16,12 +16,12 @@ import numpy as np
 
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import N_IMUS
+from bpms.io.mag_ellipsoid import MAG_FULL_SCALE, MagEllipsoid
 from bpms.io.options import SensorOptions
 
 STANDARD_GRAVITY = 9.81  # m/s² per g, as the dissertation uses
 GYRO_RAD_S_PER_COUNT = 0.06957 * math.pi / 180.0  # ITG-3200: 14.375 LSB per °/s
 MAG_GAUSS_PER_COUNT = 0.000917431  # HMC5883L gain, appendix C's GainMag
-MAG_FULL_SCALE = 100.0  # calibrated magnetometer units at the end of each axis range
 
 #: Pre-rotations R* (eq. 2.15–2.17), applied as v' = R* v.
 PITCH_90 = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
@@ -34,17 +34,6 @@ PRE_ROTATIONS = np.stack(
     [{"pitch": PITCH_90, "roll": ROLL_90, "identity": np.eye(3)}[k] for k in _PRE_ROTATION_KIND]
 )
 assert PRE_ROTATIONS.shape == (N_IMUS, 3, 3)
-
-
-@dataclass(frozen=True)
-class MagEllipsoid:
-    """A magnetometer ellipsoid fit (hard and soft iron, as the Razor AHRS extended
-    calibration): ``m = matrix @ (raw - center)`` lies on the sphere of radius 100 (calibrated
-    units), in board axes before the sign vector. ``center`` ``[3]`` raw counts; ``matrix``
-    ``[3, 3]`` calibrated units per count (symmetric)."""
-
-    center: np.ndarray
-    matrix: np.ndarray
 
 
 @dataclass(frozen=True)

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from bpms.filter.calibration import MagEllipsoid
 from bpms.io.calib_file import CalibrationTable, load_factory_calibration
 from bpms.io.frames import N_IMUS
+from bpms.io.mag_ellipsoid import MagEllipsoid
 from bpms.io.problems import FileProblem, report
 
 FORMAT = "bpms-calibration"

@@ -25,12 +25,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpms.filter.calibration import MagEllipsoid, SensorCalibration
+from bpms.firmware.sim.geometry import expm, random_rotations
 from bpms.firmware.sim.motion import DT
-from bpms.firmware.sim.sensors import SensorModel, add_noise, ideal_sensors, to_raw
+from bpms.firmware.sim.sensors import BOARD_AXES, SensorModel, draw_noise, ideal_sensors, to_raw
 from bpms.io.calib_file import CalibrationTable, load_factory_calibration
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.frames import N_IMUS, encode_frames
+from bpms.io.mag_ellipsoid import MagEllipsoid
 from bpms.io.options import SensorOptions
 
 #: IMUs whose truth :func:`changed_table` moves by default.
@@ -76,30 +77,6 @@ def _basis_with_row(u: np.ndarray, yaw: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ R
 
 
-def _random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
-    """``[n, 3, 3]`` uniformly random rotations."""
-    q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], axis=1)
-
-
-def _expm(w: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``[..., 3, 3]`` of rotation vectors ``w [..., 3]`` (Rodrigues)."""
-    angle = np.linalg.norm(w, axis=-1, keepdims=True)
-    axis = w / np.maximum(angle, 1e-12)
-    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
-    zero = np.zeros_like(x)
-    K = np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
-                  np.stack([-y, x, zero], -1)], -2)
-    s, c = np.sin(angle)[..., None], np.cos(angle)[..., None]
-    return np.eye(3) + s * K + (1 - c) * (K @ K)
-
-
 @dataclass
 class CalibrationSuit:
     """The simulated suit during calibration: raw frames of the operator's poses.
@@ -108,6 +85,9 @@ class CalibrationSuit:
     soft-iron magnetometer distortions per IMU (the truth is then the ellipsoid, not min/max).
     Noise and the magnetic dip come from ``model``; ``seed`` makes every call reproducible in
     sequence. ``mag_clip``: the magnetometer saturates at ±mag_clip counts (None: never).
+    ``sensors``: the chips' true axis polarities (default: the specification's; the host's
+    sign vectors must undo them). Raw counts come from the simulated suit's own forward model
+    (:func:`bpms.firmware.sim.sensors.to_raw`), never from the filter's calibration code.
     """
 
     table: CalibrationTable = field(default_factory=load_factory_calibration)
@@ -118,8 +98,9 @@ class CalibrationSuit:
     mag_clip: int | None = None
 
     def __post_init__(self) -> None:
-        self.calibration = SensorCalibration.from_table(self.table, self.sensors,
-                                                        self.ellipsoids or None)
+        self.polarity = {"accel": tuple(self.sensors.accel_signs),
+                         "mag": tuple(self.sensors.mag_signs),
+                         "gyro": tuple(self.sensors.gyro_signs)}
         self._rng = np.random.default_rng(self.seed)
         self._rest = np.stack([_basis_with_row(np.array([0.0, 0.0, 1.0]), 0.3 * k)
                                for k in range(N_IMUS)])  # lying flat, spread headings
@@ -129,10 +110,11 @@ class CalibrationSuit:
         """Raw counts ``int16 [N, 18, 9]`` for true filter-frame DCMs ``R [N, 18, 3, 3]``
         (no linear acceleration; the gyro reads the rotation between samples)."""
         n = len(R)
-        ideal = ideal_sensors(R, np.zeros((n, N_IMUS, 3)), self.table.gravity,
-                              self.model.dip_deg, None, DT)
+        ideal = ideal_sensors(R, np.zeros((n, N_IMUS, 3)), self.model.dip_deg, None, DT)
         bias_rng = np.random.default_rng(self.seed + 1)  # same bias every call
-        raw = to_raw(add_noise(ideal, self.model, self._rng, bias_rng), self.calibration)
+        noise = draw_noise(n, self.model, self._rng, bias_rng)
+        raw = to_raw(ideal, self.table, self.model, noise, self.polarity,
+                     self.ellipsoids or None)
         if self.mag_clip is not None:
             raw[..., 3:6] = np.clip(raw[..., 3:6], -self.mag_clip, self.mag_clip - 1)
         return raw
@@ -144,15 +126,15 @@ class CalibrationSuit:
         freq = self._rng.uniform(0.3, 1.5, (1, N_IMUS, 3))
         phase = self._rng.uniform(0, 2 * np.pi, (1, N_IMUS, 3))
         wobble = np.deg2rad(tremor_deg) * np.sin(2 * np.pi * freq * t + phase)
-        return R0[None] @ _expm(wobble)
+        return R0[None] @ expm(wobble)
 
     # -- the operator's moves ------------------------------------------------------------
     def pose_orientation(self, imu: int, axis: int, sign: int) -> np.ndarray:
         """True DCM of ``imu`` with raw board ``axis`` (0 x, 1 y, 2 z) reading its maximum
         (sign +1) or minimum (sign -1): that axis points along gravity's reading."""
-        d = np.zeros(3)
-        d[axis] = float(sign)
-        u = self.calibration.pre_rotations[imu] @ (d * self.calibration.accel_signs)
+        # The board axis reads +1 g (its maximum) when polarity × (its direction · down) = 1.
+        polarity = float(self.polarity["accel"][axis])
+        u = BOARD_AXES[imu, axis] * (sign * polarity)
         return _basis_with_row(u, 0.2 * imu)
 
     def accel_pose(self, imu: int, axis: int, sign: int, n: int) -> np.ndarray:
@@ -171,20 +153,20 @@ class CalibrationSuit:
         axis = np.stack([np.cos(0.7 * t), np.sin(0.7 * t), 0.5 * np.ones(n)], -1)
         axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
         angle = np.deg2rad(rate_dps) * t
-        R = self._rest[None] @ _expm((axis * angle[:, None])[:, None, :])
+        R = self._rest[None] @ expm((axis * angle[:, None])[:, None, :])
         return self.raw_for(R)
 
     def sweep(self, n: int, rate_dps: float = 120.0) -> np.ndarray:
         """``n`` raw frames of every IMU rotated smoothly through random orientations (a
         random walk of the body rate, mean speed ≈ ``rate_dps``)."""
-        start = _random_rotations(self._rng, N_IMUS)
+        start = random_rotations(self._rng, N_IMUS)
         rate = np.zeros((N_IMUS, 3))
         out = np.empty((n, N_IMUS, 3, 3))
         R = start
         speed = np.deg2rad(rate_dps)
         for k in range(n):
             rate = 0.97 * rate + 0.25 * speed * self._rng.normal(0, 1, (N_IMUS, 3))
-            R = R @ _expm(rate * DT)
+            R = R @ expm(rate * DT)
             out[k] = R
         return self.raw_for(out)
 

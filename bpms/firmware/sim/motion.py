@@ -6,12 +6,13 @@ target pose with a minimum-jerk profile, so velocities and accelerations start a
 A walk section drives the legs analytically (alternating steps, heel strikes at known times).
 
 Segment orientations ``C[N, 18, 3, 3]`` (segment axes → world NED) are built by composing joint
-rotations down the chain (pelvis heading and tilt, then ``child = parent @ joint``), so
-:func:`bpms.filter.joints.joint_angles` of the result is the exact ground truth. Positions come
-from :func:`bpms.filter.body_model.joint_positions` plus a pelvis trajectory; the IMUs sit at
-the middle of their segments.
+rotations down the chain (pelvis heading and tilt, then ``child = parent @ joint``), so the
+true joint angles are the script's own degrees of freedom (:func:`true_joint_angles`), not a
+computation from ``C``. Positions come from the simulated skeleton (:mod:`.body`) plus a
+pelvis trajectory; the IMUs sit at the middle of their segments. Nothing here comes from
+``bpms.filter``: the simulated suit is the independent truth the filter is tested against.
 
-Joint signs (``euler_to_dcm(roll, pitch, yaw)`` of the joint, so the truth angles equal them):
+Joint signs (``zyx(roll, pitch, yaw)`` of the joint, so the truth angles equal them):
 shoulder/hip ``flex`` > 0 swings the limb forward; right shoulder ``abd`` < 0 and left > 0 raise
 the arm sideways; elbow/knee flexion are positive angles; ``torso_flex`` < 0 bends forward;
 ``ankle`` > 0 lifts the toes; ``head_turn`` > 0 turns the head to the right (yaw).
@@ -23,8 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpms.filter.body_model import BODY_POINTS, POINT_INDEX, joint_positions
-from bpms.filter.rotations import euler_to_dcm
+from bpms.firmware.sim.body import POINT, imu_positions, point_positions
+from bpms.firmware.sim.geometry import zyx
 from bpms.io.frames import FRAME_PERIOD_S, N_IMUS
 from bpms.io.options import BodyOptions
 
@@ -259,7 +260,7 @@ def segment_orientations(dofs: np.ndarray, heading0: float) -> np.ndarray:
     zero = np.zeros(n)
 
     def joint(roll=zero, pitch=zero, yaw=zero) -> np.ndarray:
-        return euler_to_dcm(roll, pitch, yaw)
+        return zyx(roll, pitch, yaw)
 
     C = np.empty((n, N_IMUS, 3, 3))
     pelvis = joint(q("pelvis_roll"), q("pelvis_tilt"), heading0 + q("pelvis_turn"))
@@ -277,14 +278,6 @@ def segment_orientations(dofs: np.ndarray, heading0: float) -> np.ndarray:
         C[:, shank] = C[:, thigh] @ joint(pitch=-q(f"knee_{side}"))
         C[:, foot] = C[:, shank] @ joint(pitch=q(f"ankle_{side}"))
     return C
-
-
-#: For each IMU, the body point index of its segment's two ends (the IMU sits midway).
-_IMU_SEGMENT: dict[int, tuple[int, int]] = {}
-for _p in BODY_POINTS:
-    _IMU_SEGMENT.setdefault(_p.imu, (POINT_INDEX[_p.parent], POINT_INDEX[_p.name]))
-_SEG_A = np.array([_IMU_SEGMENT[i][0] for i in range(N_IMUS)])
-_SEG_B = np.array([_IMU_SEGMENT[i][1] for i in range(N_IMUS)])
 
 
 def _still_windows(dofs: np.ndarray, pelvis: np.ndarray, t: np.ndarray,
@@ -323,8 +316,8 @@ def generate_motion(n_samples: int | None = None, *, script: list[Step] | None =
     heading0 = heading_deg * _D
     dofs, walk_xy, walk_z, walk_mask, strikes, phases = _dof_track(script, t, heading0, body)
     C = segment_orientations(dofs, heading0)
-    pts = joint_positions(C, body, on_ground=False)  # [N, 21, 3], pelvis at the origin
-    ankles = pts[:, [POINT_INDEX["ankle_r"], POINT_INDEX["ankle_l"]]]
+    pts = point_positions(C, body)  # [N, 21, 3], pelvis at the origin
+    ankles = pts[:, [POINT["ankle_r"], POINT["ankle_l"]]]
     # Off the walk, the ankles' midpoint stays on its spot on the ground (z = 0), which moves
     # the pelvis in squats; in the walk, the pelvis travels at the step speed and rides the
     # straight stance leg (its ankle on the ground).
@@ -332,7 +325,7 @@ def generate_motion(n_samples: int | None = None, *, script: list[Step] | None =
     pelvis[:, :2] = walk_xy - ankles[:, :, :2].mean(axis=1) * ~walk_mask[:, None]
     leg = body.thigh + body.shank
     pelvis[:, 2] = np.where(walk_mask, -leg + walk_z, -ankles[:, :, 2].mean(axis=1))
-    imu_pos = pelvis[:, None, :] + 0.5 * (pts[:, _SEG_A] + pts[:, _SEG_B])
+    imu_pos = pelvis[:, None, :] + imu_positions(pts)
     imu_acc = np.zeros_like(imu_pos)
     if n_samples >= 3:
         imu_acc[1:-1] = (imu_pos[2:] - 2 * imu_pos[1:-1] + imu_pos[:-2]) / DT**2
@@ -343,3 +336,42 @@ def generate_motion(n_samples: int | None = None, *, script: list[Step] | None =
         phases=[(a, min(b, end), name) for a, b, name in phases if a < end],
         still_windows=_still_windows(dofs, pelvis, t),
     )
+
+
+#: Names of :func:`true_joint_angles`' columns: the four hinges' flexion, then roll, pitch and
+#: yaw (abduction, flexion, rotation) of ``C_staticᵀ C_dynamic`` of the eight ball joints.
+TRUE_JOINT_NAMES: tuple[str, ...] = (
+    "elbow_r.flexion", "elbow_l.flexion", "knee_r.flexion", "knee_l.flexion",
+    *(f"{j}.{c}" for j in ("shoulder_r", "shoulder_l", "hip_r", "hip_l", "ankle_r", "ankle_l",
+                           "torso", "head")
+      for c in ("abduction", "flexion", "rotation")),
+)
+
+#: Each column of :data:`TRUE_JOINT_NAMES` as (sign, DOF) of the script, or None (always 0).
+#: The chain builds every joint as ``zyx(roll, pitch, yaw)`` of its DOFs, so its Euler angles
+#: are those DOFs; the hinge angle between the two long axes is the DOF's magnitude.
+_JOINT_DOFS: tuple[str | None, ...] = (
+    "elbow_r", "elbow_l", "knee_r", "knee_l",
+    "sh_r_abd", "sh_r_flex", "sh_r_rot",
+    "sh_l_abd", "sh_l_flex", "sh_l_rot",
+    "hip_r_abd", "hip_r_flex", None,
+    "hip_l_abd", "hip_l_flex", None,
+    None, "ankle_r", None,
+    None, "ankle_l", None,
+    "torso_lat", "torso_flex", "torso_rot",
+    None, "head_nod", "head_turn",
+)
+
+
+def true_joint_angles(dofs: np.ndarray) -> np.ndarray:
+    """``[N, 28]`` rad, columns :data:`TRUE_JOINT_NAMES`, straight from the script's DOFs
+    ``[N, len(DOFS)]``: hinge flexions are ``|DOF|``; ball joints are (roll, pitch, yaw) of
+    ``C_staticᵀ C_dynamic`` in the raw Euler convention of the specification (valid while
+    every joint pitch stays within ±90°, as in every script here)."""
+    dofs = np.asarray(dofs, dtype=np.float64)
+    out = np.zeros((len(dofs), len(TRUE_JOINT_NAMES)))
+    for col, name in enumerate(_JOINT_DOFS):
+        if name is not None:
+            out[:, col] = dofs[:, DOF_INDEX[name]]
+    out[:, :4] = np.abs(out[:, :4])
+    return out

@@ -1,17 +1,30 @@
 """Sensor model of the simulated suit: true orientations and motion → raw counts.
 
-Filter-frame sensor values (SPEC §4/§5 units), for IMU i with true DCM ``R_i = C_i E_i``
-(``E_i`` its mounting misalignment):
+This is the test suite's *independent forward model*: it is written from the specification's
+tables (board mounting and pre-rotations, axis polarities, the calibration table's meaning,
+the sensors' data-sheet sensitivities and ranges) and imports nothing from ``bpms.filter``,
+whose inverse (raw counts → filter units) it checks.
 
-- accel, Gravity counts, the gravity direction: ``Gravity_i R_iᵀ (g - a_lin) / 9.81`` with
+Physical values, in each IMU's *filter frame* (X forward, Y right, Z down of its segment in the
+calibration pose), for IMU i with true DCM ``R_i = C_i E_i`` (``E_i`` its mounting
+misalignment):
+
+- accel, in g, the gravity direction (what the suit's accelerometer convention reads:
+  +1 g on the axis that points down at rest): ``R_iᵀ (g - a_lin) / 9.81`` with
   ``g = (0, 0, 9.81)`` m/s² (NED) and ``a_lin`` the IMU's world linear acceleration;
-- mag, ±100 units at the full field: ``100 R_iᵀ m`` with ``m = (cos dip, 0, sin dip)`` plus an
-  optional magnet near a point (:class:`MagDisturbance`);
-- gyro, rad/s: the mean body rate over the sample interval, ``log(R_{k-1}ᵀ R_k) / dt``, which is
-  what the filter's ``R_k = R_{k-1}(I + dt skew(ω_k))`` integrates; plus a residual bias.
+- mag, in units of the Earth's field × 100: ``100 R_iᵀ m``, ``m = (cos dip, 0, sin dip)``,
+  plus an optional magnet near a point (:class:`MagDisturbance`);
+- gyro, rad/s: the mean body rate over the sample interval, ``log(R_{k-1}ᵀ R_k) / dt``, plus a
+  residual bias.
 
-Each gets white noise, then :meth:`SensorCalibration.uncalibrate` of the *true* calibration
-table turns them into raw counts (rounded and saturated to int16).
+Raw counts (:func:`to_raw`): each vector goes into board axes through the IMU's mounting
+(:data:`MOUNTING`, which filter direction each board axis points to), gets the chip's axis
+polarity (:data:`POLARITY`), then the calibration table's meaning is applied forwards: the
+accelerometer reads ``(min+max)/2 ± (max-min)/2`` at ±1 g, the magnetometer the same at ± the
+full field, the gyroscope ``avg + 14.375 counts per °/s`` (ITG-3200 data sheet). The
+accelerometer saturates at its configured range (:attr:`SensorModel.accel_range_g`, ±2 g as the
+firmware sets the ADXL345: full resolution keeps 256 counts per g, so the chip's output ends
+at ±range × 256 counts); everything saturates at int16.
 """
 
 from __future__ import annotations
@@ -20,12 +33,71 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpms.filter.calibration import STANDARD_GRAVITY, SensorCalibration
-from bpms.filter.rotations import euler_to_dcm
+from bpms.firmware.sim.geometry import logm, zyx
 from bpms.io.frames import N_IMUS, N_SENSORS
 
-G_WORLD = np.array([0.0, 0.0, STANDARD_GRAVITY])  # m/s², NED (down)
+G = 9.81  # m/s² per g (the dissertation's value)
+G_WORLD = np.array([0.0, 0.0, G])  # m/s², NED (down)
 FOOT_IMUS = {"right": 1, "left": 13}
+GYRO_COUNTS_PER_DPS = 14.375  # ITG-3200 sensitivity (data sheet)
+ACCEL_COUNTS_PER_G_FULL_RES = 256.0  # ADXL345 full-resolution mode, at every range
+ACCEL_RANGES_G = (2.0, 4.0, 8.0, 16.0)  # ADXL345 range settings
+
+# -- board mounting ------------------------------------------------------------------------
+#: Filter-frame unit vectors by name (X forward, Y right, Z down).
+DIRECTIONS: dict[str, tuple[float, float, float]] = {
+    "forward": (1.0, 0.0, 0.0), "back": (-1.0, 0.0, 0.0),
+    "right": (0.0, 1.0, 0.0), "left": (0.0, -1.0, 0.0),
+    "down": (0.0, 0.0, 1.0), "up": (0.0, 0.0, -1.0),
+}
+#: Where the board's x, y, z axes point in the calibration pose, per pre-rotation kind of the
+#: specification's IMU table. "pitch 90°": the stick runs along the limb with its x axis up,
+#: z forward; "roll 90°" (the shoulders): y down, z to the left; "identity" (feet, head):
+#: board axes are the body axes.
+MOUNTING_KINDS: dict[str, tuple[str, str, str]] = {
+    "pitch 90°": ("up", "right", "forward"),
+    "roll 90°": ("forward", "down", "left"),
+    "identity": ("forward", "right", "down"),
+}
+#: The specification's IMU table: pre-rotation kind of IMU id 0..17.
+MOUNTING: tuple[str, ...] = (
+    "pitch 90°",  # 0 right thigh
+    "identity",  # 1 right foot
+    "pitch 90°",  # 2 right shank
+    "pitch 90°",  # 3 right hand
+    "pitch 90°",  # 4 right arm
+    "pitch 90°",  # 5 right forearm
+    "pitch 90°",  # 6 hip (pelvis)
+    "pitch 90°",  # 7 neck
+    "pitch 90°",  # 8 mid spine
+    "pitch 90°",  # 9 left hand
+    "pitch 90°",  # 10 left arm
+    "pitch 90°",  # 11 left forearm
+    "pitch 90°",  # 12 left thigh
+    "identity",  # 13 left foot
+    "pitch 90°",  # 14 left shank
+    "roll 90°",  # 15 right shoulder
+    "roll 90°",  # 16 left shoulder
+    "identity",  # 17 head
+)
+
+
+def board_axes(imu: int) -> np.ndarray:
+    """``[3, 3]`` whose rows are the filter-frame directions of board x, y, z of ``imu``:
+    ``v_board = board_axes(imu) @ v_filter``."""
+    return np.array([DIRECTIONS[name] for name in MOUNTING_KINDS[MOUNTING[imu]]])
+
+
+BOARD_AXES = np.stack([board_axes(i) for i in range(N_IMUS)])  # [18, 3, 3]
+
+#: Chip polarity per board axis (accel, mag, gyro), what the host's sign vectors undo: the
+#: accelerometer reads +1 g on a board axis pointing down; the magnetometer's y and z and all
+#: three gyro axes read the opposite of the right-handed board-axis value.
+POLARITY: dict[str, tuple[float, float, float]] = {
+    "accel": (1.0, 1.0, 1.0),
+    "mag": (1.0, -1.0, -1.0),
+    "gyro": (-1.0, -1.0, -1.0),
+}
 
 
 @dataclass(frozen=True)
@@ -33,13 +105,26 @@ class SensorModel:
     """Settings of the simulated sensors."""
 
     dip_deg: float = 60.0  # magnetic dip (inclination), positive = field points down
-    acc_noise_counts: float = 1.5  # accel white noise, rms, Gravity counts
+    acc_noise_counts: float = 1.5  # accel white noise, rms, raw counts
     mag_noise: float = 0.5  # mag white noise, rms, calibrated units (full field = 100)
     gyro_noise_dps: float = 0.3  # gyro white noise, rms, °/s
     gyro_bias_dps: float = 0.0  # residual bias magnitude per IMU (random direction), °/s
     mounting_error_deg: float = 3.0  # rms per axis of the IMU mounting misalignment, °
     heel_strike_g: float = 2.5  # peak |accel| on the foot IMU at a heel strike, g
     heel_strike_frames: int = 3  # length of the impact transient, frames
+    #: The accelerometer's configured range, ±g (ADXL345: 2, 4, 8 or 16). The firmware sets
+    #: ±2 g; counts beyond ±range × 256 saturate (a heel strike above 2 g is clipped).
+    accel_range_g: float = 2.0
+
+    def __post_init__(self) -> None:
+        if self.accel_range_g not in ACCEL_RANGES_G:
+            raise ValueError(f"accel_range_g must be one of {ACCEL_RANGES_G}, "
+                             f"not {self.accel_range_g}")
+
+    def accel_limits(self) -> tuple[int, int]:
+        """The accelerometer's lowest and highest output, raw counts (full resolution)."""
+        top = int(self.accel_range_g * ACCEL_COUNTS_PER_G_FULL_RES)
+        return -top, top - 1
 
 
 @dataclass(frozen=True)
@@ -62,25 +147,19 @@ class MagDisturbance:
 def mounting_errors(rng: np.random.Generator, rms_deg: float) -> np.ndarray:
     """``[18, 3, 3]`` small fixed rotations (roll, pitch, yaw each ~ N(0, rms_deg))."""
     angles = np.deg2rad(rng.normal(0.0, rms_deg, size=(N_IMUS, 3)))
-    return euler_to_dcm(angles[:, 0], angles[:, 1], angles[:, 2])
+    return zyx(angles[:, 0], angles[:, 1], angles[:, 2])
 
 
 def rotation_log(R: np.ndarray) -> np.ndarray:
     """Rotation vectors ``[..., 3]`` (axis × angle, rad) of rotation matrices ``[..., 3, 3]``."""
-    v = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                        R[..., 1, 0] - R[..., 0, 1]], axis=-1)
-    s = np.linalg.norm(v, axis=-1)
-    c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
-    angle = np.arctan2(s, c)
-    factor = np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 1.0)
-    return v * factor[..., None]
+    return logm(R)
 
 
 def body_rates(R: np.ndarray, dt: float) -> np.ndarray:
     """``[N, 18, 3]`` rad/s: sample k's mean body rate over [t_{k-1}, t_k]; sample 0 reads 0."""
     out = np.zeros((*R.shape[:-2], 3))
     rel = np.swapaxes(R[:-1], -1, -2) @ R[1:]
-    out[1:] = rotation_log(rel) / dt
+    out[1:] = logm(rel) / dt
     return out
 
 
@@ -99,7 +178,7 @@ def heel_strike_spikes(t: np.ndarray, strikes: list[tuple[float, str]], acc_lin:
         if not 0 <= kc < len(t):
             continue
         v = G_WORLD - acc_lin[kc, imu]
-        target = model.heel_strike_g * STANDARD_GRAVITY
+        target = model.heel_strike_g * G
         # |v + m ẑ| = target → m = -v_z + sqrt(v_z² - |v|² + target²)
         m = -v[2] + np.sqrt(max(v[2] ** 2 - v @ v + target**2, 0.0))
         for j in range(n):
@@ -128,21 +207,20 @@ def magnet_field(t: np.ndarray, imu_pos: np.ndarray, disturbances: list[MagDistu
 
 @dataclass
 class SensorValues:
-    """Filter-frame sensor values ``[N, 18, 3]``: accel (Gravity counts), mag (±100), gyro
-    (rad/s)."""
+    """Physical filter-frame values ``[N, 18, 3]``: accel in g (the gravity direction at
+    rest), mag in units of the Earth's field × 100, gyro rad/s."""
 
     acc: np.ndarray
     mag: np.ndarray
     gyr: np.ndarray
 
 
-def ideal_sensors(R: np.ndarray, acc_lin: np.ndarray, gravity: np.ndarray, dip_deg: float,
+def ideal_sensors(R: np.ndarray, acc_lin: np.ndarray, dip_deg: float,
                   mag_extra: np.ndarray | None, dt: float) -> SensorValues:
-    """Noise-free filter-frame values from true DCMs ``R[N, 18, 3, 3]``, world linear
-    accelerations ``acc_lin[N, 18, 3]`` (m/s²) and the Gravity counts ``[18]`` of each IMU."""
+    """Noise-free filter-frame values from true DCMs ``R[N, 18, 3, 3]`` and world linear
+    accelerations ``acc_lin[N, 18, 3]`` (m/s²)."""
     Rt = np.swapaxes(R, -1, -2)
-    acc = np.einsum("nkij,nkj->nki", Rt, G_WORLD - acc_lin)
-    acc *= (gravity / STANDARD_GRAVITY)[None, :, None]
+    acc = np.einsum("nkij,nkj->nki", Rt, G_WORLD - acc_lin) / G
     dip = np.deg2rad(dip_deg)
     field = np.broadcast_to(100.0 * np.array([np.cos(dip), 0.0, np.sin(dip)]), acc.shape)
     if mag_extra is not None:
@@ -152,26 +230,76 @@ def ideal_sensors(R: np.ndarray, acc_lin: np.ndarray, gravity: np.ndarray, dip_d
     return SensorValues(acc, mag, gyr)
 
 
-def add_noise(values: SensorValues, model: SensorModel, rng: np.random.Generator,
-              bias_rng: np.random.Generator) -> SensorValues:
+@dataclass
+class Noise:
+    """White noise (and the gyro bias) drawn for a recording, in the sensors' own units:
+    accel raw counts, mag calibrated units, gyro rad/s; each ``[N, 18, 3]``."""
+
+    acc_counts: np.ndarray
+    mag: np.ndarray
+    gyr: np.ndarray
+
+
+def draw_noise(n: int, model: SensorModel, rng: np.random.Generator,
+               bias_rng: np.random.Generator) -> Noise:
     """White noise on all three sensors, plus the per-IMU residual gyro bias."""
-    shape = values.acc.shape
     bias_dir = bias_rng.normal(size=(N_IMUS, 3))
     bias_dir /= np.linalg.norm(bias_dir, axis=-1, keepdims=True)
     bias = np.deg2rad(model.gyro_bias_dps) * bias_dir
     # One draw per sample, so a shorter recording is a prefix of a longer one (same seed).
-    white = rng.standard_normal((shape[0], N_IMUS, 3, 3))
-    return SensorValues(
-        acc=values.acc + model.acc_noise_counts * white[..., 0, :],
-        mag=values.mag + model.mag_noise * white[..., 1, :],
-        gyr=values.gyr + bias + np.deg2rad(model.gyro_noise_dps) * white[..., 2, :],
-    )
+    white = rng.standard_normal((n, N_IMUS, 3, 3))
+    return Noise(acc_counts=model.acc_noise_counts * white[..., 0, :],
+                 mag=model.mag_noise * white[..., 1, :],
+                 gyr=bias + np.deg2rad(model.gyro_noise_dps) * white[..., 2, :])
 
 
-def to_raw(values: SensorValues, calibration: SensorCalibration) -> np.ndarray:
-    """Raw counts ``int16 [N, 18, 9]`` (rounded, saturated) through the true calibration."""
-    raw = calibration.uncalibrate(values.acc, values.mag, values.gyr)
-    return np.clip(np.rint(raw), -32768, 32767).astype(np.int16)
+def zero_noise(n: int) -> Noise:
+    """No noise at all."""
+    z = np.zeros((n, N_IMUS, 3))
+    return Noise(z, z, z)
+
+
+def _board(v: np.ndarray) -> np.ndarray:
+    """Filter-frame vectors ``[..., 18, 3]`` → board axes ``[..., 18, 3]``."""
+    return np.einsum("kij,...kj->...ki", BOARD_AXES, np.asarray(v, dtype=np.float64))
+
+
+def to_raw(values: SensorValues, table, model: SensorModel | None = None,
+           noise: Noise | None = None, polarity: dict[str, tuple[float, float, float]]
+           | None = None, mag_ellipsoids: dict | None = None) -> np.ndarray:
+    """Raw counts ``int16 [N, 18, 9]`` (rounded, saturated) of physical filter-frame values.
+
+    table: the suit's *true* calibration table (a ``CalibrationTable``): its min/max are the
+    readings at ∓1 g / ∓ the full field, its averages the gyro's zero-rate counts.
+    polarity: the chip's axis polarities (default :data:`POLARITY`).
+    mag_ellipsoids: optional true soft-iron distortions per IMU, objects with ``center [3]``
+    counts and ``matrix [3, 3]`` (board-axis calibrated units per count): that IMU's
+    magnetometer then reads ``center + matrix⁻¹ (polarity × m_board)``.
+    """
+    model = model or SensorModel()
+    pol = polarity or POLARITY
+    v = np.asarray(table.values, dtype=np.float64)
+    acc_lo, acc_hi = v[:, 1:7:2], v[:, 2:7:2]  # [18, 3] readings at -1 g and +1 g
+    mag_lo, mag_hi = v[:, 7:13:2], v[:, 8:13:2]
+    gyro_zero = v[:, 13:16]
+    acc_b = _board(values.acc) * np.asarray(pol["accel"])  # g, board axes, chip polarity
+    mag_b = _board(values.mag) * np.asarray(pol["mag"])
+    gyr_b = _board(values.gyr) * np.asarray(pol["gyro"])
+    if noise is not None:
+        mag_b = mag_b + noise.mag  # isotropic: no need to rotate the noise
+        gyr_b = gyr_b + noise.gyr
+    raw_acc = (acc_lo + acc_hi) / 2 + acc_b * (acc_hi - acc_lo) / 2
+    if noise is not None:
+        raw_acc = raw_acc + noise.acc_counts
+    raw_mag = (mag_lo + mag_hi) / 2 + (mag_b / 100.0) * (mag_hi - mag_lo) / 2
+    for imu, ell in (mag_ellipsoids or {}).items():
+        raw_mag[..., imu, :] = np.asarray(ell.center) + np.linalg.solve(
+            np.asarray(ell.matrix), mag_b[..., imu, :, None])[..., 0]
+    raw_gyr = gyro_zero + np.rad2deg(gyr_b) * GYRO_COUNTS_PER_DPS
+    lo, hi = model.accel_limits()
+    raw_acc = np.clip(np.rint(raw_acc), lo, hi)
+    raw = np.concatenate([raw_acc, np.rint(raw_mag), np.rint(raw_gyr)], axis=-1)
+    return np.clip(raw, -32768, 32767).astype(np.int16)
 
 
 def inject_errors(raw: np.ndarray, rate: float, rng: np.random.Generator

@@ -15,14 +15,19 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.calibration import SensorCalibration
-from bpms.filter.joints import joint_angles
-from bpms.firmware.sim.motion import DT, Motion, Step, generate_motion
+from bpms.firmware.sim.motion import (
+    DT,
+    TRUE_JOINT_NAMES,
+    Motion,
+    Step,
+    generate_motion,
+    true_joint_angles,
+)
 from bpms.firmware.sim.sensors import (
     MagDisturbance,
     SensorModel,
     SensorValues,
-    add_noise,
+    draw_noise,
     heel_strike_spikes,
     ideal_sensors,
     inject_errors,
@@ -40,10 +45,12 @@ class Truth:
 
     R: ``[N, 18, 3, 3]`` true filter-frame DCM of each IMU (filter frame → world NED);
     C: ``[N, 18, 3, 3]`` segment orientations; E: ``[18, 3, 3]`` mounting errors (R = C E);
-    joint_angles: ``[N, 28]`` rad (``JOINT_ANGLE_NAMES`` order); pelvis_position: ``[N, 3]`` m;
-    imu_position / imu_acceleration: ``[N, 18, 3]`` m and m/s² (world, the latter including
-    heel-strike impacts); heel_strikes: (time s, "left"/"right"); sensors: noise-free
-    filter-frame values (accel Gravity counts, mag ±100 units, gyro rad/s) before rounding.
+    joint_angles: ``[N, 28]`` rad, columns ``joint_names`` (the script's own degrees of
+    freedom, raw Euler convention of ``C_staticᵀ C_dynamic``, hinge flexion ≥ 0);
+    pelvis_position: ``[N, 3]`` m; imu_position / imu_acceleration: ``[N, 18, 3]`` m and m/s²
+    (world, the latter including heel-strike impacts); heel_strikes: (time s, "left"/"right");
+    sensors: noise-free physical filter-frame values (accel g, mag ±100 units, gyro rad/s)
+    before the chip conversion, rounding and saturation.
     """
 
     R: np.ndarray
@@ -55,6 +62,7 @@ class Truth:
     imu_acceleration: np.ndarray
     heel_strikes: list[tuple[float, str]]
     sensors: SensorValues
+    joint_names: tuple[str, ...] = TRUE_JOINT_NAMES
 
 
 @dataclass
@@ -110,12 +118,12 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
     mag_disturbance: add :func:`default_disturbance` (or ``disturbances`` when given).
     error_rate: probability per frame, IMU and sensor of a failed reading (error bit set).
     calibration: the suit's *true* calibration table (default: the factory table).
-    model: sensor settings (dip, noise levels, gyro bias, mounting error size, heel strikes).
+    model: sensor settings (dip, noise levels, gyro bias, mounting error size, heel strikes,
+    the accelerometer's configured range ``accel_range_g``: ±2 g by default, as the firmware).
     heading_deg: the subject's initial magnetic heading (yaw of the pelvis), degrees.
     """
     model = model or SensorModel()
     table = calibration if calibration is not None else load_factory_calibration()
-    cal = SensorCalibration.from_table(table)
     n = None if duration_s is None else max(round(duration_s / DT), 1)
     motion = generate_motion(n, script=script, heading_deg=heading_deg)
     base = np.random.SeedSequence(seed)
@@ -129,12 +137,12 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
     if mag_disturbance:
         dist = list(disturbances) if disturbances else [default_disturbance(motion)]
     extra = magnet_field(motion.t, motion.imu_pos, dist) if dist else None
-    ideal = ideal_sensors(R, acc_lin, table.gravity, model.dip_deg, extra, DT)
-    values = add_noise(ideal, model, rng_noise, rng_bias) if noise else ideal
-    raw = to_raw(values, cal)
+    ideal = ideal_sensors(R, acc_lin, model.dip_deg, extra, DT)
+    drawn = draw_noise(len(motion.t), model, rng_noise, rng_bias) if noise else None
+    raw = to_raw(ideal, table, model, drawn)
     raw, errors = inject_errors(raw, error_rate, rng_err)
     truth = Truth(
-        R=R, C=motion.C, E=E, joint_angles=joint_angles(motion.C),
+        R=R, C=motion.C, E=E, joint_angles=true_joint_angles(motion.dofs),
         pelvis_position=motion.pelvis, imu_position=motion.imu_pos,
         imu_acceleration=acc_lin, heel_strikes=motion.heel_strikes, sensors=ideal,
     )
