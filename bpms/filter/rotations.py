@@ -58,17 +58,29 @@ def rot_z(angle: float) -> np.ndarray:
 def dcm_to_quaternion(R: np.ndarray) -> np.ndarray:
     """``[..., 3, 3]`` → unit quaternions ``[..., 4]`` (w, x, y, z), w ≥ 0.
 
-    Each component's magnitude comes from the diagonal, its sign from the off-diagonal
-    differences (copysign form); the result is renormalised.
+    Shepperd's method: the largest of ``4w², 4x², 4y², 4z²`` (from the trace and the diagonal)
+    gives one component accurately; the other three come from sums and differences of the
+    off-diagonal pairs divided by it. Exact at 180° (w = 0), where the sign-from-differences
+    shortcut cannot tell the axis components' relative signs.
     """
     R = np.asarray(R, dtype=np.float64)
     d0, d1, d2 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
-    q = 0.5 * np.sqrt(np.maximum(0.0, np.stack([1 + d0 + d1 + d2, 1 + d0 - d1 - d2,
-                                                  1 - d0 + d1 - d2, 1 - d0 - d1 + d2], -1)))
-    q[..., 1] = np.copysign(q[..., 1], R[..., 2, 1] - R[..., 1, 2])
-    q[..., 2] = np.copysign(q[..., 2], R[..., 0, 2] - R[..., 2, 0])
-    q[..., 3] = np.copysign(q[..., 3], R[..., 1, 0] - R[..., 0, 1])
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+    s21, s12 = R[..., 2, 1], R[..., 1, 2]
+    s02, s20 = R[..., 0, 2], R[..., 2, 0]
+    s10, s01 = R[..., 1, 0], R[..., 0, 1]
+    four = np.stack([1 + d0 + d1 + d2, 1 + d0 - d1 - d2, 1 - d0 + d1 - d2,
+                     1 - d0 - d1 + d2], -1)  # 4w², 4x², 4y², 4z²
+    pick = np.argmax(four, axis=-1)
+    # Each row: 4·q·q_pick for (w, x, y, z) given the picked component.
+    cand = np.stack([
+        np.stack([four[..., 0], s21 - s12, s02 - s20, s10 - s01], -1),  # w largest
+        np.stack([s21 - s12, four[..., 1], s01 + s10, s02 + s20], -1),  # x largest
+        np.stack([s02 - s20, s01 + s10, four[..., 2], s12 + s21], -1),  # y largest
+        np.stack([s10 - s01, s02 + s20, s12 + s21, four[..., 3]], -1),  # z largest
+    ], -2)
+    q = np.take_along_axis(cand, pick[..., None, None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
 
 
 def quaternion_to_dcm(q: np.ndarray) -> np.ndarray:
