@@ -64,7 +64,7 @@ def errors_deg(euler: np.ndarray, truth: np.ndarray, t: np.ndarray, movement: np
 def filtered(tmp_path_factory):
     data = np.load(EXCERPT)
     t, movement = data["t"].astype(np.float64), data["movement"]
-    assert 1000 <= len(t) and movement.any() and not movement[t < STILL_S[1]].any()
+    assert len(t) >= 1000 and movement.any() and not movement[t < STILL_S[1]].any()
     # BROAD's sensor frame is taken as each IMU's filter frame; the suit's accelerometer reads
     # the gravity direction (minus the specific force) in g; the field in units of its mean ×100.
     acc = -data["acc"].astype(np.float64) / 9.81
@@ -96,5 +96,8 @@ def test_broad_excerpt_through_bpms_filter(filtered):
     assert heading.max() < HEADING_MAX_DEG
 
 
-INCLINATION_MAX_DEG = 99.0
-HEADING_MAX_DEG = 99.0
+#: Measured on this excerpt: inclination 0.96-0.98°, heading 1.91-1.95° RMS (all IMUs). With
+#: the gyro scale doubled: 11.5-12.0° and 18.1-18.5°; with one gyro axis sign flipped: up to
+#: 26° and 40° (and the IMUs disagree by 24°).
+INCLINATION_MAX_DEG = 2.0
+HEADING_MAX_DEG = 3.5

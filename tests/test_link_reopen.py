@@ -5,12 +5,12 @@ reopens" fault must fail here."""
 from __future__ import annotations
 
 import pytest
+from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.firmware.sim.server import TcpServer
 from bpms.io.options import SerialOptions
 from bpms.pipeline.sources import SuitFrameSource
-from tests.waiting import wait_until
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -1,0 +1,225 @@
+"""Planted faults: does the test suite catch a wrong instrument?
+
+Copies the package and its tests to a scratch folder, runs a targeted test subset once as is
+(it must pass), then plants each fault below on its own and runs that fault's tests again.
+Every fault must make at least one test fail by an assertion (pytest.fail and assertion
+errors count; import, collection or other errors do not). Prints the table fault → failing
+tests; exits 1 if the baseline fails, a patch no longer applies, or a fault survives.
+
+    python tools/planted_faults.py            # the whole run (a few minutes)
+    python tools/planted_faults.py --check    # only check that every patch still applies
+    python tools/planted_faults.py --only gyro
+
+Each fault is an exact-text patch: ``old`` must occur exactly once in ``path``. When someone
+changes that code, the patch fails loudly (``--check`` runs in the test suite): update ``old``
+and ``new`` to plant the same fault in the new code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+COPY = ("bpms", "tests", "calib", "pyproject.toml")
+
+
+@dataclass(frozen=True)
+class Fault:
+    name: str
+    path: str  # relative to the repository root
+    old: str
+    new: str
+    tests: tuple[str, ...]  # pytest node ids or files, relative to the repository root
+
+
+FAULTS: tuple[Fault, ...] = (
+    Fault("pitch-90° pre-rotation transposed (13 IMUs)", "bpms/filter/calibration.py",
+          "PITCH_90 = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])",
+          "PITCH_90 = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])",
+          ("tests/test_conventions_pinned.py", "tests/test_broad_real_motion.py")),
+    Fault("roll-90° pre-rotation transposed (shoulders)", "bpms/filter/calibration.py",
+          "ROLL_90 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])",
+          "ROLL_90 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])",
+          ("tests/test_conventions_pinned.py", "tests/test_broad_real_motion.py")),
+    Fault("gyroscope scale x2", "bpms/filter/calibration.py",
+          "GYRO_RAD_S_PER_COUNT = 0.06957 * math.pi / 180.0",
+          "GYRO_RAD_S_PER_COUNT = 2 * 0.06957 * math.pi / 180.0",
+          ("tests/test_broad_real_motion.py",
+           "tests/test_sim_physics.py::test_gyro_integrates_to_true_orientation")),
+    Fault("gyroscope z sign flipped", "bpms/filter/calibration.py",
+          "gyro_signs=np.asarray(sensors.gyro_signs, dtype=np.float64),",
+          "gyro_signs=np.asarray(sensors.gyro_signs, dtype=np.float64) * [1.0, 1.0, -1.0],",
+          ("tests/test_broad_real_motion.py",)),
+    Fault("magnetometer y sign flipped", "bpms/filter/calibration.py",
+          "mag_signs=np.asarray(sensors.mag_signs, dtype=np.float64),",
+          "mag_signs=np.asarray(sensors.mag_signs, dtype=np.float64) * [1.0, -1.0, 1.0],",
+          ("tests/test_conventions_pinned.py", "tests/test_broad_real_motion.py")),
+    Fault("one ball joint inverted (right hip: static and dynamic swapped)",
+          "bpms/filter/joints.py",
+          'BallJoint("hip_r", 0, 6),', 'BallJoint("hip_r", 6, 0),',
+          ("tests/test_joint_truth.py",)),
+    Fault("suit link never reopens after a read error", "bpms/pipeline/sources.py",
+          "        self._reason = reason\n        self._next_attempt = time.monotonic() + "
+          "self.retry_s\n",
+          "        self._reason = reason\n        self._next_attempt = float('inf')\n",
+          ("tests/test_link_reopen.py",)),
+    Fault("parser accepts an end marker one byte early", "bpms/io/parser.py",
+          "            if buf[start + END_OFFSET : start + FRAME_SIZE] != END:\n",
+          "            if (buf[start + END_OFFSET : start + FRAME_SIZE] != END\n"
+          "                    and buf[start + END_OFFSET - 1 : start + FRAME_SIZE - 1] != END):\n",
+          ("tests/test_parser.py",)),
+    Fault("Reset Zero ignores the heading reference", "bpms/filter/pose.py",
+          "        return np.swapaxes(self.R0, -1, -2) @ rot_z(self.yaw0)\n",
+          "        return np.swapaxes(self.R0, -1, -2)\n",
+          ("tests/test_filter_pose.py",)),
+)
+
+# A pytest plugin (written into the scratch folder) that records, per test, whether it failed
+# by an assertion (AssertionError or pytest.fail, not a timeout) or by another error.
+PLUGIN = '''
+import json, os
+import pytest
+
+_results = {}
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    rep = outcome.get_result()
+    entry = _results.setdefault(item.nodeid, {"failed": False, "assertion": False, "why": ""})
+    if rep.failed and call.excinfo is not None:
+        exc = call.excinfo
+        timeout = "Timeout" in str(exc.value)[:40]
+        assertion = (exc.errisinstance(AssertionError) or exc.typename == "Failed") and not timeout
+        entry["failed"] = True
+        entry["assertion"] = entry["assertion"] or assertion
+        entry["why"] = entry["why"] or f"{rep.when}: {exc.typename}"
+
+
+def pytest_collectreport(report):
+    if report.failed:
+        _results[f"<collection> {report.nodeid}"] = {"failed": True, "assertion": False,
+                                                    "why": "collection error"}
+
+
+def pytest_sessionfinish(session):
+    with open(os.environ["PLANTED_REPORT"], "w") as f:
+        json.dump(_results, f)
+'''
+
+
+def check_patches(root: Path) -> list[str]:
+    """Problems with the patches against the code under ``root`` (empty when all apply)."""
+    problems = []
+    for fault in FAULTS:
+        path = root / fault.path
+        if not path.is_file():
+            problems.append(f"{fault.name}: {fault.path} does not exist")
+            continue
+        count = path.read_text(encoding="utf-8").count(fault.old)
+        if count != 1:
+            problems.append(f"{fault.name}: the target text occurs {count} times in "
+                            f"{fault.path} (expected once): update the patch")
+        for test in fault.tests:
+            if not (root / test.split("::")[0]).is_file():
+                problems.append(f"{fault.name}: test file {test} does not exist")
+    return problems
+
+
+def run_tests(root: Path, tests: list[str]) -> tuple[int, dict]:
+    report = root / "planted_report.json"
+    report.unlink(missing_ok=True)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(root / "tests")]),
+           "PLANTED_REPORT": str(report)}
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p",
+           "planted_plugin", "--rootdir", str(root), *tests]
+    proc = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True,
+                          timeout=900)
+    results = json.loads(report.read_text()) if report.exists() else {}
+    if not results:
+        results = {"<pytest>": {"failed": True, "assertion": False,
+                                "why": (proc.stdout + proc.stderr)[-300:]}}
+    return proc.returncode, results
+
+
+def scratch_copy(dest: Path) -> Path:
+    root = dest / "repo"
+    root.mkdir()
+    for name in COPY:
+        src = REPO / name
+        if src.is_dir():
+            shutil.copytree(src, root / name, ignore=shutil.ignore_patterns("sketches"))
+        else:
+            shutil.copy2(src, root / name)
+    (root / "tests" / "planted_plugin.py").write_text(PLUGIN)
+    return root
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="only check the patches apply")
+    parser.add_argument("--only", metavar="TEXT", help="only the faults whose name contains it")
+    args = parser.parse_args(argv)
+    problems = check_patches(REPO)
+    if problems:
+        for p in problems:
+            print(f"planted faults: {p}", file=sys.stderr)
+        return 1
+    if args.check:
+        print(f"planted faults: all {len(FAULTS)} patches apply")
+        return 0
+    faults = [f for f in FAULTS if not args.only or args.only.lower() in f.name.lower()]
+    t0 = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="bpms-planted-") as tmp:
+        root = scratch_copy(Path(tmp))
+        tests = sorted({t for f in faults for t in f.tests})
+        code, results = run_tests(root, tests)
+        bad = [n for n, r in results.items() if r["failed"]]
+        print(f"baseline: {len(results)} tests, {len(bad)} failing ({time.monotonic() - t0:.0f} s)")
+        if code != 0 or bad:
+            for n in bad:
+                print(f"  baseline failure: {n} ({results[n]['why']})")
+            print("planted faults: the baseline must pass first", file=sys.stderr)
+            return 1
+        rows = []
+        for fault in faults:
+            path = root / fault.path
+            original = path.read_text(encoding="utf-8")
+            path.write_text(original.replace(fault.old, fault.new), encoding="utf-8")
+            try:
+                _, results = run_tests(root, list(fault.tests))
+            finally:
+                path.write_text(original, encoding="utf-8")
+            caught = sorted(n for n, r in results.items() if r["assertion"])
+            other = sorted(f"{n} ({r['why']})" for n, r in results.items()
+                           if r["failed"] and not r["assertion"])
+            rows.append((fault, caught, other))
+            print(f"  {'caught' if caught else 'SURVIVED'}: {fault.name} "
+                  f"({time.monotonic() - t0:.0f} s)", flush=True)
+    print()
+    print("| fault | failing tests (assertions) |")
+    print("|---|---|")
+    for fault, caught, other in rows:
+        shown = ", ".join(c.replace("tests/", "") for c in caught[:6])
+        more = f" (+{len(caught) - 6} more)" if len(caught) > 6 else ""
+        print(f"| {fault.name} | {shown + more if caught else '**NONE: survived**'} |")
+        for o in other:
+            print(f"|   (not counted: {o}) | |")
+    survived = [f.name for f, caught, _ in rows if not caught]
+    print(f"\n{len(rows) - len(survived)}/{len(rows)} faults caught "
+          f"in {time.monotonic() - t0:.0f} s")
+    return 1 if survived else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
