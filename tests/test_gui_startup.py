@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from PyQt6.QtWidgets import QLineEdit
+from waiting import wait_until
 
 from bpms.gui.modes import ModeConfig, ModeError, SessionRunner
 from bpms.gui.startup import OptionsDialog, StartupWindow
@@ -121,21 +122,34 @@ def test_discover_finds_a_suit_on_a_pty_or_falls_back_to_the_simulated_suit(qtbo
 
 def test_bpms_gui_sim_runs_and_quits_cleanly_on_ctrl_c(tmp_path):
     import signal
-    import time
+    import threading
 
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
-    proc = subprocess.Popen([sys.executable, "-m", "bpms", "gui", "--sim", "--recording-dir",
-                             str(tmp_path)], cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "bpms", "-v", "gui", "--sim",
+                             "--recording-dir", str(tmp_path)], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    err_lines: list[str] = []
+
+    def read_stderr() -> None:
+        for line in proc.stderr:
+            err_lines.append(line)
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
     try:
-        time.sleep(4.0)  # imports, the simulated suit, the main window
-        assert proc.poll() is None, proc.communicate()[1]
+        # Wait (with a deadline) for the event loop to run, not a fixed time.
+        assert wait_until(lambda: any("the app is running" in ln for ln in err_lines)
+                          or proc.poll() is not None, 60), "the app never said it runs"
+        assert proc.poll() is None, "".join(err_lines)
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=20)
+        proc.wait(timeout=20)
+        reader.join(timeout=10)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait(10)
+        proc.stdout.close()
+    err = "".join(err_lines)
     assert proc.returncode == 0, err
     assert "Traceback" not in err
 

@@ -10,6 +10,7 @@ import time
 import tty
 
 import pytest
+from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
 from bpms.firmware.sim.server import PtyServer, TcpServer
@@ -68,8 +69,7 @@ def test_tcp_transport_one_client_at_a_time(source):
             while time.monotonic() - t0 < 1.0:
                 frames += link.read_frames(0.05)
         # Closed while streaming: the server stops the stream for the next client.
-        time.sleep(0.1)
-        assert not server.arbiter.streaming
+        assert wait_until(lambda: not server.arbiter.streaming, 10)
         with SuitLink(server.url) as again:
             assert again.battery_volts() > 2.6
             again.start()
@@ -202,9 +202,13 @@ def test_start_after_a_host_left_the_suit_streaming(source):
         with SuitLink(server.path) as first:
             first.start()
             first.read_frames(0.3)
-        time.sleep(0.2)  # still streaming, nobody reading
+        sent = server.arbiter.stats.frames_sent
+        # still streaming, nobody reading
+        assert wait_until(lambda: server.arbiter.stats.frames_sent >= sent + 10, 10)
         with SuitLink(server.path) as second:
-            time.sleep(0.1)  # old-stream frames arrive after the open's input flush
+            # old-stream frames arrive after the open's input flush
+            sent = server.arbiter.stats.frames_sent
+            assert wait_until(lambda: server.arbiter.stats.frames_sent >= sent + 3, 10)
             second.start()
             frames = second.read_frames(0.3)
             second.stop()

@@ -3,13 +3,13 @@ the field recorder (`bpms record`) including kill -9 and a full disk."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
 import subprocess
 import sys
-import time
-from pathlib import Path
+import threading
 
 import numpy as np
 import pytest
@@ -65,10 +65,17 @@ def test_link_loss_is_reported_and_the_stream_comes_back(motion, tmp_path):
         session = LiveSession(SuitFrameSource(server.path, serial), recording_dir=tmp_path)
         status = session.start_logging(raw=True, filtered=False, name="loss")
         session.start()
-        end = time.monotonic() + 11.0
-        while time.monotonic() < end:
+
+        def state_is(wanted: str) -> bool:
             states.append(session.status().source.state)
-            time.sleep(0.05)
+            return states[-1] == wanted
+
+        # Conditions with deadlines, not a fixed run time: lost (≈ 3 s in), back (≈ 7 s in),
+        # then a second of frames after the return.
+        assert wait_until(lambda: state_is("link lost"), 30), states[-5:]
+        assert wait_until(lambda: state_is("streaming"), 30), states[-5:]
+        back = session.status().processed
+        assert wait_until(lambda: session.status().processed >= back + 50, 30)
         session.stop()
     assert "link lost" in states
     first_lost = states.index("link lost")
@@ -95,7 +102,8 @@ def test_record_cli_survives_kill_9(tmp_path):
     proc = bpms("record", "--sim", "-o", str(tmp_path), "--name", "crash")
     raw = tmp_path / "Raw_crash_1.bpmsraw"
     assert wait_until(lambda: raw.exists() and raw.stat().st_size > 40_000, 30)
-    time.sleep(1.2)  # at least one more flush
+    size = raw.stat().st_size
+    assert wait_until(lambda: raw.stat().st_size > size, 30)  # at least one more flush
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=10)
     recording = read_raw(raw)
@@ -106,10 +114,24 @@ def test_record_cli_survives_kill_9(tmp_path):
 
 def test_record_cli_ctrl_c_closes_cleanly(tmp_path):
     proc = bpms("record", "--sim", "-o", str(tmp_path), "--name", "ctrlc", "--filtered")
-    assert wait_until(lambda: (tmp_path / "Raw_ctrlc_1.bpmsraw").exists(), 30)
-    time.sleep(2.5)
+    raw = tmp_path / "Raw_ctrlc_1.bpmsraw"
+    out_lines: list[str] = []
+
+    def read_stdout() -> None:
+        for line in proc.stdout:
+            out_lines.append(line)
+
+    reader = threading.Thread(target=read_stdout, daemon=True)
+    reader.start()
+    # ≥ 120 frames flushed (348 bytes each) and a status line printed, then Ctrl+C.
+    assert wait_until(lambda: (raw.exists() and raw.stat().st_size > 45_000
+                      and any(ln.startswith("t ") and "streaming" in ln for ln in out_lines))
+                      or proc.poll() is not None, 60)
+    assert proc.poll() is None
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=20)
+    _, err = proc.communicate(timeout=20)
+    reader.join(timeout=10)
+    out = "".join(out_lines)
     assert proc.returncode == 0, err
     assert "Traceback" not in err
     lines = [line for line in out.splitlines() if line.startswith("t ")]
@@ -135,6 +157,7 @@ def test_full_disk_stops_recording_and_streaming_goes_on(motion, tmp_path):
     disk.mkdir()
     if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)]).returncode:
         pytest.skip("cannot mount a tmpfs here")
+    session = None
     try:
         arbiter = Arbiter(motion, realtime=False)
         with PtyServer(arbiter) as server:
@@ -152,5 +175,11 @@ def test_full_disk_stops_recording_and_streaming_goes_on(motion, tmp_path):
         recording = read_raw(status.raw_path)
         assert len(recording) > 100  # what was flushed before the disk filled is intact
     finally:
-        subprocess.run(["umount", str(disk)])
-    assert Path(disk).exists()
+        # Unmount whatever happened: stop the session first (it holds files open on the
+        # tmpfs), then a plain umount, else a lazy one so the mount never outlives the test.
+        if session is not None:
+            with contextlib.suppress(Exception):
+                session.stop()
+        if subprocess.run(["umount", str(disk)]).returncode:
+            subprocess.run(["umount", "-l", str(disk)])
+    assert not os.path.ismount(disk)

@@ -6,10 +6,13 @@ before Qt is imported when there is no display.
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import sys
 from collections.abc import Mapping
+
+log = logging.getLogger(__name__)
 
 HEADLESS_HINT = ("use the headless commands instead: bpms monitor, bpms record, bpms filter, "
                  "bpms replay")
@@ -64,4 +67,6 @@ def run(*, options_path: str | None = None, calibration_path: str | None = None,
         startup.go()
     else:
         startup.show()
+    # Once the event loop runs, Ctrl+C quits cleanly: say so (tests wait for this line).
+    QTimer.singleShot(0, lambda: log.info("the app is running (Ctrl+C quits)"))
     return int(app.exec())
