@@ -207,7 +207,7 @@ class ScriptedCalibrationSource:
         return {"still": self.suit.still, "moving": self.suit.moving,
                 "sweep": self.suit.sweep}[scene[0]](n)
 
-    def read_raw(self, n: int) -> np.ndarray:
+    def next_raw(self, n: int) -> np.ndarray:
         """The next ``n`` raw frames ``[n, 18, 9]`` of the current scene (unpaced)."""
         with self._lock:
             while len(self._buffer) < n:
@@ -230,7 +230,7 @@ class ScriptedCalibrationSource:
         if n == 0:
             return []
         start = self._count
-        raw = self.read_raw(n)
+        raw = self.next_raw(n)
         data = encode_frames(raw)
         now = time.time()
         return [FrameEvent(now, data[k * 340:(k + 1) * 340], start + k, k == 0 and start == 0)
