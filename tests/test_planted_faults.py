@@ -35,3 +35,15 @@ def test_a_stale_patch_is_reported(tmp_path):
     (tmp_path / "bpms" / "filter" / "calibration.py").write_text("# rewritten\n")
     problems = tool.check_patches(tmp_path)
     assert any("occurs 0 times" in p and "calibration.py" in p for p in problems)
+
+
+def test_every_planted_fault_is_caught():
+    """The whole run, as CI does it: baseline green, then every fault fails a test by an
+    assertion (about a minute; more on a loaded machine)."""
+    import subprocess
+
+    result = subprocess.run([sys.executable, str(REPO / "tools" / "planted_faults.py")],
+                            capture_output=True, text=True, timeout=1500)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
+    assert "SURVIVED" not in result.stdout
+    print(result.stdout)

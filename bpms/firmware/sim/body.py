@@ -2,7 +2,7 @@
 
 Written from the specification's body-model description (standing calibration pose: spine,
 arms and legs point down, shoulders and hips sideways, feet forward; segment lengths from
-``BodyOptions``), apart from ``bpms.filter.body_model`` so the simulated truth does not share
+``BodyOptions``), apart from the filter package's body model so the simulated truth does not share
 the code it checks. Segment orientations ``C[..., 18, 3, 3]`` map segment axes (X forward,
 Y right, Z down in the calibration pose) to the world frame (north-east-down).
 """

@@ -1,7 +1,7 @@
 """Minimal rotation helpers of the simulated suit, written apart from the filter's.
 
 The simulated suit is the test suite's independent truth, so it shares no code with
-``bpms.filter`` (the code under test). Conventions are the specification's: a DCM ``R`` maps
+the filter package (the code under test). Conventions are the specification's: a DCM ``R`` maps
 body-frame vectors to the world frame (north-east-down), ``v_w = R v_b``; Euler angles are
 roll φ about X, pitch θ about Y, yaw ψ about Z with ``R = Rz(ψ) Ry(θ) Rx(φ)``; radians.
 """

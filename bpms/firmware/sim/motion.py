@@ -10,7 +10,7 @@ rotations down the chain (pelvis heading and tilt, then ``child = parent @ joint
 true joint angles are the script's own degrees of freedom (:func:`true_joint_angles`), not a
 computation from ``C``. Positions come from the simulated skeleton (:mod:`.body`) plus a
 pelvis trajectory; the IMUs sit at the middle of their segments. Nothing here comes from
-``bpms.filter``: the simulated suit is the independent truth the filter is tested against.
+the filter package: the simulated suit is the independent truth the filter is tested against.
 
 Joint signs (``zyx(roll, pitch, yaw)`` of the joint, so the truth angles equal them):
 shoulder/hip ``flex`` > 0 swings the limb forward; right shoulder ``abd`` < 0 and left > 0 raise

@@ -2,7 +2,7 @@
 
 This is the test suite's *independent forward model*: it is written from the specification's
 tables (board mounting and pre-rotations, axis polarities, the calibration table's meaning,
-the sensors' data-sheet sensitivities and ranges) and imports nothing from ``bpms.filter``,
+the sensors' data-sheet sensitivities and ranges) and imports nothing from the filter package,
 whose inverse (raw counts → filter units) it checks.
 
 Physical values, in each IMU's *filter frame* (X forward, Y right, Z down of its segment in the
