@@ -114,7 +114,8 @@ def angle_between(R: np.ndarray, Q: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
-@pytest.mark.parametrize(("name", "down", "field", "expected"), POSES, ids=["level", "X90", "Y90", "Z90"])
+@pytest.mark.parametrize(("name", "down", "field", "expected"), POSES,
+                         ids=["level", "X90", "Y90", "Z90"])
 def test_each_imu_reads_the_hand_built_pose(name, down, field, expected):
     euler, R = run_pose(down, field)
     roll, pitch, yaw = expected
