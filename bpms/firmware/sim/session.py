@@ -78,6 +78,8 @@ class Recording:
     phases: list[tuple[float, float, str]]
     calibration: CalibrationTable  # the true table the counts were made with
     disturbances: list[MagDisturbance] = field(default_factory=list)
+    #: The sensor settings the counts were made with (noise, dip, accelerometer range, ...).
+    model: SensorModel = field(default_factory=SensorModel)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -149,6 +151,6 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
     return Recording(
         t=motion.t, raw=raw, errors=errors, frames=encode_frames(raw, errors), truth=truth,
         still_windows=motion.still_windows, phases=motion.phases, calibration=table,
-        disturbances=dist,
+        disturbances=dist, model=model,
     )
 
