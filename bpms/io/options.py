@@ -33,7 +33,9 @@ class FilterOptions:
     algorithm: str = _opt(
         "mahony", "attitude filter for all 18 IMUs: 'mahony' (the original DCM filter), "
         "'observer' (quaternion observer with gyro-bias and body-acceleration estimation), "
-        "'vqf' (the vqf package); docs/filters.md", choices=("mahony", "observer", "vqf"))
+        "'vqf' (the vqf package), 'adaptive' (the observer with trapezoidal gyro integration "
+        "and gyro bias at rest); docs/filters.md",
+        choices=("mahony", "observer", "vqf", "adaptive"))
     kp_rollpitch: float = _opt(0.02, "roll/pitch proportional gain (per accel count)", min=0.0)
     ki_rollpitch: float = _opt(0.00002, "roll/pitch integral gain (per accel count)", min=0.0)
     kp_yaw: float = _opt(1.2, "yaw proportional gain", min=0.0)
@@ -58,6 +60,19 @@ class FilterOptions:
         10.0, "observer: a steady new magnetic field is accepted after, s", min=0.0)
     vqf_tau_acc_s: float = _opt(3.0, "vqf: accelerometer low-pass time constant, s", min=0.0)
     vqf_tau_mag_s: float = _opt(9.0, "vqf: magnetometer correction time constant, s", min=0.0)
+    # adaptive (bpms/filter/adaptive_observer.py; k_bias, tau_acc, mag_new_time: observer_*)
+    adaptive_k_incl: float = _opt(0.5, "adaptive: inclination correction gain, 1/s", min=0.0)
+    adaptive_k_head: float = _opt(0.2, "adaptive: heading correction gain, 1/s", min=0.0)
+    adaptive_mag_norm_th: float = _opt(
+        0.03, "adaptive: field norm change that counts as disturbed, fraction", min=0.0)
+    adaptive_mag_dip_th_deg: float = _opt(
+        3.0, "adaptive: magnetic dip change that counts as disturbed, degrees", min=0.0)
+    adaptive_rest_gyr_dps: float = _opt(
+        2.0, "adaptive: still when the bias-corrected rate is below, deg/s", min=0.0)
+    adaptive_rest_time_s: float = _opt(1.0, "adaptive: still for this long before the gyro "
+                                       "bias follows the rate, s", min=0.0)
+    adaptive_rest_tau_s: float = _opt(
+        2.0, "adaptive: gyro-bias time constant at rest, s (0 = off)", min=0.0)
 
 
 @dataclass
