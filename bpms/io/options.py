@@ -82,6 +82,10 @@ class SensorOptions:
     accel_signs: list[float] = _opt([1.0, 1.0, 1.0], "accelerometer x, y, z signs", signs=True)
     mag_signs: list[float] = _opt([1.0, -1.0, -1.0], "magnetometer x, y, z signs", signs=True)
     gyro_signs: list[float] = _opt([-1.0, -1.0, -1.0], "gyroscope x, y, z signs", signs=True)
+    accel_range_g: float = _opt(
+        16.0, "accelerometer range the firmware sets, ±g (16 for this firmware, 2 for the "
+        "original; full resolution keeps 256 counts/g); docs/firmware.md",
+        choices=(2.0, 4.0, 8.0, 16.0))
 
 
 @dataclass
@@ -148,7 +152,8 @@ class BodyOptions:
 @dataclass
 class TrackOptions:
     heel_strike_g: float = _opt(2.0, "heel strike: foot acceleration peak above, g", min=0.0)
-    min_step_interval_s: float = _opt(0.4, "heel strikes at least this far apart, s", min=0.0)
+    min_step_interval_s: float = _opt(0.4, "heel strikes of one foot at least this far apart, s",
+                                      min=0.0)
     declination_deg: float = _opt(0.0, "local magnetic declination, deg east", min=-180.0,
                                   max=180.0)
 
