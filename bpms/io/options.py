@@ -84,8 +84,8 @@ class SensorOptions:
     gyro_signs: list[float] = _opt([-1.0, -1.0, -1.0], "gyroscope x, y, z signs", signs=True)
     accel_range_g: float = _opt(
         16.0, "accelerometer range the firmware sets, ±g (16 for this firmware, 2 for the "
-        "original; full resolution keeps 256 counts/g); docs/firmware.md",
-        choices=(2.0, 4.0, 8.0, 16.0))
+        "original; the ADXL345 has 2, 4, 8, 16; full resolution keeps 256 counts/g); "
+        "docs/firmware.md", min=2.0, max=16.0)
 
 
 @dataclass
