@@ -236,6 +236,7 @@ class VqfBank(_PhysicalBank):
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
         rs = self._resets(n, resets)
         q = np.full((n, self.n, 4), np.nan)
+        bias = np.full((n, self.n, 3), np.nan)
         for i in range(self.n):
             (f, m, g), valid = self._fill(i, data, err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
@@ -258,7 +259,10 @@ class VqfBank(_PhysicalBank):
                 if err is not None:
                     self._held_count[i] += err[first:b, i].sum(axis=0)
                 q[start:b, i] = self.vqf.process_imu(i, f[start:b], m[start:b], g[start:b])
-        return _outputs(q)
+                bias[start:b, i] = self.vqf.last_bias
+        out = _outputs(q)
+        out.gyro_bias = bias
+        return out
 
     def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
              errors: np.ndarray | None = None) -> BankOutput:
@@ -267,6 +271,7 @@ class VqfBank(_PhysicalBank):
                                 np.asarray(gyr)[None])
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
         q = np.full((self.n, 4), np.nan)
+        bias = np.full((self.n, 3), np.nan)
         for i in range(self.n):
             if self._pending_reset[i]:
                 self._init[i] = False
@@ -282,9 +287,10 @@ class VqfBank(_PhysicalBank):
             else:
                 self._held_count[i] += bad
             q[i] = self.vqf.step_imu(i, *self._held[i])
+            bias[i] = self.vqf.bias(i)
         self._pending_reset[:] = False
         out = _outputs(enu_to_ned(q)[None])
-        return BankOutput(out.R[0], out.euler[0])
+        return BankOutput(out.R[0], out.euler[0], gyro_bias=bias)
 
 
 def _outputs(q: np.ndarray) -> BankOutput:
