@@ -77,3 +77,20 @@ def test_vqf_reports_its_bias_estimate(rec):
     steps = np.array([live.step(rec.raw[k], rec.errors[k]).gyro_bias[0]
                       for k in range(0, 200)])
     np.testing.assert_allclose(steps, res.gyro_bias[:200], atol=1e-9)
+
+
+def test_concatenated_parts_equal_one_pass(rec):
+    from bpms.filter.processor import Result
+
+    options = Options()
+    options.filter.algorithm = "adaptive"
+    whole = BodyPoseProcessor(rec.calibration, options).process(rec.raw, rec.errors)
+    proc = BodyPoseProcessor(rec.calibration, options)
+    parts = [proc.process(rec.raw[a:a + 100], rec.errors[a:a + 100])
+             for a in range(0, len(rec.raw), 100)]
+    joined = Result.concat(parts)
+    for name in ("t", "R", "gyro_bias", "body_acc"):
+        np.testing.assert_array_equal(getattr(joined, name), getattr(whole, name))
+    np.testing.assert_array_equal(joined.disturbance.mag, whole.disturbance.mag)
+    np.testing.assert_array_equal(joined.disturbance.mag_norm_ratio,
+                                  whole.disturbance.mag_norm_ratio)

@@ -90,6 +90,27 @@ class Result:
     def __len__(self) -> int:
         return len(self.t)
 
+    @staticmethod
+    def concat(parts: list[Result]) -> Result:
+        """One Result of consecutive parts of a stream (frame arrays joined, the last part's
+        counts, every part's zeros and problems)."""
+        def join(name: str):
+            values = [getattr(p, name) for p in parts]
+            return None if any(v is None for v in values) else np.concatenate(values)
+
+        dist = None
+        if all(p.disturbance is not None for p in parts):
+            dist = dataclasses.replace(parts[0].disturbance, **{
+                f.name: np.concatenate([getattr(p.disturbance, f.name) for p in parts])
+                for f in dataclasses.fields(parts[0].disturbance)})
+        last = parts[-1]
+        return Result(t=join("t"), R=join("R"), euler=join("euler"), C=join("C"),
+                      body=last.body, held_count=last.held_count,
+                      zeros=[z for p in parts for z in p.zeros],
+                      problems=[x for p in parts for x in p.problems],
+                      gyro_bias=join("gyro_bias"), body_acc=join("body_acc"),
+                      disturbance=dist)
+
     @cached_property
     def _body(self) -> tuple[np.ndarray, np.ndarray]:
         return body_outputs(self.C, self.body)
