@@ -1,6 +1,7 @@
 """The selectable attitude filters on the BROAD subset (real IMU data, optical truth).
 
-Run: ``.venv/bin/python bench/broad.py [--data DIR] [--trials SUBSTR ...] [--max-s S] [--loo]``.
+Run: ``.venv/bin/python bench/broad.py [--data DIR] [--trials SUBSTR ...] [--max-s S]
+[--no-loo] [--extra] [--sim]``.
 Data: ``../shared/data/broad`` beside the repository root (README there). Each filter runs on
 each trial at the trial's own rate (≈ 285.7 Hz) and resampled to the suit's 50 Hz (linear
 interpolation of the IMU signals at k·20 ms, truth and movement mask taken at the nearest
@@ -13,7 +14,8 @@ dataset's metric does not align: ``q_err = q_imu ⊗ q_opt⁻¹`` (earth frame),
 ``2 acos|w|``, heading ``2 atan|z/w|``, inclination ``2 acos √(w² + z²)``, RMSE in degrees over
 the movement phases (samples without optical truth skipped), as the dataset's own code.
 
-``--loo``: leave-one-trial-out at the suit's 50 Hz. For each filter a small grid of its
+Leave-one-trial-out at the suit's 50 Hz (unless ``--no-loo``; with 3 or more trials). For
+each filter a small grid of its
 settings (:data:`LOO_GRIDS`, option names); for each held-out trial the setting with the
 lowest mean total RMSE on the other trials is chosen and its error on the held-out trial
 reported — an honest estimate of the error on a trial the settings were not chosen on. Printed
@@ -336,8 +338,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--extra", action="store_true",
                         help=f"add {MAHONY_TUNED}: the original filter with the published "
                              "Mahony gains (a reference, not a selectable default)")
-    parser.add_argument("--loo", action="store_true",
-                        help="also leave-one-trial-out figures at 50 Hz (LOO_GRIDS per filter)")
+    parser.add_argument("--no-loo", dest="loo", action="store_false",
+                        help="skip the leave-one-trial-out figures at 50 Hz (LOO_GRIDS per "
+                             "filter; printed by default when 3 or more trials are chosen)")
     parser.add_argument("--sim", action="store_true",
                         help="also the simulated suit (undisturbed, magnet, walk) per filter")
     args = parser.parse_args(argv)
@@ -349,8 +352,8 @@ def main(argv: list[str] | None = None) -> int:
     filters = (*ALGORITHMS, MAHONY_TUNED) if args.extra else ALGORITHMS
     rows = evaluate(data, args.trials, args.max_s, filters=filters, progress=True)
     print_table(rows)
-    if args.loo:
-        trials = load_50hz(data, args.trials, args.max_s)
+    trials = load_50hz(data, args.trials, args.max_s) if args.loo else []
+    if len(trials) >= 3:
         folds = [f for name in ALGORITHMS for f in leave_one_out(name, trials)]
         print_loo(folds, rows)
     if args.sim:

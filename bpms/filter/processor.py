@@ -276,7 +276,8 @@ class BodyPoseProcessor:
         out = self.bank.step(acc[0], mag[0], gyr[0], errors)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R[None])
-        out = BankOutput(*(None if v is None else v[None] for v in dataclasses.astuple(out)))
+        out = BankOutput(*(None if v is None else v[None]
+                           for v in (getattr(out, f.name) for f in dataclasses.fields(out))))
         return self._result(1, out, C, before, acc, mag, gyr,
                             None if errors is None else np.asarray(errors)[None])
 
