@@ -40,14 +40,13 @@ import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from bpms.filter.algorithms import make_bank
 from bpms.filter.bank import BankOutput, FilterBank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
-from bpms.filter.disturbance import DisturbanceTracker
+from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_quaternion
@@ -79,13 +78,13 @@ class Result:
     held_count: np.ndarray = field(default_factory=lambda: np.zeros((N_IMUS, 3), np.int64))
     zeros: list[Zero] = field(default_factory=list, repr=False)
     problems: list[str] = field(default_factory=list)
-    #: ``[N, 18, 3]`` rad/s gyro-bias estimate in body (filter-frame) axes: observer and
-    #: adaptive their bias state, mahony minus its integral term ωI; None for vqf
+    #: ``[N, 18, 3]`` rad/s gyro-bias estimate in body (filter-frame) axes: observer,
+    #: adaptive and vqf their bias estimate, mahony minus its integral term ωI
     gyro_bias: np.ndarray | None = field(default=None, repr=False)
     #: ``[N, 18, 3]`` m/s² body-acceleration estimate (NED) of observer/adaptive, else None
     body_acc: np.ndarray | None = field(default=None, repr=False)
     #: per-frame disturbance indicators (:class:`bpms.filter.disturbance.Disturbance`)
-    disturbance: Any = field(default=None, repr=False)
+    disturbance: Disturbance | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.t)
