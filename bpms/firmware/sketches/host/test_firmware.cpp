@@ -271,6 +271,23 @@ TEST(cluster_error_bits_per_fault_kind) {
     CHECK_EQ(bpms::get_be16s(c.logic.reply()), expected(0, 0, 0, 6));
 }
 
+TEST(heel_strike_beyond_2g_is_a_valid_reading) {
+    // +-16 g at full resolution: 4 g (1024 counts) and -15.9 g are readings, not failures
+    Suit s;
+    auto& c = s.cluster(0);
+    c.bus.chip(0, bpms::ACCEL).values = [](uint32_t, int16_t v[3]) {
+        v[0] = 1024;
+        v[1] = -4070;
+        v[2] = 256;
+    };
+    poll_and_sample(c);  // stores a sample with the new values
+    CHECK_EQ(poll_and_sample(c), 0);
+    // board order swaps chip x and y (Razor AHRS SEN-10724)
+    CHECK_EQ(bpms::get_be16s(c.logic.reply()), -4070);
+    CHECK_EQ(bpms::get_be16s(c.logic.reply() + 2), 1024);
+    CHECK_EQ(bpms::get_be16s(c.logic.reply() + 4), 256);
+}
+
 TEST(cluster_reconfigures_a_chip_after_a_failure) {
     Suit s;
     auto& c = s.cluster(3);
