@@ -1,6 +1,7 @@
-"""The three selectable attitude filters on the BROAD subset (real IMU data, optical truth).
+"""The selectable attitude filters on the BROAD subset (real IMU data, optical truth).
 
-Run: ``.venv/bin/python bench/broad.py [--data DIR] [--trials SUBSTR ...] [--max-s S]``.
+Run: ``.venv/bin/python bench/broad.py [--data DIR] [--trials SUBSTR ...] [--max-s S]
+[--no-loo] [--extra] [--sim]``.
 Data: ``../shared/data/broad`` beside the repository root (README there). Each filter runs on
 each trial at the trial's own rate (≈ 285.7 Hz) and resampled to the suit's 50 Hz (linear
 interpolation of the IMU signals at k·20 ms, truth and movement mask taken at the nearest
@@ -12,11 +13,19 @@ scaled to ±100 and gyro rad/s; the observer and VQF get specific force in m/s²
 dataset's metric does not align: ``q_err = q_imu ⊗ q_opt⁻¹`` (earth frame), total error
 ``2 acos|w|``, heading ``2 atan|z/w|``, inclination ``2 acos √(w² + z²)``, RMSE in degrees over
 the movement phases (samples without optical truth skipped), as the dataset's own code.
+
+Leave-one-trial-out at the suit's 50 Hz (unless ``--no-loo``; with 3 or more trials). For
+each filter a small grid of its
+settings (:data:`LOO_GRIDS`, option names); for each held-out trial the setting with the
+lowest mean total RMSE on the other trials is chosen and its error on the held-out trial
+reported — an honest estimate of the error on a trial the settings were not chosen on. Printed
+beside the in-sample figures (factory settings, which were chosen on all 7 trials).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 import time
 from dataclasses import dataclass
@@ -24,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bpms.filter.adaptive_bank import adaptive_gains
+from bpms.filter.adaptive_observer import AdaptiveObserver
 from bpms.filter.algorithms import ALGORITHMS, observer_gains
 from bpms.filter.bank import FilterBank
 from bpms.filter.observer import Observer
@@ -42,6 +53,17 @@ MAHONY_TUNED = "mahony-kp0.74"
 PUBLISHED = {"Madgwick (β = 0.12)": (4.96, 3.92, 2.71),
              "Mahony (Kp = 0.74, Ki = 0.0012)": (7.49, 6.30, 3.70),
              "VQF (paper, several datasets)": (2.9, float("nan"), float("nan"))}
+
+
+#: Leave-one-out grids per filter: FilterOptions names → values (the factory value included).
+LOO_GRIDS: dict[str, dict[str, tuple[float, ...]]] = {
+    "mahony": {"kp_rollpitch": (0.005, 0.02), "kp_yaw": (0.3, 1.2)},
+    "observer": {"observer_k_incl": (0.5, 1.0), "observer_k_head": (0.1, 0.2),
+                 "observer_mag_norm_th": (0.03, 0.05), "observer_mag_dip_th_deg": (3.0, 5.0)},
+    "vqf": {"vqf_tau_acc_s": (1.5, 3.0, 6.0), "vqf_tau_mag_s": (4.5, 9.0, 18.0)},
+    "adaptive": {"adaptive_k_incl": (0.5, 1.0, 2.0), "adaptive_k_head": (0.1, 0.2),
+                 "adaptive_mag_norm_th": (0.03, 0.05), "adaptive_mag_dip_th_deg": (3.0, 5.0)},
+}
 
 
 @dataclass
@@ -100,10 +122,11 @@ def _ned_to_enu(q_ned: np.ndarray) -> np.ndarray:
     return quat_mul(np.broadcast_to(Q_ENU_TO_NED, q_ned.shape), q_ned)
 
 
-def run_filter(name: str, trial: Trial) -> np.ndarray:
-    """Body → ENU quaternions ``[N, 4]`` of filter ``name`` on ``trial``."""
+def run_filter(name: str, trial: Trial, settings: dict[str, float] | None = None) -> np.ndarray:
+    """Body → ENU quaternions ``[N, 4]`` of filter ``name`` on ``trial`` (factory settings,
+    or these FilterOptions values)."""
     dt = 1.0 / trial.rate
-    options = FilterOptions(dt=dt)
+    options = FilterOptions(dt=dt, **(settings or {}))
     if name == MAHONY_TUNED:  # the published Mahony gains in the suite's units (not a default)
         options = FilterOptions(dt=dt, kp_rollpitch=0.74 / MAHONY_GRAVITY,
                                 ki_rollpitch=0.0012 / MAHONY_GRAVITY, kp_yaw=0.74,
@@ -117,6 +140,10 @@ def run_filter(name: str, trial: Trial) -> np.ndarray:
         obs = Observer(1, observer_gains(options))
         q_ned = obs.process(trial.acc[:, None], (trial.mag / 50.0)[:, None], trial.gyr[:, None],
                             store_q=True).q[:, 0]
+    elif name == "adaptive":
+        obs = AdaptiveObserver(1, adaptive_gains(options))
+        q_ned = obs.process(trial.acc[:, None], (trial.mag / 50.0)[:, None],
+                            trial.gyr[:, None], store_q=True).q[:, 0]
     elif name == "vqf":
         vqf = VqfFilters(1, dt, options.vqf_tau_acc_s, options.vqf_tau_mag_s)
         q_ned = vqf.process_imu(0, trial.acc, trial.mag / 50.0, trial.gyr)
@@ -162,6 +189,81 @@ def evaluate(data: Path, trials: list[str] | None = None, max_s: float | None = 
                     print(f"  {trial.name} {name} {trial.rate:.1f} Hz: {took:.2f} s",
                           file=sys.stderr)
     return rows
+
+
+@dataclass
+class Fold:
+    """One held-out trial of one filter: the settings chosen on the other trials and the
+    held-out RMSE (degrees, total / heading / inclination)."""
+
+    filter: str
+    trial: str
+    chosen: dict[str, float]
+    total: float
+    heading: float
+    inclination: float
+
+
+def grid(name: str) -> list[dict[str, float]]:
+    """Every combination of :data:`LOO_GRIDS` ``[name]``."""
+    g = LOO_GRIDS[name]
+    return [dict(zip(g, values, strict=True)) for values in itertools.product(*g.values())]
+
+
+def grid_errors(name: str, trials: list[Trial]) -> np.ndarray:
+    """``[settings, trials, 3]`` RMSE of every grid setting on every trial."""
+    return np.array([[errors(run_filter(name, t, s), t.opt_quat, t.movement) for t in trials]
+                     for s in grid(name)])
+
+
+def leave_one_out(name: str, trials: list[Trial], held_out: list[int] | None = None,
+                  table: np.ndarray | None = None) -> list[Fold]:
+    """Leave-one-trial-out folds of filter ``name`` (all trials, or only ``held_out``): the
+    grid setting with the lowest mean total RMSE on the other trials, scored on the held-out
+    one. ``table``: :func:`grid_errors` if already computed."""
+    table = grid_errors(name, trials) if table is None else table
+    settings = grid(name)
+    folds = []
+    for k in range(len(trials)) if held_out is None else held_out:
+        others = [j for j in range(len(trials)) if j != k]
+        best = int(np.argmin(table[:, others, 0].mean(axis=1)))
+        folds.append(Fold(name, trials[k].name, settings[best], *table[best, k]))
+    return folds
+
+
+def load_50hz(data: Path, trials: list[str] | None = None,
+              max_s: float | None = None) -> list[Trial]:
+    paths = sorted(p for p in data.glob("*.hdf5")
+                   if not trials or any(s in p.stem for s in trials))
+    return [resample(load_trial(p, max_s), SUIT_RATE_HZ) for p in paths]
+
+
+def print_loo(folds: list[Fold], rows: list[Row]) -> None:
+    """Held-out RMSE per trial and filter at 50 Hz, beside the in-sample averages."""
+    filters = list(dict.fromkeys(f.filter for f in folds))
+    print("\nLeave-one-trial-out at 50 Hz (settings chosen on the other trials from "
+          "LOO_GRIDS), held-out RMSE total / heading / inclination\n")
+    print("| held-out trial | " + " | ".join(filters) + " |")
+    print("|---|" + "---|" * len(filters))
+    for trial in dict.fromkeys(f.trial for f in folds):
+        cells = [f"{x.total:.2f} / {x.heading:.2f} / {x.inclination:.2f}"
+                 for name in filters for x in folds if x.trial == trial and x.filter == name]
+        print(f"| {trial} | " + " | ".join(cells) + " |")
+    means = {name: np.mean([[x.total, x.heading, x.inclination] for x in folds
+                            if x.filter == name], axis=0) for name in filters}
+    print("| **held-out average** | " + " | ".join(
+        f"**{m[0]:.2f}** / {m[1]:.2f} / {m[2]:.2f}" for m in means.values()) + " |")
+    cells = []
+    for name in filters:
+        sel = [r for r in rows if r.filter == name and round(r.rate) == round(SUIT_RATE_HZ)]
+        cells.append(f"**{np.mean([r.total for r in sel]):.2f}** / "
+                     f"{np.mean([r.heading for r in sel]):.2f} / "
+                     f"{np.mean([r.inclination for r in sel]):.2f}" if sel else "–")
+    print("| in-sample (factory settings) | " + " | ".join(cells) + " |")
+    print("\nchosen settings per held-out trial:")
+    for f in folds:
+        print(f"- {f.filter} without {f.trial}: " + ", ".join(
+            f"{k} = {v:g}" for k, v in f.chosen.items()))
 
 
 def print_table(rows: list[Row]) -> None:
@@ -236,6 +338,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--extra", action="store_true",
                         help=f"add {MAHONY_TUNED}: the original filter with the published "
                              "Mahony gains (a reference, not a selectable default)")
+    parser.add_argument("--no-loo", dest="loo", action="store_false",
+                        help="skip the leave-one-trial-out figures at 50 Hz (LOO_GRIDS per "
+                             "filter; printed by default when 3 or more trials are chosen)")
     parser.add_argument("--sim", action="store_true",
                         help="also the simulated suit (undisturbed, magnet, walk) per filter")
     args = parser.parse_args(argv)
@@ -247,6 +352,10 @@ def main(argv: list[str] | None = None) -> int:
     filters = (*ALGORITHMS, MAHONY_TUNED) if args.extra else ALGORITHMS
     rows = evaluate(data, args.trials, args.max_s, filters=filters, progress=True)
     print_table(rows)
+    trials = load_50hz(data, args.trials, args.max_s) if args.loo else []
+    if len(trials) >= 3:
+        folds = [f for name in ALGORITHMS for f in leave_one_out(name, trials)]
+        print_loo(folds, rows)
     if args.sim:
         print()
         print_simulated()

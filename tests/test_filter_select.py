@@ -21,7 +21,7 @@ from bpms.io.rawfile import read_raw
 from bpms.io.replay import ReplaySource
 from bpms.pipeline.session import LiveSession
 
-ALGORITHMS = ("mahony", "observer", "vqf")
+ALGORITHMS = ("mahony", "observer", "vqf", "adaptive")
 
 
 def _options(algorithm: str) -> Options:

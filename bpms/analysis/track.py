@@ -1,12 +1,13 @@
 """Dead-reckoning walked path (SPEC §8, dissertation chapter 3.4).
 
 Heel strikes are peaks of the foot accelerometer magnitude (g) above
-``options.track.heel_strike_g``, at least ``min_step_interval_s`` apart, alternating left and
-right. At each strike the vector between the feet (trailing ankle → leading ankle, from the
-lower-body chain thigh + shank of ``Result.joint_positions``, each leg measured from its own
-hip joint so that the pelvis width does not zig-zag the path) is added to the running
-position, after a rotation by the magnetic declination (east positive) about the vertical, so
-that x points to true north.
+``options.track.heel_strike_g``, at least ``min_step_interval_s`` apart on each foot, or come
+from the gyroscope detector of :mod:`bpms.analysis.gait_events` (recordings at ±2 g). At each
+strike the vector between the feet (trailing ankle → leading ankle, from the lower-body chain
+thigh + shank of ``Result.joint_positions``, each leg measured from its own hip joint so that
+the pelvis width does not zig-zag the path) is added to the running position, after a
+rotation by the magnetic declination (east positive) about the vertical, so that x points to
+true north.
 """
 
 from __future__ import annotations
@@ -54,32 +55,40 @@ def _peaks(mag: np.ndarray, threshold: float) -> np.ndarray:
 def heel_strikes(accel_g: dict[str, np.ndarray], t: np.ndarray, threshold_g: float,
                  min_interval_s: float) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Heel strikes from the feet's accelerometer magnitude ``{"right": [N], "left": [N]}``
-    (g): candidates above the threshold, at least ``min_interval_s`` apart (the larger peak
-    wins), then alternating sides (of two strikes in a row on one side the larger wins).
-    Returns frame indices, sides and peak values (g)."""
-    cand = [(int(k), side, float(mag[k])) for side, mag in accel_g.items()
-            for k in _peaks(np.nan_to_num(mag), threshold_g)]
+    (g): candidates above the threshold, at least ``min_interval_s`` apart **on the same
+    foot** (the larger peak wins; the feet are independent, so fast steps are kept), both
+    feet merged in time order. Returns frame indices, sides and peak values (g). On a
+    recording made at ±2 g the peaks clip at the threshold: use
+    :func:`bpms.analysis.gait_events.gyro_heel_strikes` there."""
+    cand: list[tuple[int, str, float]] = []
+    for side, mag in accel_g.items():
+        kept: list[tuple[int, str, float]] = []
+        for k in _peaks(np.nan_to_num(mag), threshold_g):
+            c = (int(k), side, float(mag[k]))
+            if kept and t[c[0]] - t[kept[-1][0]] < min_interval_s:
+                if c[2] > kept[-1][2]:
+                    kept[-1] = c
+                continue
+            kept.append(c)
+        cand += kept
     cand.sort()
-    kept: list[tuple[int, str, float]] = []
-    for c in cand:
-        if kept and (t[c[0]] - t[kept[-1][0]] < min_interval_s or c[1] == kept[-1][1]):
-            if c[2] > kept[-1][2]:
-                kept[-1] = c
-            continue
-        kept.append(c)
-    return (np.array([k for k, _, _ in kept], dtype=int), [s for _, s, _ in kept],
-            np.array([p for _, _, p in kept]))
+    return (np.array([k for k, _, _ in cand], dtype=int), [s for _, s, _ in cand],
+            np.array([p for _, _, p in cand]))
 
 
 def walked_path(t: np.ndarray, accel_g: dict[str, np.ndarray], joint_positions: np.ndarray,
                 threshold_g: float = 2.0, min_interval_s: float = 0.4,
-                declination_deg: float = 0.0, include_hips: bool = False) -> Track:
+                declination_deg: float = 0.0, include_hips: bool = False,
+                strikes: tuple[np.ndarray, list[str], np.ndarray] | None = None) -> Track:
     """The walked path: heel strikes, per-step vectors (leading minus trailing leg, hip joint
     to ankle, ``joint_positions[N, 21, 3]`` m NED), rotated by the declination, summed.
 
     include_hips: measure each foot from the pelvis centre as eq. 3.13–3.14 of the
-    dissertation do (hip + thigh + shank); the path then zig-zags by 2 × hip per step."""
-    idx, sides, peaks = heel_strikes(accel_g, t, threshold_g, min_interval_s)
+    dissertation do (hip + thigh + shank); the path then zig-zags by 2 × hip per step.
+    strikes: heel strikes found otherwise (indices, sides, peak values — e.g. from
+    :func:`bpms.analysis.gait_events.gyro_heel_strikes`); ``accel_g`` is then unused."""
+    idx, sides, peaks = (heel_strikes(accel_g, t, threshold_g, min_interval_s)
+                         if strikes is None else strikes)
     pos = joint_positions[idx]
     origin_r = "pelvis" if include_hips else "hip_r"
     origin_l = "pelvis" if include_hips else "hip_l"

@@ -10,7 +10,9 @@ holds its last good value (counted in ``held_count``), gains change from the nex
 
 - ``mahony``: :class:`bpms.filter.bank.FilterBank`, the original (SPEC §5), unchanged;
 - ``observer``: :class:`ObserverBank` over :mod:`bpms.filter.observer`;
-- ``vqf``: :class:`VqfBank` over :mod:`bpms.filter.vqf_filter` (needs the ``vqf`` package).
+- ``vqf``: :class:`VqfBank` over :mod:`bpms.filter.vqf_filter` (needs the ``vqf`` package);
+- ``adaptive``: :class:`bpms.filter.adaptive_bank.AdaptiveBank` over
+  :mod:`bpms.filter.adaptive_observer` (the observer + trapezoidal rates + bias at rest).
 
 Unit conversion (inside the adapters): specific force ``f = −a · 9.81 / Gravity`` m/s² (the
 suite's accel is the gravity direction, counts of 1 g), magnetometer ``m / 100`` (≈ unit
@@ -32,7 +34,7 @@ from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
 from bpms.filter.vqf_filter import VqfFilters, enu_to_ned
 from bpms.io.options import FilterOptions
 
-ALGORITHMS = ("mahony", "observer", "vqf")
+ALGORITHMS = ("mahony", "observer", "vqf", "adaptive")
 G_MS2 = 9.81
 MAG_UNIT = 100.0
 
@@ -71,6 +73,9 @@ def make_bank(gravity: np.ndarray, options: FilterOptions) -> AttitudeBank:
         return ObserverBank(gravity, options)
     if name == "vqf":
         return VqfBank(gravity, options)
+    if name == "adaptive":
+        from bpms.filter.adaptive_bank import AdaptiveBank
+        return AdaptiveBank(gravity, options)
     raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
 
 
@@ -162,16 +167,19 @@ class ObserverBank(_PhysicalBank):
         rs = self._resets(n, resets)
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
+        bias = np.empty((n, self.n, 3))
+        body_acc = np.empty((n, self.n, 3))
         observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
-                       np.empty((0, self.n, 4)), np.empty((0, self.n, 3)))
-        return BankOutput(out_R, out_e)
+                       np.empty((n, self.n, 4)), bias, body_acc)
+        return BankOutput(out_R, out_e, gyro_bias=bias, body_acc=body_acc)
 
     def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
              errors: np.ndarray | None = None) -> BankOutput:
         """One live frame (``[n, 3]`` each)."""
         out = self.process(np.asarray(acc)[None], np.asarray(mag)[None], np.asarray(gyr)[None],
                            None if errors is None else np.asarray(errors)[None])
-        return BankOutput(out.R[0], out.euler[0])
+        return BankOutput(out.R[0], out.euler[0], gyro_bias=out.gyro_bias[0],
+                          body_acc=out.body_acc[0])
 
 
 class VqfBank(_PhysicalBank):
@@ -228,6 +236,7 @@ class VqfBank(_PhysicalBank):
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
         rs = self._resets(n, resets)
         q = np.full((n, self.n, 4), np.nan)
+        bias = np.full((n, self.n, 3), np.nan)
         for i in range(self.n):
             (f, m, g), valid = self._fill(i, data, err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
@@ -250,7 +259,10 @@ class VqfBank(_PhysicalBank):
                 if err is not None:
                     self._held_count[i] += err[first:b, i].sum(axis=0)
                 q[start:b, i] = self.vqf.process_imu(i, f[start:b], m[start:b], g[start:b])
-        return _outputs(q)
+                bias[start:b, i] = self.vqf.last_bias
+        out = _outputs(q)
+        out.gyro_bias = bias
+        return out
 
     def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
              errors: np.ndarray | None = None) -> BankOutput:
@@ -259,6 +271,7 @@ class VqfBank(_PhysicalBank):
                                 np.asarray(gyr)[None])
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
         q = np.full((self.n, 4), np.nan)
+        bias = np.full((self.n, 3), np.nan)
         for i in range(self.n):
             if self._pending_reset[i]:
                 self._init[i] = False
@@ -274,9 +287,10 @@ class VqfBank(_PhysicalBank):
             else:
                 self._held_count[i] += bad
             q[i] = self.vqf.step_imu(i, *self._held[i])
+            bias[i] = self.vqf.bias(i)
         self._pending_reset[:] = False
         out = _outputs(enu_to_ned(q)[None])
-        return BankOutput(out.R[0], out.euler[0])
+        return BankOutput(out.R[0], out.euler[0], gyro_bias=bias)
 
 
 def _outputs(q: np.ndarray) -> BankOutput:

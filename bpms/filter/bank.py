@@ -26,6 +26,10 @@ class BankOutput:
     euler: np.ndarray
     w_i: np.ndarray | None = None
     w_p: np.ndarray | None = None
+    #: gyro-bias estimate ``[.., n, 3]`` rad/s (body axes) of the filters that have one
+    gyro_bias: np.ndarray | None = None
+    #: body (linear) acceleration estimate ``[.., n, 3]`` m/s², NED, where estimated
+    body_acc: np.ndarray | None = None
 
 
 def params_from_options(options: FilterOptions) -> np.ndarray:

@@ -277,7 +277,7 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
 
 
 @njit(cache=True)
-def _store(k, q, bias, R, initialised, out_R, out_euler, out_q, out_bias):
+def _store(k, q, bias, acc_est, R, initialised, out_R, out_euler, out_q, out_bias, out_acc):
     nan = np.nan
     store_q = out_q.shape[0] > 0
     for i in range(R.shape[0]):
@@ -296,17 +296,21 @@ def _store(k, q, bias, R, initialised, out_R, out_euler, out_q, out_bias):
                 out_q[k, i, r] = q[i, r] if ok else nan
             for r in range(3):
                 out_bias[k, i, r] = bias[i, r] if ok else nan
+        if out_acc.shape[0] > 0:
+            for r in range(3):
+                out_acc[k, i, r] = acc_est[i, r] if ok else nan
 
 
 @njit(cache=True)
 def run_batch(f, m, g, errors, resets, params, q, bias, lp, acc_est, mag_state, mag_dist,
-              initialised, held, held_count, R, out_R, out_euler, out_q, out_bias):
+              initialised, held, held_count, R, out_R, out_euler, out_q, out_bias, out_acc):
     """Filter N samples × n IMUs, updating the state arrays in place.
 
     f (m/s², specific force), m (any unit), g (rad/s): float64 ``[N, n, 3]``. errors: bool
     ``[N, n, 3]`` or ``[0, n, 3]``; resets: bool ``[N, n]`` or ``[0, n]``; params
     ``[N_PARAMS]``. out_R ``[N, n, 3, 3]``, out_euler ``[N, n, 3]``; out_q ``[N, n, 4]`` and
-    out_bias ``[N, n, 3]`` or ``[0, n, ...]`` to skip them. NaN for uninitialised IMUs.
+    out_bias ``[N, n, 3]`` or ``[0, n, ...]`` to skip them; out_acc ``[N, n, 3]`` the
+    body-acceleration estimate (NED, m/s²) or ``[0, n, 3]``. NaN for uninitialised IMUs.
     """
     use_err = errors.shape[0] > 0
     use_reset = resets.shape[0] > 0
@@ -317,7 +321,7 @@ def run_batch(f, m, g, errors, resets, params, q, bias, lp, acc_est, mag_state, 
         z = resets[k] if use_reset else no_reset
         _frame(f[k], m[k], g[k], e, use_err, z, use_reset, params, q, bias, lp, acc_est,
                mag_state, mag_dist, initialised, held, held_count, R)
-        _store(k, q, bias, R, initialised, out_R, out_euler, out_q, out_bias)
+        _store(k, q, bias, acc_est, R, initialised, out_R, out_euler, out_q, out_bias, out_acc)
 
 
 @dataclass
@@ -427,7 +431,7 @@ class Observer:
         out_q = np.empty((kq, self.n, 4))
         out_b = np.empty((kq, self.n, 3))
         run_batch(f, m, g, err, rs, self.gains.params(), *self.state.arrays(),
-                  out_R, out_e, out_q, out_b)
+                  out_R, out_e, out_q, out_b, np.empty((0, self.n, 3)))
         return ObserverOutput(out_R, out_e, out_q if store_q else None,
                               out_b if store_q else None)
 

@@ -36,6 +36,7 @@ acquisition layer, which does not record it.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -43,7 +44,9 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.algorithms import make_bank
+from bpms.filter.bank import BankOutput, FilterBank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
+from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_quaternion
@@ -75,9 +78,37 @@ class Result:
     held_count: np.ndarray = field(default_factory=lambda: np.zeros((N_IMUS, 3), np.int64))
     zeros: list[Zero] = field(default_factory=list, repr=False)
     problems: list[str] = field(default_factory=list)
+    #: ``[N, 18, 3]`` rad/s gyro-bias estimate in body (filter-frame) axes: observer,
+    #: adaptive and vqf their bias estimate, mahony minus its integral term ωI
+    gyro_bias: np.ndarray | None = field(default=None, repr=False)
+    #: ``[N, 18, 3]`` m/s² body-acceleration estimate (NED) of observer/adaptive, else None
+    body_acc: np.ndarray | None = field(default=None, repr=False)
+    #: per-frame disturbance indicators (:class:`bpms.filter.disturbance.Disturbance`)
+    disturbance: Disturbance | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.t)
+
+    @staticmethod
+    def concat(parts: list[Result]) -> Result:
+        """One Result of consecutive parts of a stream (frame arrays joined, the last part's
+        counts, every part's zeros and problems)."""
+        def join(name: str):
+            values = [getattr(p, name) for p in parts]
+            return None if any(v is None for v in values) else np.concatenate(values)
+
+        dist = None
+        if all(p.disturbance is not None for p in parts):
+            dist = dataclasses.replace(parts[0].disturbance, **{
+                f.name: np.concatenate([getattr(p.disturbance, f.name) for p in parts])
+                for f in dataclasses.fields(parts[0].disturbance)})
+        last = parts[-1]
+        return Result(t=join("t"), R=join("R"), euler=join("euler"), C=join("C"),
+                      body=last.body, held_count=last.held_count,
+                      zeros=[z for p in parts for z in p.zeros],
+                      problems=[x for p in parts for x in p.problems],
+                      gyro_bias=join("gyro_bias"), body_acc=join("body_acc"),
+                      disturbance=dist)
 
     @cached_property
     def _body(self) -> tuple[np.ndarray, np.ndarray]:
@@ -160,6 +191,7 @@ class BodyPoseProcessor:
                                    settle=round(SETTLE_S / dt), auto=auto_zero,
                                    heading=self.options.pose.heading_reference)
         self.frames = 0
+        self.disturbance = DisturbanceTracker(self.sensor_calibration.gravity, dt)
         self.problems = [str(p) for p in (*self.table.problems, *self.options.problems)]
 
     # -- controls -----------------------------------------------------------------------
@@ -168,6 +200,7 @@ class BodyPoseProcessor:
         forgets its capture and the automatic captures run again."""
         self.bank.reset()
         self.pose.restart()
+        self.disturbance.reset()
         self.frames = 0
 
     def reset_filter(self, imu: int | None = None) -> None:
@@ -208,12 +241,18 @@ class BodyPoseProcessor:
         if self.sensor_calibration.mag_correction() is not None:
             outs[1][:] = self.sensor_calibration.correct_mag(outs[1])
         return outs
-    def _result(self, n: int, R: np.ndarray, euler: np.ndarray, C: np.ndarray,
-                captures_before: int) -> Result:
+    def _result(self, n: int, out: BankOutput, C: np.ndarray, captures_before: int,
+                acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+                errors: np.ndarray | None) -> Result:
         t = (self.frames + np.arange(n)) * self.options.filter.dt
         self.frames += n
-        return Result(t=t, R=R, euler=euler, C=C, body=self.options.body,
-                      held_count=self.bank.held_count, zeros=self.pose.captures[captures_before:])
+        bias = out.gyro_bias
+        if bias is None and out.w_i is not None:
+            bias = -out.w_i.reshape(out.euler.shape)  # the Mahony integral term is −bias
+        return Result(t=t, R=out.R, euler=out.euler, C=C, body=self.options.body,
+                      held_count=self.bank.held_count, zeros=self.pose.captures[captures_before:],
+                      gyro_bias=bias, body_acc=out.body_acc,
+                      disturbance=self.disturbance.update(acc, mag, gyr, out.R, errors))
 
     def process(self, raw: np.ndarray, errors: np.ndarray | None = None,
                 zero_at: list[int] | tuple[int, ...] = ()) -> Result:
@@ -224,10 +263,11 @@ class BodyPoseProcessor:
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
         acc, mag, gyr = self.calibrate(raw)
-        out = self.bank.process(acc, mag, gyr, errors=errors)
+        terms = {"store_terms": True} if isinstance(self.bank, FilterBank) else {}
+        out = self.bank.process(acc, mag, gyr, errors=errors, **terms)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R, zero_at)
-        return self._result(len(raw), out.R, out.euler, C, before)
+        return self._result(len(raw), out, C, before, acc, mag, gyr, errors)
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
@@ -235,7 +275,10 @@ class BodyPoseProcessor:
         out = self.bank.step(acc[0], mag[0], gyr[0], errors)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R[None])
-        return self._result(1, out.R[None], out.euler[None], C, before)
+        out = BankOutput(*(None if v is None else v[None]
+                           for v in (getattr(out, f.name) for f in dataclasses.fields(out))))
+        return self._result(1, out, C, before, acc, mag, gyr,
+                            None if errors is None else np.asarray(errors)[None])
 
     def process_file(self, path: str | Path, zero_at: list[int] | tuple[int, ...] = ()) -> Result:
         """Filter a whole raw recording — native (:func:`bpms.io.rawfile.read_raw`) or a

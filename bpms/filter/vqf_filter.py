@@ -62,6 +62,7 @@ class VqfFilters:
         self.tau_acc = float(tau_acc)
         self.tau_mag = float(tau_mag)
         self.filters = [self._new() for _ in range(n)]
+        self.last_bias = np.zeros((0, 3))
 
     def _new(self):
         return self._cls(self.dt, tauAcc=self.tau_acc, tauMag=self.tau_mag)
@@ -86,6 +87,7 @@ class VqfFilters:
         out = self.filters[imu].updateBatch(
             np.ascontiguousarray(g, dtype=np.float64), np.ascontiguousarray(f, dtype=np.float64),
             np.ascontiguousarray(m, dtype=np.float64))
+        self.last_bias = out["bias"]  # [N, 3] rad/s, sensor axes (rate = gyro − bias)
         return enu_to_ned(out["quat9D"])
 
     def step_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray) -> np.ndarray:
@@ -96,6 +98,10 @@ class VqfFilters:
                    np.ascontiguousarray(f, dtype=np.float64),
                    np.ascontiguousarray(m, dtype=np.float64))
         return flt.getQuat9D()
+
+    def bias(self, imu: int) -> np.ndarray:
+        """IMU ``imu``'s present gyro-bias estimate ``[3]`` rad/s (sensor axes)."""
+        return np.asarray(self.filters[imu].getBiasEstimate()[0], dtype=np.float64)
 
 
 __all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned", "quat_mul",

@@ -33,7 +33,9 @@ class FilterOptions:
     algorithm: str = _opt(
         "mahony", "attitude filter for all 18 IMUs: 'mahony' (the original DCM filter), "
         "'observer' (quaternion observer with gyro-bias and body-acceleration estimation), "
-        "'vqf' (the vqf package); docs/filters.md", choices=("mahony", "observer", "vqf"))
+        "'vqf' (the vqf package), 'adaptive' (the observer with trapezoidal gyro integration "
+        "and gyro bias at rest); docs/filters.md",
+        choices=("mahony", "observer", "vqf", "adaptive"))
     kp_rollpitch: float = _opt(0.02, "roll/pitch proportional gain (per accel count)", min=0.0)
     ki_rollpitch: float = _opt(0.00002, "roll/pitch integral gain (per accel count)", min=0.0)
     kp_yaw: float = _opt(1.2, "yaw proportional gain", min=0.0)
@@ -58,6 +60,19 @@ class FilterOptions:
         10.0, "observer: a steady new magnetic field is accepted after, s", min=0.0)
     vqf_tau_acc_s: float = _opt(3.0, "vqf: accelerometer low-pass time constant, s", min=0.0)
     vqf_tau_mag_s: float = _opt(9.0, "vqf: magnetometer correction time constant, s", min=0.0)
+    # adaptive (bpms/filter/adaptive_observer.py; k_bias, tau_acc, mag_new_time: observer_*)
+    adaptive_k_incl: float = _opt(0.5, "adaptive: inclination correction gain, 1/s", min=0.0)
+    adaptive_k_head: float = _opt(0.2, "adaptive: heading correction gain, 1/s", min=0.0)
+    adaptive_mag_norm_th: float = _opt(
+        0.03, "adaptive: field norm change that counts as disturbed, fraction", min=0.0)
+    adaptive_mag_dip_th_deg: float = _opt(
+        3.0, "adaptive: magnetic dip change that counts as disturbed, degrees", min=0.0)
+    adaptive_rest_gyr_dps: float = _opt(
+        2.0, "adaptive: still when the bias-corrected rate is below, deg/s", min=0.0)
+    adaptive_rest_time_s: float = _opt(1.0, "adaptive: still for this long before the gyro "
+                                       "bias follows the rate, s", min=0.0)
+    adaptive_rest_tau_s: float = _opt(
+        2.0, "adaptive: gyro-bias time constant at rest, s (0 = off)", min=0.0)
 
 
 @dataclass
@@ -67,6 +82,10 @@ class SensorOptions:
     accel_signs: list[float] = _opt([1.0, 1.0, 1.0], "accelerometer x, y, z signs", signs=True)
     mag_signs: list[float] = _opt([1.0, -1.0, -1.0], "magnetometer x, y, z signs", signs=True)
     gyro_signs: list[float] = _opt([-1.0, -1.0, -1.0], "gyroscope x, y, z signs", signs=True)
+    accel_range_g: float = _opt(
+        16.0, "accelerometer range the firmware sets, ±g (16 for this firmware, 2 for the "
+        "original; the ADXL345 has 2, 4, 8, 16; full resolution keeps 256 counts/g); "
+        "docs/firmware.md", min=2.0, max=16.0)
 
 
 @dataclass
@@ -133,7 +152,8 @@ class BodyOptions:
 @dataclass
 class TrackOptions:
     heel_strike_g: float = _opt(2.0, "heel strike: foot acceleration peak above, g", min=0.0)
-    min_step_interval_s: float = _opt(0.4, "heel strikes at least this far apart, s", min=0.0)
+    min_step_interval_s: float = _opt(0.4, "heel strikes of one foot at least this far apart, s",
+                                      min=0.0)
     declination_deg: float = _opt(0.0, "local magnetic declination, deg east", min=-180.0,
                                   max=180.0)
 

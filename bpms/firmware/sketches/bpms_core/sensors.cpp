@@ -36,7 +36,7 @@ static bool init_accel(I2cBus& bus) {
     uint8_t id = 0;
     return i2c_read_regs(bus, ADXL345_ADDR, ADXL_DEVID, &id, 1) && id == ADXL_DEVID_VALUE &&
            i2c_write_reg(bus, ADXL345_ADDR, ADXL_POWER_CTL, 0x00) &&  // standby while configuring
-           i2c_write_reg(bus, ADXL345_ADDR, ADXL_DATA_FORMAT, ADXL_FULL_RES_2G) &&
+           i2c_write_reg(bus, ADXL345_ADDR, ADXL_DATA_FORMAT, ADXL_FULL_RES_16G) &&
            i2c_write_reg(bus, ADXL345_ADDR, ADXL_BW_RATE, ADXL_BW_RATE_50HZ) &&
            i2c_write_reg(bus, ADXL345_ADDR, ADXL_POWER_CTL, ADXL_MEASURE);
 }
@@ -87,7 +87,7 @@ bool sensor_read(I2cBus& bus, Sensor s, int16_t chip[AXES]) {
             chip[0] = get_le16s(b);
             chip[1] = get_le16s(b + 2);
             chip[2] = get_le16s(b + 4);
-            return in_range(chip, -512, 511);  // 10-bit at full resolution, +-2 g
+            return in_range(chip, ADXL_MIN, ADXL_MAX);
         case MAG:
             if (!i2c_read_regs(bus, HMC5883L_ADDR, HMC_DATA, b, 6) || all_ff(b, 6)) return false;
             chip[0] = get_be16s(b);

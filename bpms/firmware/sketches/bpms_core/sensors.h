@@ -16,11 +16,14 @@ const uint8_t ADXL345_ADDR = 0x53;   // SDO/ALT low on the stick
 const uint8_t HMC5883L_ADDR = 0x1E;
 const uint8_t ITG3200_ADDR = 0x68;   // AD0 low on the stick
 
-// ADXL345 registers and settings: full resolution, +-2 g (3.9 mg/LSB, 10-bit), 50 Hz ODR.
+// ADXL345 registers and settings: full resolution, +-16 g (3.9 mg/LSB = 256 LSB/g at every
+// range in full resolution, 13-bit), 50 Hz ODR. The original firmware used +-2 g (10-bit), which
+// clips heel strikes (2-5 g on the foot); the calibration units do not change.
 const uint8_t ADXL_DEVID = 0x00, ADXL_DEVID_VALUE = 0xE5;
 const uint8_t ADXL_BW_RATE = 0x2C, ADXL_BW_RATE_50HZ = 0x09;
 const uint8_t ADXL_POWER_CTL = 0x2D, ADXL_MEASURE = 0x08;
-const uint8_t ADXL_DATA_FORMAT = 0x31, ADXL_FULL_RES_2G = 0x08;
+const uint8_t ADXL_DATA_FORMAT = 0x31, ADXL_FULL_RES_16G = 0x0B;  // FULL_RES | range 11
+const int16_t ADXL_MIN = -4096, ADXL_MAX = 4095;  // 13-bit at full resolution, +-16 g
 const uint8_t ADXL_DATAX0 = 0x32;  // X0 X1 Y0 Y1 Z0 Z1, little-endian
 
 // HMC5883L registers and settings: 1 sample averaged, 75 Hz, gain 1090 LSB/G (0.917 mG/LSB,

@@ -40,7 +40,7 @@ void FakeChip::load_sample() {
     int16_t v[3] = {0, 0, 0};
     if (values) values(samples, v);
     if (pending_ == Fault::OUT_OF_RANGE) {
-        if (kind == bpms::ACCEL) v[0] = 600;          // beyond 10 bits at full resolution
+        if (kind == bpms::ACCEL) v[0] = 5000;         // beyond 13 bits at full resolution
         else if (kind == bpms::MAG) v[1] = -4096;     // the HMC5883L's overflow value
         else pending_ = Fault::ALL_FF;                // the gyro has no invalid range
     }

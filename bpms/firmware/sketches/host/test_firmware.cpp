@@ -200,7 +200,7 @@ TEST(cluster_configures_every_chip) {
     for (int slot = 0; slot < 3; ++slot) {
         auto& bus = s.cluster(2).bus;
         auto& a = bus.chip(slot, bpms::ACCEL);
-        CHECK_EQ(a.regs[bpms::ADXL_DATA_FORMAT], 0x08);  // full resolution, +-2 g
+        CHECK_EQ(a.regs[bpms::ADXL_DATA_FORMAT], 0x0B);  // full resolution, +-16 g
         CHECK_EQ(a.regs[bpms::ADXL_BW_RATE], 0x09);      // 50 Hz
         CHECK_EQ(a.regs[bpms::ADXL_POWER_CTL], 0x08);    // measuring
         CHECK(!a.writes.empty() && a.writes.back().first == bpms::ADXL_POWER_CTL);
@@ -257,7 +257,7 @@ TEST(cluster_error_bits_per_fault_kind) {
     c.bus.chip(1, bpms::MAG).fault = fault_at(2, sim::Fault::OUT_OF_RANGE);  // -4096 overflow
     c.bus.chip(2, bpms::GYRO).fault = fault_at(3, sim::Fault::ALL_FF);
     c.bus.chip(1, bpms::ACCEL).fault = fault_at(4, sim::Fault::SHORT_READ);
-    c.bus.chip(2, bpms::ACCEL).fault = fault_at(5, sim::Fault::OUT_OF_RANGE);  // > 10 bits
+    c.bus.chip(2, bpms::ACCEL).fault = fault_at(5, sim::Fault::OUT_OF_RANGE);  // > 13 bits
     CHECK_EQ(poll_and_sample(c), bpms::error_bit(0, bpms::ACCEL));  // sample 1
     CHECK(c.led.state);
     for (int ch = 0; ch < 3; ++ch) CHECK_EQ(bpms::get_be16s(c.logic.reply() + 2 * ch), 0);
@@ -269,6 +269,23 @@ TEST(cluster_error_bits_per_fault_kind) {
     CHECK_EQ(poll_and_sample(c), 0);  // every chip recovered
     CHECK(!c.led.state);
     CHECK_EQ(bpms::get_be16s(c.logic.reply()), expected(0, 0, 0, 6));
+}
+
+TEST(heel_strike_beyond_2g_is_a_valid_reading) {
+    // +-16 g at full resolution: 4 g (1024 counts) and -15.9 g are readings, not failures
+    Suit s;
+    auto& c = s.cluster(0);
+    c.bus.chip(0, bpms::ACCEL).values = [](uint32_t, int16_t v[3]) {
+        v[0] = 1024;
+        v[1] = -4070;
+        v[2] = 256;
+    };
+    poll_and_sample(c);  // stores a sample with the new values
+    CHECK_EQ(poll_and_sample(c), 0);
+    // board order swaps chip x and y (Razor AHRS SEN-10724)
+    CHECK_EQ(bpms::get_be16s(c.logic.reply()), -4070);
+    CHECK_EQ(bpms::get_be16s(c.logic.reply() + 2), 1024);
+    CHECK_EQ(bpms::get_be16s(c.logic.reply() + 4), 256);
 }
 
 TEST(cluster_reconfigures_a_chip_after_a_failure) {
