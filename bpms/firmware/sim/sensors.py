@@ -22,9 +22,9 @@ Raw counts (:func:`to_raw`): each vector goes into board axes through the IMU's 
 polarity (:data:`POLARITY`), then the calibration table's meaning is applied forwards: the
 accelerometer reads ``(min+max)/2 ± (max-min)/2`` at ±1 g, the magnetometer the same at ± the
 full field, the gyroscope ``avg + 14.375 counts per °/s`` (ITG-3200 data sheet). The
-accelerometer saturates at its configured range (:attr:`SensorModel.accel_range_g`, ±2 g as the
-firmware sets the ADXL345: full resolution keeps 256 counts per g, so the chip's output ends
-at ±range × 256 counts); everything saturates at int16.
+accelerometer saturates at its configured range (:attr:`SensorModel.accel_range_g`, ±16 g as the
+firmware sets the ADXL345; suits with older firmware ran at ±2 g. Full resolution keeps 256
+counts per g, so the chip's output ends at ±range × 256 counts); everything saturates at int16.
 """
 
 from __future__ import annotations
@@ -113,8 +113,9 @@ class SensorModel:
     heel_strike_g: float = 2.5  # peak |accel| on the foot IMU at a heel strike, g
     heel_strike_frames: int = 3  # length of the impact transient, frames
     #: The accelerometer's configured range, ±g (ADXL345: 2, 4, 8 or 16). The firmware sets
-    #: ±2 g; counts beyond ±range × 256 saturate (a heel strike above 2 g is clipped).
-    accel_range_g: float = 2.0
+    #: ±16 g (older firmware: ±2 g); counts beyond ±range × 256 saturate (at ±2 g a heel strike
+    #: above 2 g is clipped).
+    accel_range_g: float = 16.0
 
     def __post_init__(self) -> None:
         if self.accel_range_g not in ACCEL_RANGES_G:

@@ -121,7 +121,7 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
     error_rate: probability per frame, IMU and sensor of a failed reading (error bit set).
     calibration: the suit's *true* calibration table (default: the factory table).
     model: sensor settings (dip, noise levels, gyro bias, mounting error size, heel strikes,
-    the accelerometer's configured range ``accel_range_g``: ±2 g by default, as the firmware).
+    the accelerometer's configured range ``accel_range_g``: ±16 g by default, as the firmware).
     heading_deg: the subject's initial magnetic heading (yaw of the pelvis), degrees.
     """
     model = model or SensorModel()
