@@ -1,0 +1,203 @@
+"""No silent NaN: catch a filter state that is no rotation any more, in the frame it happens.
+
+A filter state can leave the rotations: a gain outside its stable range, absurd sensor values
+(a gyroscope pinned at full scale turns a DCM by 0.8 rad per step, more than the
+renormalisation can repair), non-finite input through the API. Left alone, the NaN stays for
+the rest of the stream. :func:`guarded_process` runs a bank's batch and checks every output
+DCM ``R`` of an IMU whose filter has produced an orientation since its last (re)start:
+
+- *bad* = any element non-finite, or ``‖RᵀR − I‖_F > SO3_TOLERANCE`` (1e-3);
+- that IMU's outputs of the bad frame are set to NaN (one frame, never more), the IMU is
+  re-initialised: its next valid frame aligns it from its accelerometer and magnetometer
+  exactly as at stream start (the bank's own initialisation);
+- the event is counted per IMU (:attr:`StateGuard.count`) and flagged per frame (the
+  ``reinitialised[N, n]`` array returned beside the outputs).
+
+A batch is filtered in one call as before; only when an event happens the bank is rewound to
+the start of the batch (:func:`snapshot` / :func:`restore`), re-run up to the bad frame,
+re-initialised and continued, so a batch and the same frames one by one give the same
+numbers. After an event the rest is filtered in chunks of 1, 2, 4... frames, so a stretch
+of absurd input costs one pass, not one pass per frame.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bpms.filter.bank import BankOutput
+
+#: ‖RᵀR − I‖ (Frobenius) above which a DCM is no rotation any more.
+SO3_TOLERANCE = 1e-3
+
+
+def so3_error(R: np.ndarray) -> np.ndarray:
+    """``‖RᵀR − I‖_F`` of ``R[..., 3, 3]`` (NaN where R is not finite)."""
+    R = np.asarray(R, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):  # a runaway state may overflow: bad
+        gram = np.swapaxes(R, -1, -2) @ R
+        return np.sqrt(((gram - np.eye(3)) ** 2).sum(axis=(-1, -2)))
+
+
+class StateGuard:
+    """Per-IMU bookkeeping: which IMUs must give a rotation, and the re-initialisation count.
+
+    ``expected[n]``: the IMU gave a finite orientation since its last (re)start (before that,
+    NaN is its normal output); ``count[n]``: re-initialisations so far.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.expected = np.zeros(n, dtype=np.bool_)
+        self.count = np.zeros(n, dtype=np.int64)
+
+    def forget(self, imu: int | np.ndarray | None = None) -> None:
+        """IMU ``imu`` (a bool mask, an index, or all when None) restarts: NaN is normal again
+        until it gives an orientation."""
+        if imu is None:
+            self.expected[:] = False
+        else:
+            self.expected[imu] = False
+
+    def bad(self, R: np.ndarray) -> np.ndarray:
+        """``[N, n]`` bool: frames where an IMU that should give a rotation does not."""
+        finite = np.isfinite(R).all(axis=(-1, -2))
+        err = np.where(finite, so3_error(np.where(finite[..., None, None], R, 0.0)), 0.0)
+        err = np.where(np.isfinite(err), err, np.inf)
+        # an IMU is expected from the frame after its first finite output on
+        seen = np.logical_or.accumulate(finite, axis=0)
+        before = np.vstack([self.expected[None], seen[:-1] | self.expected[None]])
+        return (finite & (err > SO3_TOLERANCE)) | (~finite & before)
+
+    def accept(self, R: np.ndarray) -> None:
+        """Outputs ``R[N, n, 3, 3]`` were delivered: IMUs with a finite one are expected."""
+        if len(R):
+            self.expected |= np.isfinite(R).all(axis=(-1, -2)).any(axis=0)
+
+
+# -- rewinding a bank -------------------------------------------------------------------------
+def snapshot(bank: Any) -> Any | None:
+    """A copy of ``bank``'s filter state (None for a bank kind this module does not know)."""
+    pending = getattr(bank, "_pending_reset", None)
+    if pending is None:
+        return None
+    state = getattr(bank, "state", None)
+    if state is not None and hasattr(state, "arrays"):
+        params = getattr(bank, "params", None)
+        return ("arrays", [a.copy() for a in state.arrays()], pending.copy(),
+                None if not isinstance(params, np.ndarray) else params.copy())
+    vqf = getattr(bank, "vqf", None)
+    if vqf is not None and hasattr(vqf, "filters"):
+        return ("vqf", [dict(f.state) for f in vqf.filters], pending.copy(),
+                bank._init.copy(), bank._held.copy(), bank._held_count.copy())
+    return None
+
+
+def restore(bank: Any, snap: Any) -> None:
+    """Put ``bank`` back to :func:`snapshot`'s state."""
+    kind = snap[0]
+    if kind == "arrays":
+        for target, saved in zip(bank.state.arrays(), snap[1], strict=True):
+            target[...] = saved
+        bank._pending_reset[:] = snap[2]
+        if snap[3] is not None:
+            bank.params[:] = snap[3]
+    else:
+        for flt, state in zip(bank.vqf.filters, snap[1], strict=True):
+            flt.state = state
+        bank._pending_reset[:] = snap[2]
+        bank._init[:] = snap[3]
+        bank._held[:] = snap[4]
+        bank._held_count[:] = snap[5]
+
+
+# -- the guarded batch ------------------------------------------------------------------------
+def _mark(out: BankOutput, rows: np.ndarray, imus: np.ndarray) -> None:
+    out.R[rows, imus] = np.nan
+    out.euler[rows, imus] = np.nan
+
+
+def _concat(parts: list[BankOutput]) -> BankOutput:
+    if len(parts) == 1:
+        return parts[0]
+    return BankOutput(np.concatenate([p.R for p in parts]),
+                      np.concatenate([p.euler for p in parts]))
+
+
+def _reinit(bank: Any, guard: StateGuard, imus: np.ndarray) -> None:
+    for i in np.flatnonzero(imus):
+        bank.reset(int(i))
+    guard.forget(imus)
+    guard.count += imus
+
+
+def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
+                    gyr: np.ndarray, errors: np.ndarray | None = None
+                    ) -> tuple[BankOutput, np.ndarray]:
+    """``bank.process`` of N frames (``[N, n, 3]`` inputs) with the state check: (outputs,
+    ``reinitialised[N, n]`` bool). See the module docstring."""
+    n_frames = len(acc)
+    flags = np.zeros((n_frames, guard.n), dtype=np.bool_)
+    parts: list[BankOutput] = []
+    pos, chunk = 0, max(n_frames, 1)
+    while pos < n_frames:
+        end = min(n_frames, pos + chunk)
+        snap = snapshot(bank) if end - pos > 1 else None
+        sl = slice(pos, end)
+        out = bank.process(acc[sl], mag[sl], gyr[sl],
+                           None if errors is None else errors[sl])
+        bad = guard.bad(out.R)
+        if not bad.any():
+            guard.accept(out.R)
+            parts.append(out)
+            pos, chunk = end, chunk * 2
+            continue
+        k = int(np.argmax(bad.any(axis=1)))
+        if snap is None and end - pos > 1:
+            # a bank that cannot rewind: NaN from each IMU's first bad frame to the batch end
+            first = np.where(bad.any(axis=0), np.argmax(bad, axis=0), end - pos)
+            rows = np.arange(end - pos)[:, None] >= first[None]
+            out.R[rows] = np.nan
+            out.euler[rows] = np.nan
+            guard.accept(out.R)
+            imus = bad.any(axis=0)
+            flags[pos + first[imus], np.flatnonzero(imus)] = True
+            _reinit(bank, guard, imus)
+            parts.append(out)
+            pos = end
+            continue
+        if k < end - pos - 1:  # rewind and filter up to the bad frame only
+            restore(bank, snap)
+            sl = slice(pos, pos + k + 1)
+            out = bank.process(acc[sl], mag[sl], gyr[sl],
+                               None if errors is None else errors[sl])
+        imus = bad[k]
+        _mark(out, np.array([k]), imus)
+        guard.accept(out.R[:k + 1])
+        flags[pos + k] = imus
+        _reinit(bank, guard, imus)
+        parts.append(out)
+        pos, chunk = pos + k + 1, 1
+    if not parts:
+        return bank.process(acc, mag, gyr, errors), flags
+    return _concat(parts), flags
+
+
+def guarded_step(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
+                 gyr: np.ndarray, errors: np.ndarray | None = None
+                 ) -> tuple[BankOutput, np.ndarray]:
+    """``bank.step`` of one live frame (``[n, 3]`` inputs) with the state check: (outputs,
+    ``reinitialised[n]``). A bad IMU gives NaN for this frame and re-initialises at the next."""
+    out = bank.step(acc, mag, gyr, errors)
+    bad = guard.bad(out.R[None])[0]
+    if bad.any():
+        out.R[bad] = np.nan
+        out.euler[bad] = np.nan
+        _reinit(bank, guard, bad)
+    guard.accept(out.R[None])
+    return out, bad
+
+
+__all__ = ["SO3_TOLERANCE", "StateGuard", "guarded_process", "guarded_step", "restore",
+           "snapshot", "so3_error"]
