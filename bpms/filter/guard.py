@@ -10,6 +10,8 @@ DCM ``R`` of an IMU whose filter has produced an orientation since its last (re)
 - that IMU's outputs of the bad frame are set to NaN (one frame, never more), the IMU is
   re-initialised: its next valid frame aligns it from its accelerometer and magnetometer
   exactly as at stream start (the bank's own initialisation);
+- non-finite *inputs* (only possible through the API: counts from the suit are integers) are
+  flagged as failed sensors (:func:`failed_inputs`), so the filter holds the last good value;
 - the event is counted per IMU (:attr:`StateGuard.count`) and flagged per frame (the
   ``reinitialised[N, n]`` array returned beside the outputs).
 
@@ -43,8 +45,9 @@ def so3_error(R: np.ndarray) -> np.ndarray:
 class StateGuard:
     """Per-IMU bookkeeping: which IMUs must give a rotation, and the re-initialisation count.
 
-    ``expected[n]``: the IMU gave a finite orientation since its last (re)start (before that,
-    NaN is its normal output); ``count[n]``: re-initialisations so far.
+    ``expected[n]``: the IMU gave a finite orientation since the stream (re)started or the
+    operator reset it (before that, NaN is its normal output; a re-initialisation by the guard
+    keeps it set); ``count[n]``: re-initialisations so far.
     """
 
     def __init__(self, n: int) -> None:
@@ -126,10 +129,21 @@ def _concat(parts: list[BankOutput]) -> BankOutput:
 
 
 def _reinit(bank: Any, guard: StateGuard, imus: np.ndarray) -> None:
+    # ``expected`` stays set: a re-initialisation that gives no rotation is caught again
     for i in np.flatnonzero(imus):
         bank.reset(int(i))
-    guard.forget(imus)
     guard.count += imus
+
+
+def failed_inputs(acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+                  errors: np.ndarray | None) -> np.ndarray | None:
+    """``errors`` (``[..., n, 3]`` accel/mag/gyro flags) with every non-finite input flagged
+    too, so the filters hold the last good value instead of taking NaN into their state
+    (counted in ``held_count``). ``errors`` itself when every input is finite."""
+    bad = np.stack([~np.isfinite(v).all(axis=-1) for v in (acc, mag, gyr)], axis=-1)
+    if not bad.any():
+        return errors
+    return bad if errors is None else (np.asarray(errors, dtype=np.bool_) | bad)
 
 
 def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
@@ -199,5 +213,5 @@ def guarded_step(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
     return out, bad
 
 
-__all__ = ["SO3_TOLERANCE", "StateGuard", "guarded_process", "guarded_step", "restore",
-           "snapshot", "so3_error"]
+__all__ = ["SO3_TOLERANCE", "StateGuard", "failed_inputs", "guarded_process", "guarded_step",
+           "restore", "snapshot", "so3_error"]

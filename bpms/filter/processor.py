@@ -52,7 +52,7 @@ import numpy as np
 
 from bpms.filter.algorithms import make_bank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
-from bpms.filter.guard import StateGuard, guarded_process, guarded_step
+from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarded_step
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
@@ -319,6 +319,8 @@ class BodyPoseProcessor:
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
         acc, mag, gyr = self.calibrate(raw)
+        if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
+            errors = failed_inputs(acc, mag, gyr, errors)
         out, reinit = guarded_process(self.bank, self.guard, acc, mag, gyr, errors)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R, zero_at)
@@ -326,7 +328,10 @@ class BodyPoseProcessor:
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
-        acc, mag, gyr = self.calibrate(np.asarray(raw)[None])
+        raw = np.asarray(raw)
+        acc, mag, gyr = self.calibrate(raw[None])
+        if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
+            errors = failed_inputs(acc[0], mag[0], gyr[0], errors)
         out, reinit = guarded_step(self.bank, self.guard, acc[0], mag[0], gyr[0], errors)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R[None])
