@@ -26,13 +26,17 @@ _announced: set[str] = set()
 
 
 def _announce_factory(kind: str) -> None:
-    """The one-line notice that ``kind`` ('options' / 'calibration') is the factory one;
-    once per process and kind."""
+    """The one-line notice that ``kind`` ('options' / 'calibration') is the factory one: one
+    line naming every default missing at that moment, once per process."""
     if kind in _announced:
         return
-    _announced.add(kind)
-    log.warning("no saved default %s in %s: factory %s used (save one with "
-                "'bpms config save-default')", kind, config_dir(), kind)
+    missing = [name for name, path in (("options", default_options_path()),
+                                       ("calibration", default_calibration_path()))
+               if not path.is_file()] or [kind]
+    _announced.update(missing)
+    what = " and ".join(missing)
+    log.warning("no saved default %s in %s: factory %s used (save with "
+                "'bpms config save-default')", what, config_dir(), what)
 
 
 def default_options(announce: bool = True) -> Options:
