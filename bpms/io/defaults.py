@@ -68,6 +68,17 @@ def default_calibration(announce: bool = True) -> CalibrationTable:
     return load_calibration(None)
 
 
+def calibration_source(announce: bool = True) -> str:
+    """Where the calibration used when none is given comes from: ``user default (PATH)`` or
+    ``factory`` (``announce``: the once-per-process notice when factory)."""
+    path = default_calibration_path()
+    if path.is_file():
+        return f"user default ({path})"
+    if announce:
+        _announce_factory("calibration")
+    return "factory"
+
+
 def options_or_default(path: str | Path | None, announce: bool = True) -> Options:
     """``path``'s options when given (explicit file), else :func:`default_options`."""
     if path:
