@@ -167,3 +167,12 @@ def test_body_height_scales_lengths_not_given_one_by_one():
         return z.max() - z.min()
 
     assert stature(tall.options.body) / stature(short.options.body) == pytest.approx(1.9 / 1.6)
+
+
+def test_the_documented_range_table_is_the_code_s():
+    from pathlib import Path
+
+    from bpms.io.options import ranges_markdown
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "configuration.md").read_text()
+    assert ranges_markdown() in doc

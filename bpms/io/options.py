@@ -317,6 +317,18 @@ def check_option(section: str, key: str, value: Any) -> Any:
     return checked
 
 
+def ranges_markdown() -> str:
+    """The valid-range table as a Markdown table (docs/configuration.md holds this text; a
+    test keeps the two equal)."""
+    rows = ["| option | valid values | factory | why |", "|---|---|---|---|"]
+    factory = Options()
+    for section, keys in VALID_RANGES.items():
+        for key, rng in keys.items():
+            value = getattr(getattr(factory, section), key)
+            rows.append(f"| `{section}.{key}` | {rng.describe()} | {value!r} | {rng.why} |")
+    return "\n".join(rows)
+
+
 def _is_hostport(text: Any) -> bool:
     if not isinstance(text, str) or ":" not in text:
         return False
