@@ -68,13 +68,13 @@ def status_line(status: LiveStatus, elapsed: float) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.filter.processor import BodyPoseProcessor
-    from bpms.io.defaults import calibration_or_default, options_or_default
+    from bpms.io.defaults import announce_factory, calibration_or_default, options_or_default
     from bpms.pipeline.session import LiveSession
     from bpms.pipeline.sources import SuitFrameSource
 
     # explicit file > the user's default > factory (a one-line notice when factory)
-    options = options_or_default(args.options)
-    table = calibration_or_default(args.calibration)
+    options = options_or_default(args.options, announce=False)
+    table = calibration_or_default(args.calibration, announce=False)
     for problem in (*options.problems, *table.problems):
         print(f"warning: {problem}", file=sys.stderr)
     # the calibration the header stores is the one the processor uses: --calibration (for a
@@ -93,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
         if server is not None:
             server.stop()
         raise CliError(str(exc)) from None
+    # the one-line notice about missing defaults, now that recording really starts
+    announce_factory(options=not args.options, calibration=not args.calibration)
     folder = Path(args.output or options.logging.directory)
     session = LiveSession(source, options, processor, recording_dir=folder, notes=args.notes)
     signal.signal(signal.SIGTERM, _interrupt)

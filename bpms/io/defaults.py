@@ -39,6 +39,19 @@ def _announce_factory(kind: str) -> None:
                 "'bpms config save-default')", what, config_dir(), what)
 
 
+def announce_factory(options: bool = True, calibration: bool = True) -> None:
+    """Say (once per process, one line) which of the defaults asked for are missing; for entry
+    points that read their files quietly first and speak once the session really starts."""
+    wanted = [("options", default_options_path(), options),
+              ("calibration", default_calibration_path(), calibration)]
+    missing = [kind for kind, path, asked in wanted if asked and not path.is_file()]
+    if missing and not set(missing) <= _announced:
+        _announced.update(missing)
+        what = " and ".join(missing)
+        log.warning("no saved default %s in %s: factory %s used (save with "
+                    "'bpms config save-default')", what, config_dir(), what)
+
+
 def default_options(announce: bool = True) -> Options:
     """The user's default options, or the factory options when none were saved
     (``announce``: say so once per process)."""
