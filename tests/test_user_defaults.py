@@ -114,3 +114,24 @@ def test_record_stores_the_explicit_calibration_for_a_real_suit_too(user, tmp_pa
     assert done.returncode == 0, done.stderr
     header = read_raw(next((tmp_path / "rec").glob("*port*.bpmsraw"))).header
     np.testing.assert_array_equal(np.asarray(header["calibration"]), load_calibration(site).values)
+
+
+def test_calibrate_make_default_then_merge_into_it(user, tmp_path, capsys):
+    from bpms.cli import main
+    from bpms.io.userdirs import default_calibration_path
+
+    fast = ["--sim", "--sim-speed", "0", "--yes", "--gyro-samples", "200", "--sensor", "gyro"]
+    out = tmp_path / "first" / "Calib.cfg"
+    assert main(["calibrate", *fast, "--imu", "2", "-o", str(out), "--make-default"]) == 0
+    assert "default calibration:" in capsys.readouterr().out
+    default = load_calibration(default_calibration_path())
+    np.testing.assert_array_equal(default.values, load_calibration(out).values)
+    assert not np.array_equal(default.values[2], load_factory_calibration().values[2])
+    # without --existing a new file merges into the default: IMU 2's gyro stays measured
+    second = tmp_path / "second" / "Calib.cfg"
+    assert main(["calibrate", *fast, "--imu", "5", "-o", str(second)]) == 0
+    merged = load_calibration(second).values
+    np.testing.assert_array_equal(merged[2], default.values[2])
+    # --yes without --make-default leaves the default as it was
+    np.testing.assert_array_equal(load_calibration(default_calibration_path()).values,
+                                  default.values)
