@@ -24,9 +24,11 @@ of absurd input costs one pass, not one pass per frame.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from bpms.filter.bank import BankOutput
 
@@ -40,6 +42,35 @@ def so3_error(R: np.ndarray) -> np.ndarray:
     with np.errstate(over="ignore", invalid="ignore"):  # a runaway state may overflow: bad
         gram = np.swapaxes(R, -1, -2) @ R
         return np.sqrt(((gram - np.eye(3)) ** 2).sum(axis=(-1, -2)))
+
+
+@njit(cache=True)
+def _check(R, expected, tol, bad, seen):
+    """bad[k, i]: IMU i should give a rotation at frame k (``expected`` or a finite frame
+    before k) and R[k, i] is non-finite, or finite with ‖RᵀR − I‖_F > tol. ``seen`` ends as
+    ``expected`` or'ed with "a finite frame in the batch". Scalars only, no allocation."""
+    for i in range(R.shape[1]):
+        seen[i] = expected[i]
+    for k in range(R.shape[0]):
+        for i in range(R.shape[1]):
+            finite = True
+            for a in range(3):
+                for b in range(3):
+                    if not math.isfinite(R[k, i, a, b]):
+                        finite = False
+            if not finite:
+                bad[k, i] = seen[i]
+                continue
+            err2 = 0.0
+            for a in range(3):
+                for b in range(3):
+                    g = R[k, i, 0, a] * R[k, i, 0, b] + R[k, i, 1, a] * R[k, i, 1, b] \
+                        + R[k, i, 2, a] * R[k, i, 2, b]
+                    if a == b:
+                        g -= 1.0
+                    err2 += g * g
+            bad[k, i] = not (err2 <= tol * tol)  # NaN / overflow count as bad
+            seen[i] = True
 
 
 class StateGuard:
@@ -64,14 +95,17 @@ class StateGuard:
             self.expected[imu] = False
 
     def bad(self, R: np.ndarray) -> np.ndarray:
-        """``[N, n]`` bool: frames where an IMU that should give a rotation does not."""
-        finite = np.isfinite(R).all(axis=(-1, -2))
-        err = np.where(finite, so3_error(np.where(finite[..., None, None], R, 0.0)), 0.0)
-        err = np.where(np.isfinite(err), err, np.inf)
-        # an IMU is expected from the frame after its first finite output on
-        seen = np.logical_or.accumulate(finite, axis=0)
-        before = np.vstack([self.expected[None], seen[:-1] | self.expected[None]])
-        return (finite & (err > SO3_TOLERANCE)) | (~finite & before)
+        """``[N, n]`` bool: frames where an IMU that should give a rotation does not (an IMU
+        is expected from the frame after its first finite output on)."""
+        bad, _ = self._check(R)
+        return bad
+
+    def _check(self, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        R = np.ascontiguousarray(R, dtype=np.float64)
+        bad = np.empty(R.shape[:2], dtype=np.bool_)
+        seen = np.empty(self.n, dtype=np.bool_)
+        _check(R, self.expected, SO3_TOLERANCE, bad, seen)
+        return bad, seen
 
     def accept(self, R: np.ndarray) -> None:
         """Outputs ``R[N, n, 3, 3]`` were delivered: IMUs with a finite one are expected."""
@@ -161,9 +195,9 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
         sl = slice(pos, end)
         out = bank.process(acc[sl], mag[sl], gyr[sl],
                            None if errors is None else errors[sl])
-        bad = guard.bad(out.R)
+        bad, seen = guard._check(out.R)
         if not bad.any():
-            guard.accept(out.R)
+            guard.expected[:] = seen
             parts.append(out)
             pos, chunk = end, chunk * 2
             continue
@@ -204,12 +238,13 @@ def guarded_step(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
     """``bank.step`` of one live frame (``[n, 3]`` inputs) with the state check: (outputs,
     ``reinitialised[n]``). A bad IMU gives NaN for this frame and re-initialises at the next."""
     out = bank.step(acc, mag, gyr, errors)
-    bad = guard.bad(out.R[None])[0]
+    bad, seen = guard._check(out.R[None])
+    bad = bad[0]
+    guard.expected[:] = seen
     if bad.any():
         out.R[bad] = np.nan
         out.euler[bad] = np.nan
         _reinit(bank, guard, bad)
-    guard.accept(out.R[None])
     return out, bad
 
 
