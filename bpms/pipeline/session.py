@@ -149,7 +149,11 @@ class LiveSession:
                  processor: BodyPoseProcessor | None = None, *,
                  recording_dir: str | Path | None = None, notes: str = "") -> None:
         self.source = source
-        self.options = options or Options()
+        if options is None:
+            from bpms.io.defaults import default_options
+
+            options = default_options(announce=False)  # the user's default, else factory
+        self.options = options
         self.processor = processor or BodyPoseProcessor(options=self.options)
         self.settings = SettingsQueue()
         self._reinit_seen = 0
@@ -254,8 +258,10 @@ class LiveSession:
         raw_path, filtered_path = self._namer.next_paths()
         status = RecordingStatus()
         if raw:
+            # what the processor runs with (run-time gains included): the recording can be
+            # filtered again with the same numbers
             header = new_header(calibration=self.processor.table.values,
-                                options=_options_dict(self.options), notes=self.notes,
+                                options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description)
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
             logger = _RawLogger(writer, status, self.note)
