@@ -424,11 +424,23 @@ def load_options(path: str | Path | None) -> Options:
 
 def format_options(options: Options) -> str:
     """Commented TOML text of ``options``."""
-    out = ["# BPMS Suite options. Each value has its unit in the comment above it.", ""]
+    out = ["# BPMS Suite options. Each value has its unit and valid range in the comment above "
+           "it (docs/configuration.md).", ""]
+    owner = {key: algo for algo, keys in ALGORITHM_SETTINGS.items() for key in keys}
     for name, section in options.sections().items():
         out.append(f"[{name}]")
-        for f in dataclasses.fields(section):
-            out.append(f"# {f.metadata.get('help', '')}")
+        fields = dataclasses.fields(section)
+        if name == "filter":  # shared settings first, then each filter's own, grouped
+            order = {algo: k for k, algo in enumerate(ALGORITHM_SETTINGS, start=1)}
+            fields = sorted(fields, key=lambda f: order.get(owner.get(f.name, ""), 0))
+        group = None
+        for f in fields:
+            if name == "filter" and owner.get(f.name) != group:
+                group = owner.get(f.name)
+                out.append(f"\n# ---- {group} settings (used when algorithm = '{group}') ----")
+            rng = f.metadata.get("range")
+            valid = f"; valid {rng.describe()}" if rng is not None else ""
+            out.append(f"# {f.metadata.get('help', '')}{valid}")
             out.append(tomli_w.dumps({f.name: getattr(section, f.name)}).rstrip())
         out.append("")
     return "\n".join(out)
