@@ -11,6 +11,7 @@ from bpms.filter.guard import SO3_TOLERANCE, so3_error
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.firmware.sim.server import PtyServer
+from bpms.io.filtered_file import read_filtered
 from bpms.io.options import SerialOptions
 from bpms.pipeline.session import LiveSession
 from bpms.pipeline.sources import SuitFrameSource
@@ -57,12 +58,14 @@ def test_the_unguarded_state_really_leaves_so3():
     assert so3_error(out.R[0]) > SO3_TOLERANCE
 
 
-def test_live_session_recovers_within_one_second_and_counts(absurd, clean):
+def test_live_session_recovers_within_one_second_and_counts(absurd, clean, tmp_path):
     arbiter = Arbiter(absurd, realtime=False)
     with PtyServer(arbiter) as server:
-        session = LiveSession(SuitFrameSource(server.path, SerialOptions()))
+        session = LiveSession(SuitFrameSource(server.path, SerialOptions()),
+                              recording_dir=tmp_path)
         sub = session.subscribe(maxlen=100_000)
         session.source.connect()
+        recording = session.start_logging(raw=False, filtered=True, name="guard")
         session.start()
         try:
             assert wait_until(lambda: session.status().processed >= 400, 60)
@@ -90,6 +93,10 @@ def test_live_session_recovers_within_one_second_and_counts(absurd, clean):
     reference = BodyPoseProcessor().process(clean.raw[:400], clean.errors[:400]).euler
     diff = np.angle(np.exp(1j * (euler[after:] - reference[after:])))
     assert np.degrees(np.abs(diff)).max() < 5.0
+    # the filtered file: no NaN row beyond the frames of the events
+    written = read_filtered(recording.filtered_path).euler[:400]
+    nan_rows = np.flatnonzero(~np.isfinite(written).all(axis=(1, 2)))
+    assert set(nan_rows) <= set(flagged) | set(range(start))
 
 
 def test_batch_and_frame_by_frame_agree_through_the_events(absurd):
