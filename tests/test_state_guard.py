@@ -58,6 +58,27 @@ def test_the_unguarded_state_really_leaves_so3():
     assert so3_error(out.R[0]) > SO3_TOLERANCE
 
 
+@pytest.mark.parametrize("dps", [300.0, 800.0, 1500.0, 2000.0])
+def test_fast_real_turns_are_no_event(dps):
+    # The DCM filter's first-order renormalisation leaves ‖RᵀR − I‖ above 1e-3 when it turns
+    # fast (3.7e-3 at 500 °/s); a fast but real motion up to the gyroscope's full scale
+    # (2000 °/s) must not count as a broken state.
+    from bpms.filter.bank import FilterBank
+    from bpms.filter.guard import StateGuard, guarded_process
+
+    n = 200
+    acc = np.tile([0.0, 0.0, 256.0], (n, 1, 1))
+    mag = np.tile([60.0, 0.0, 80.0], (n, 1, 1))
+    gyr = np.tile(np.radians(dps) * np.array([0.6, 0.0, 0.8]), (n, 1, 1))
+    gyr[:20] = 0.0
+    plain = FilterBank(np.full(1, 256.0)).process(acc, mag, gyr)
+    assert so3_error(plain.R).max() > SO3_TOLERANCE or dps < 500
+    guard = StateGuard(1)
+    out, flags = guarded_process(FilterBank(np.full(1, 256.0)), guard, acc, mag, gyr)
+    assert not flags.any() and guard.count.sum() == 0
+    np.testing.assert_array_equal(out.R, plain.R)
+
+
 def test_live_session_recovers_within_one_second_and_counts(absurd, clean, tmp_path):
     arbiter = Arbiter(absurd, realtime=False)
     with PtyServer(arbiter) as server:
