@@ -157,6 +157,8 @@ class LiveSession:
         self.processor = processor or BodyPoseProcessor(options=self.options)
         self.settings = SettingsQueue()
         self._reinit_seen = 0
+        self._reinit_noted = -1e9
+        self._reinit_imus: set[int] = set()
         self.notes = notes
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
@@ -462,13 +464,19 @@ class LiveSession:
             self._fanout.publish(sample)
 
     def _note_reinit(self, result) -> None:
-        """Each state-guard re-initialisation is an event (logged, in the status)."""
+        """State-guard re-initialisations are events (logged, in the status): every one is
+        counted (``LiveStatus.reinit_count``), at most one event line per second."""
         total = int(result.reinit_count.sum())
-        if total != self._reinit_seen:
-            imus = sorted({int(i) for i in result.reinitialised.nonzero()[1]})
+        if total == self._reinit_seen:
+            return
+        self._reinit_seen = total
+        self._reinit_imus.update(int(i) for i in result.reinitialised.nonzero()[1])
+        now = time.monotonic()
+        if now - self._reinit_noted >= 1.0:
             self.note(f"filter re-initialised (state not a rotation): IMU "
-                      f"{', '.join(map(str, imus))}; {total} so far")
-            self._reinit_seen = total
+                      f"{', '.join(map(str, sorted(self._reinit_imus)))}; {total} so far")
+            self._reinit_noted = now
+            self._reinit_imus.clear()
 
     def _log_filtered(self, events: list[FrameEvent], euler: np.ndarray,
                       angles: np.ndarray) -> None:
