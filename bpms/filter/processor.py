@@ -165,11 +165,7 @@ def _default_path() -> Path:
 def _load_table(calibration: str | Path | CalibrationTable | None) -> CalibrationTable:
     if isinstance(calibration, CalibrationTable):
         return calibration
-    if calibration is None:
-        from bpms.io.defaults import default_calibration
-
-        return default_calibration(announce=False)
-    return load_calibration(calibration)
+    return load_calibration(calibration)  # None: the factory table
 
 
 def _load_options(options: str | Path | Options | None) -> Options:
@@ -196,9 +192,11 @@ class BodyPoseProcessor:
 
     def __init__(self, calibration: str | Path | CalibrationTable | None = None,
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
+        # None: the user's default when one is saved (read as a path, so its ellipsoid fits
+        # come along), else the factory table
         user_default = calibration is None and _default_path().is_file()
         if user_default:
-            calibration = _default_path()  # read as a path: its ellipsoid fits come along
+            calibration = _default_path()
         self.table = _load_table(calibration)
         if user_default and not self.table.problems:
             self.table.source = f"user default ({calibration})"
