@@ -163,3 +163,37 @@ def test_non_finite_input_is_held_and_a_poisoned_state_is_caught(clean, live):
 def test_factory_run_has_no_events(clean):
     result = BodyPoseProcessor().process(clean.raw, clean.errors)
     assert not result.reinitialised.any() and result.reinit_count.sum() == 0
+
+
+@pytest.mark.parametrize("algorithm", ["mahony", "observer", "vqf"])
+def test_every_filter_rewinds_exactly_and_is_guarded(clean, algorithm):
+    from dataclasses import replace
+
+    from bpms.filter.algorithms import make_bank
+    from bpms.filter.guard import restore, snapshot
+    from bpms.io.options import FilterOptions
+
+    proc = BodyPoseProcessor()
+    acc, mag, gyr = proc.calibrate(clean.raw[:300])
+    bank = make_bank(proc.sensor_calibration.gravity, replace(FilterOptions(),
+                                                               algorithm=algorithm))
+    bank.process(acc[:100], mag[:100], gyr[:100])
+    snap = snapshot(bank)
+    assert snap is not None
+    first = bank.process(acc[100:], mag[100:], gyr[100:]).R
+    restore(bank, snap)
+    np.testing.assert_array_equal(bank.process(acc[100:], mag[100:], gyr[100:]).R, first)
+    # and a poisoned state in the middle of a batch is caught in its frame
+    proc.select_filter(algorithm)
+    proc.process(clean.raw[:100], clean.errors[:100])
+    if algorithm == "mahony":
+        proc.bank.state.R[5] *= 3.0
+    elif algorithm == "observer":
+        proc.bank.state.q[5] = np.nan
+    else:
+        state = proc.bank.vqf.filters[5].state
+        state["gyrQuat"] = np.full(4, np.nan)
+        proc.bank.vqf.filters[5].state = state
+    result = proc.process(clean.raw[100:300], clean.errors[100:300])
+    assert result.reinitialised[:2, 5].any() and result.reinit_count[5] == 1
+    assert np.isfinite(result.euler[2:]).all()

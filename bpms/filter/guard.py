@@ -157,7 +157,8 @@ def snapshot(bank: Any) -> Any | None:
                 None if not isinstance(params, np.ndarray) else params.copy())
     vqf = getattr(bank, "vqf", None)
     if vqf is not None and hasattr(vqf, "filters"):
-        return ("vqf", [dict(f.state) for f in vqf.filters], pending.copy(),
+        return ("vqf", [{k: np.copy(v) for k, v in f.state.items()} for f in vqf.filters],
+                pending.copy(),
                 bank._init.copy(), bank._held.copy(), bank._held_count.copy())
     return None
 
