@@ -127,3 +127,23 @@ def test_gains_panel_shows_the_selected_filters_own_settings(qtbot, tmp_path):
     window._set_gains({"kp_rollpitch": 2.0})
     assert "[0, 0.18]" in window.statusBar().currentMessage()
     window.close()
+
+
+def test_a_new_calibration_is_offered_as_the_default(qtbot, tmp_path):
+    from PyQt6.QtWidgets import QMessageBox
+
+    site = load_factory_calibration()
+    site.values[3, MX_MIN] -= 40.0
+    path = tmp_path / "Calib.cfg"
+    save_legacy(site, path)
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    box = startup.offer_calibration_default(path)  # what the wizard's "saved" leads to
+    assert box.isVisible() and str(path) in box.text()
+    box.button(QMessageBox.StandardButton.No).click()
+    assert not default_calibration_path().exists()
+    box = startup.offer_calibration_default(path)
+    box.button(QMessageBox.StandardButton.Yes).click()
+    np.testing.assert_array_equal(load_calibration(default_calibration_path()).values,
+                                  site.values)
+    assert "default calibration" in startup.status_label.text()
