@@ -129,7 +129,7 @@ def _opt(default: Any, help: str, **checks: Any) -> Any:
 
 @dataclass
 class FilterOptions:
-    """Attitude filter settings (SPEC §5); changeable at run time."""
+    """Attitude filter settings (docs/filter.md, docs/filters.md); changeable at run time."""
 
     algorithm: str = _opt(
         "mahony", "attitude filter for all 18 IMUs: 'mahony' (the original DCM filter), "
@@ -160,7 +160,8 @@ class FilterOptions:
 
 @dataclass
 class SensorOptions:
-    """Axis sign vectors from the calibrated board axes into the filter frame (SPEC §4)."""
+    """Axis sign vectors from the calibrated board axes into the filter frame
+    (docs/calibration.md)."""
 
     accel_signs: list[float] = _opt([1.0, 1.0, 1.0], "accelerometer x, y, z signs", signs=True)
     mag_signs: list[float] = _opt([1.0, -1.0, -1.0], "magnetometer x, y, z signs", signs=True)
@@ -204,8 +205,8 @@ class LoggingOptions:
 class PoseOptions:
     reset_window_s: float = _opt(0.5, "Reset Zero averages the DCMs over this still window, s")
     heading_reference: str = _opt(
-        "hip", "body heading at Reset Zero: 'hip' IMU (SPEC §6) or the 'mean' of all IMUs' "
-        "yaws (averages out mounting yaw errors)")
+        "hip", "body heading at Reset Zero: the 'hip' IMU's yaw (docs/filter.md) or the "
+        "'mean' of all IMUs' yaws (averages out mounting yaw errors)")
     corrected_output: bool = _opt(
         True, "per-IMU Euler angles shown, written and streamed are the segment orientations "
         "relative to the calibration pose (Reset Zero); false: the uncorrected sensor angles")
