@@ -21,3 +21,13 @@ _USER_ROOT = __import__("tempfile").mkdtemp(prefix="bpms-test-user-")
 for _variable, _sub in (("BPMS_CONFIG_DIR", "config"), ("BPMS_DATA_DIR", "data"),
                         ("BPMS_LOG_DIR", "log")):
     os.environ[_variable] = os.path.join(_USER_ROOT, _sub)
+
+
+@__import__("pytest").fixture(autouse=True)
+def _fresh_user_folder(tmp_path_factory, monkeypatch):
+    """Each test its own empty per-user folder: defaults saved or GUI settings remembered by
+    one test never reach the next."""
+    root = tmp_path_factory.mktemp("user")
+    for variable, sub in (("BPMS_CONFIG_DIR", "config"), ("BPMS_DATA_DIR", "data"),
+                          ("BPMS_LOG_DIR", "log")):
+        monkeypatch.setenv(variable, str(root / sub))

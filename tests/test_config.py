@@ -118,7 +118,7 @@ def test_options_round_trip(tmp_path):
     ("text", "where", "what"),
     [
         ("[filter]\nkp_yaw = 'fast'\n", "filter.kp_yaw", "not a number"),
-        ("[filter]\nkp_yaw = -1.0\n", "filter.kp_yaw", "below the minimum"),
+        ("[filter]\nkp_yaw = -1.0\n", "filter.kp_yaw", "outside the valid range [0, 50]"),
         ("[display]\nangle_unit = 'grad'\n", "display.angle_unit", "not one of"),
         ("[sensors]\nmag_signs = [1, -1]\n", "sensors.mag_signs", "three signs"),
         ("[udp]\nforward_to = ['nowhere']\n", "udp.forward_to", "host:port"),

@@ -97,7 +97,10 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="calibration file to write (the modern .json goes beside it)")
     p.add_argument("--existing", metavar="FILE",
                    help="merge into this file (default: the output file when it exists, "
-                        "else the factory table)")
+                        "else your default calibration, else the factory table)")
+    p.add_argument("--make-default", action="store_true",
+                   help="also make the result your default calibration (bpms config); "
+                        "without it you are asked")
     p.add_argument("--gyro-samples", type=int, default=500, metavar="N",
                    help="gyro readings averaged per axis (default 500 = 10 s)")
     p.add_argument("--accel-samples", type=int, default=200, metavar="N",
@@ -319,7 +322,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.exists() and out.is_dir():
         raise CliError(f"{out} is a folder; give a file name such as Calib.cfg")
-    existing_path = args.existing or (out if out.exists() else None)
+    existing_path = args.existing or (out if out.exists() else _user_default())
     if args.existing and not Path(args.existing).is_file():
         raise CliError(f"--existing {args.existing}: no such file")
     existing = load_existing(existing_path)
@@ -366,4 +369,30 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"cannot write {out} ({exc.strerror or exc}); the calibration was saved "
                        f"to {fallback} instead") from None
     term.say(f"saved {legacy} and {modern}")
+    _offer_default(args, term, legacy)
     return 0
+
+
+def _user_default() -> Path | None:
+    from bpms.io.userdirs import default_calibration_path
+
+    path = default_calibration_path()
+    return path if path.is_file() else None
+
+
+def _offer_default(args: argparse.Namespace, term: Terminal, legacy: Path) -> None:
+    """--make-default, or (interactive) a question: the result becomes the user's default."""
+    from bpms.io.defaults import save_default_calibration
+
+    make = args.make_default
+    if not make and not args.yes:
+        term.say("make it your default calibration (used when none is given)? [y/N]")
+        try:
+            make = term.lines.get(timeout=600) in ("y", "yes")
+        except queue.Empty:
+            make = False
+    if make:
+        try:
+            term.say(f"default calibration: {save_default_calibration(legacy)}")
+        except (OSError, ValueError) as exc:
+            term.say(f"not made the default: {exc}")

@@ -20,7 +20,6 @@ from bpms.commands import CliError
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import PtyServer
 from bpms.io.link import LinkError
-from bpms.io.options import load_options
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
 
@@ -63,16 +62,24 @@ def status_line(status: LiveStatus, elapsed: float) -> str:
     return (f"t {elapsed:7.1f} s  {src.state:<10}  {status.rate_hz:5.1f} Hz  "
             f"frames {status.frames:7d}  {raw}  error bits {status.error_bits:5d}  "
             f"resyncs {src.resyncs:3d}  links lost {src.counters.get('links_lost', 0)}  "
-            f"battery {battery}")
+            f"battery {battery}"
+            + (f"  filter re-inits {status.reinit_count}" if status.reinit_count else ""))
 
 
 def run(args: argparse.Namespace) -> int:
+    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.io.defaults import announce_factory, calibration_or_default, options_or_default
     from bpms.pipeline.session import LiveSession
     from bpms.pipeline.sources import SuitFrameSource
 
-    options = load_options(args.options)
-    for problem in options.problems:
+    # explicit file > the user's default > factory (a one-line notice when factory)
+    options = options_or_default(args.options, announce=False)
+    table = calibration_or_default(args.calibration, announce=False)
+    for problem in (*options.problems, *table.problems):
         print(f"warning: {problem}", file=sys.stderr)
+    # the calibration the header stores is the one the processor uses: --calibration (for a
+    # real suit as for the simulated one), else the user's default
+    processor = BodyPoseProcessor(args.calibration or None, options)
     server = None
     port = args.port
     if args.sim:
@@ -86,8 +93,10 @@ def run(args: argparse.Namespace) -> int:
         if server is not None:
             server.stop()
         raise CliError(str(exc)) from None
+    # the one-line notice about missing defaults, now that recording really starts
+    announce_factory(options=not args.options, calibration=not args.calibration)
     folder = Path(args.output or options.logging.directory)
-    session = LiveSession(source, options, recording_dir=folder, notes=args.notes)
+    session = LiveSession(source, options, processor, recording_dir=folder, notes=args.notes)
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, signal.default_int_handler)
     recording = None

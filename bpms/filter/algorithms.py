@@ -55,6 +55,11 @@ class AttitudeBank(Protocol):
 
     def set_gains(self, **gains: float) -> None: ...
 
+    def set_options(self, options: FilterOptions) -> None:
+        """Run with ``options`` (every filter's settings) from the next frame on; the
+        processor's single way to change settings (it keeps ``options`` itself)."""
+        ...
+
     @property
     def initialised(self) -> np.ndarray: ...
 

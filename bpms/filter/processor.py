@@ -27,7 +27,13 @@ What happens, frame by frame (details in docs/filter.md):
   first frame where all 18 IMUs are initialised, the automatic capture 1.0 s into the stream
   (0.5 s settling + the ``Options.pose.reset_window_s`` window, averaged), and one on each
   request; segment orientations ``C = R R0^T Rz(ψ0)``;
-- joint angles and stick-figure joint positions (per-subject lengths ``Options.body``).
+- joint angles and stick-figure joint positions (per-subject lengths ``Options.body``);
+- the state guard (:mod:`bpms.filter.guard`): an IMU whose filter state stops being a rotation
+  gives NaN for that one frame, is re-initialised from its next valid frame and counted
+  (``reinit_count``, ``Result.reinitialised``).
+
+Calibration and options left out (None) are the user's defaults (:mod:`bpms.io.defaults`),
+else the factory ones; docs/configuration.md gives the precedence.
 
 The first frame given after construction or :meth:`BodyPoseProcessor.restart` is the first
 frame of the stream: dropping the stale first frame after a pause (SPEC §3) is the job of the
@@ -36,6 +42,7 @@ acquisition layer, which does not record it.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -47,12 +54,13 @@ from bpms.filter.algorithms import make_bank
 from bpms.filter.bank import BankOutput, FilterBank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
+from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarded_step
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
-from bpms.filter.rotations import dcm_to_quaternion
+from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
-from bpms.io.options import BodyOptions, Options, load_options
+from bpms.io.options import BodyOptions, Options, check_option, load_options
 from bpms.io.recordings import open_recording
 
 #: Seconds the filters settle after the stream starts before the automatic Reset Zero window.
@@ -64,10 +72,17 @@ class Result:
     """Outputs of N frames. Angles in radians, lengths in metres, frames as SPEC §5/§6.
 
     t: ``[N]`` s since the stream started, on the fixed filter clock (frame index × dt);
-    R: ``[N, 18, 3, 3]`` DCM filter frame → NED; euler: ``[N, 18, 3]`` (roll, pitch, yaw);
+    R: ``[N, 18, 3, 3]`` DCM filter frame → NED; euler (= :attr:`euler_sensor`):
+    ``[N, 18, 3]`` (roll, pitch, yaw) of R, the uncorrected sensor angles;
     C: ``[N, 18, 3, 3]`` segment orientations after Reset Zero (NaN before the first capture);
+    :attr:`euler_segment` their Euler angles; :attr:`euler_output` the per-IMU angles to show,
+    write and stream (segment angles when ``corrected``, docs/filter.md);
     joint_angles: ``[N, 28]``; joint_positions: ``[N, 21, 3]``; NaN where an IMU involved is
     not initialised. held_count: ``[18, 3]`` filter steps so far that used a held value.
+    reinitialised: ``[N, 18]`` bool, the state guard re-initialised that IMU at that frame
+    (its outputs are NaN in that frame only); reinit_count: ``[18]`` re-initialisations so far.
+    corrected: ``[N]`` bool, :attr:`euler_output` holds segment angles at that frame (the
+    corrected output is switched on and a Reset Zero capture exists).
     """
 
     t: np.ndarray
@@ -85,6 +100,16 @@ class Result:
     body_acc: np.ndarray | None = field(default=None, repr=False)
     #: per-frame disturbance indicators (:class:`bpms.filter.disturbance.Disturbance`)
     disturbance: Disturbance | None = field(default=None, repr=False)
+    reinitialised: np.ndarray | None = field(default=None, repr=False)
+    reinit_count: np.ndarray = field(default_factory=lambda: np.zeros(N_IMUS, np.int64))
+    corrected: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.t)
+        if self.reinitialised is None:
+            self.reinitialised = np.zeros((n, N_IMUS), dtype=np.bool_)
+        if self.corrected is None:
+            self.corrected = np.zeros(n, dtype=np.bool_)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -108,7 +133,26 @@ class Result:
                       zeros=[z for p in parts for z in p.zeros],
                       problems=[x for p in parts for x in p.problems],
                       gyro_bias=join("gyro_bias"), body_acc=join("body_acc"),
-                      disturbance=dist)
+                      disturbance=dist, reinitialised=join("reinitialised"),
+                      reinit_count=last.reinit_count, corrected=join("corrected"))
+
+    @property
+    def euler_sensor(self) -> np.ndarray:
+        """``[N, 18, 3]`` rad: roll, pitch, yaw of each IMU's filter DCM ``R`` (sensor frame
+        → NED), uncorrected by Reset Zero. The same array as :attr:`euler`."""
+        return self.euler
+
+    @cached_property
+    def euler_segment(self) -> np.ndarray:
+        """``[N, 18, 3]`` rad: roll, pitch, yaw of the segment orientations ``C`` (relative to
+        the calibration pose, heading as ``pose.heading_reference``); NaN before Reset Zero."""
+        return dcm_to_euler(self.C)
+
+    @cached_property
+    def euler_output(self) -> np.ndarray:
+        """``[N, 18, 3]`` rad: the per-IMU angles the table, plots, filtered file and streams
+        give: :attr:`euler_segment` at frames where ``corrected``, else :attr:`euler_sensor`."""
+        return np.where(self.corrected[:, None, None], self.euler_segment, self.euler)
 
     @cached_property
     def _body(self) -> tuple[np.ndarray, np.ndarray]:
@@ -143,30 +187,50 @@ def _quaternions(R: np.ndarray) -> np.ndarray:
     return out
 
 
+def _default_path() -> Path:
+    from bpms.io.userdirs import default_calibration_path
+
+    return default_calibration_path()
+
+
 def _load_table(calibration: str | Path | CalibrationTable | None) -> CalibrationTable:
     if isinstance(calibration, CalibrationTable):
         return calibration
-    return load_calibration(calibration)
+    return load_calibration(calibration)  # None: the factory table
 
 
 def _load_options(options: str | Path | Options | None) -> Options:
     if isinstance(options, Options):
-        return options
+        # the processor's own copy: nothing outside (a GUI form, another thread) writes it
+        return copy.deepcopy(options)
+    if options is None:
+        from bpms.io.defaults import default_options
+
+        return default_options(announce=False)
     return load_options(options)
 
 
 class BodyPoseProcessor:
     """Raw frames in, orientations / joint angles / joint positions out.
 
-    calibration: None (factory table), a ``Calib.cfg`` path or a CalibrationTable.
-    options: None (factory options), an options-file path or an Options object.
+    calibration: None (the user's default, else the factory table), a ``Calib.cfg`` path or a
+    CalibrationTable.
+    options: None (the user's default, else factory options), an options-file path or an
+    Options object (copied: later changes go through :meth:`set_gains` and friends).
     auto_zero: run the provisional and automatic Reset Zero at the start of the stream.
     Problems with the files are in ``.problems`` (never raised).
     """
 
     def __init__(self, calibration: str | Path | CalibrationTable | None = None,
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
+        # None: the user's default when one is saved (read as a path, so its ellipsoid fits
+        # come along), else the factory table
+        user_default = calibration is None and _default_path().is_file()
+        if user_default:
+            calibration = _default_path()
         self.table = _load_table(calibration)
+        if user_default and not self.table.problems:
+            self.table.source = f"user default ({calibration})"
         self.options = _load_options(options)
         ellipsoids = {}
         if isinstance(calibration, str | Path):
@@ -192,13 +256,21 @@ class BodyPoseProcessor:
                                    heading=self.options.pose.heading_reference)
         self.frames = 0
         self.disturbance = DisturbanceTracker(self.sensor_calibration.gravity, dt)
+        self.guard = StateGuard(N_IMUS)
+        self.corrected_output = self.options.pose.corrected_output
         self.problems = [str(p) for p in (*self.table.problems, *self.options.problems)]
+
+    @property
+    def reinit_count(self) -> np.ndarray:
+        """``[18]`` re-initialisations by the state guard so far (a copy)."""
+        return self.guard.count.copy()
 
     # -- controls -----------------------------------------------------------------------
     def restart(self) -> None:
         """A new stream: every filter re-initialises on its next valid frame, Reset Zero
         forgets its capture and the automatic captures run again."""
         self.bank.reset()
+        self.guard.forget()
         self.pose.restart()
         self.disturbance.reset()
         self.frames = 0
@@ -206,6 +278,14 @@ class BodyPoseProcessor:
     def reset_filter(self, imu: int | None = None) -> None:
         """Re-initialise one IMU's filter (all when None) at its next valid frame."""
         self.bank.reset(imu)
+        self.guard.forget(imu)
+
+    def set_corrected_output(self, on: bool | None = None) -> bool:
+        """Per-IMU output angles corrected by Reset Zero (True) or the sensor angles (False);
+        None toggles (the original's ``v`` key). Applies from the next frame; returns the new
+        state."""
+        self.corrected_output = (not self.corrected_output) if on is None else bool(on)
+        return self.corrected_output
 
     def reset_zero(self) -> None:
         """Reset Zero: capture at the next frame, averaged over the window ending there."""
@@ -215,17 +295,26 @@ class BodyPoseProcessor:
         """Change ``kp_rollpitch``, ``ki_rollpitch``, ``kp_yaw``, ``ki_yaw``, ``dt`` (s)
         from the next frame on (Mahony); the other filters take their
         :class:`bpms.io.options.FilterOptions` names (``observer_k_incl``, ``vqf_tau_acc_s``,
-        ...)."""
-        self.bank.set_gains(**gains)
+        ...). Every value is checked first against :data:`bpms.io.options.VALID_RANGES`:
+        one outside raises :class:`bpms.io.options.OptionRangeError` (a ValueError naming the
+        range) and nothing changes. Each filter's values are kept in ``options.filter``, so
+        switching filter and back (:meth:`select_filter`) keeps them."""
+        checked = {name: check_option("filter", name, value) for name, value in gains.items()}
+        if "algorithm" in checked:
+            raise ValueError("use select_filter() to change the attitude filter")
+        options = dataclasses.replace(self.options.filter, **checked)
+        self.bank.set_options(options)
+        self.options.filter = options
 
     def select_filter(self, algorithm: str) -> None:
         """Switch all 18 IMUs to another attitude filter (``FilterOptions.algorithm``
-        choices); the new filters align on their next valid frame, Reset Zero is kept.
-        Raises ValueError for an unknown name, ``VqfMissingError`` without the vqf package."""
-        from dataclasses import replace
-
-        options = replace(self.options.filter, algorithm=algorithm)
+        choices); the new filters align on their next valid frame, Reset Zero is kept, and
+        the new filter starts from its own values in ``options.filter`` (run-time changes
+        included). Raises ValueError for an unknown name, ``VqfMissingError`` without the vqf
+        package."""
+        options = dataclasses.replace(self.options.filter, algorithm=algorithm)
         self.bank = make_bank(self.sensor_calibration.gravity, options)
+        self.guard.forget()
         self.options.filter = options
 
     # -- running ------------------------------------------------------------------------
@@ -243,16 +332,20 @@ class BodyPoseProcessor:
         return outs
     def _result(self, n: int, out: BankOutput, C: np.ndarray, captures_before: int,
                 acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-                errors: np.ndarray | None) -> Result:
+                errors: np.ndarray | None, reinitialised: np.ndarray) -> Result:
         t = (self.frames + np.arange(n)) * self.options.filter.dt
         self.frames += n
         bias = out.gyro_bias
         if bias is None and out.w_i is not None:
             bias = -out.w_i.reshape(out.euler.shape)  # the Mahony integral term is −bias
+        # corrected from the first Reset Zero capture on (C is all NaN before it)
+        corrected = self.corrected_output & np.isfinite(C).all(axis=(-1, -2)).any(axis=1)
         return Result(t=t, R=out.R, euler=out.euler, C=C, body=self.options.body,
                       held_count=self.bank.held_count, zeros=self.pose.captures[captures_before:],
                       gyro_bias=bias, body_acc=out.body_acc,
-                      disturbance=self.disturbance.update(acc, mag, gyr, out.R, errors))
+                      disturbance=self.disturbance.update(acc, mag, gyr, out.R, errors),
+                      reinitialised=reinitialised, reinit_count=self.guard.count.copy(),
+                      corrected=corrected)
 
     def process(self, raw: np.ndarray, errors: np.ndarray | None = None,
                 zero_at: list[int] | tuple[int, ...] = ()) -> Result:
@@ -263,22 +356,27 @@ class BodyPoseProcessor:
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
         acc, mag, gyr = self.calibrate(raw)
+        if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
+            errors = failed_inputs(acc, mag, gyr, errors)
         terms = {"store_terms": True} if isinstance(self.bank, FilterBank) else {}
-        out = self.bank.process(acc, mag, gyr, errors=errors, **terms)
+        out, reinit = guarded_process(self.bank, self.guard, acc, mag, gyr, errors, **terms)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R, zero_at)
-        return self._result(len(raw), out, C, before, acc, mag, gyr, errors)
+        return self._result(len(raw), out, C, before, acc, mag, gyr, errors, reinit)
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
-        acc, mag, gyr = self.calibrate(np.asarray(raw)[None])
-        out = self.bank.step(acc[0], mag[0], gyr[0], errors)
+        raw = np.asarray(raw)
+        acc, mag, gyr = self.calibrate(raw[None])
+        if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
+            errors = failed_inputs(acc[0], mag[0], gyr[0], errors)
+        out, reinit = guarded_step(self.bank, self.guard, acc[0], mag[0], gyr[0], errors)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R[None])
         out = BankOutput(*(None if v is None else v[None]
                            for v in (getattr(out, f.name) for f in dataclasses.fields(out))))
         return self._result(1, out, C, before, acc, mag, gyr,
-                            None if errors is None else np.asarray(errors)[None])
+                            None if errors is None else np.asarray(errors)[None], reinit[None])
 
     def process_file(self, path: str | Path, zero_at: list[int] | tuple[int, ...] = ()) -> Result:
         """Filter a whole raw recording — native (:func:`bpms.io.rawfile.read_raw`) or a

@@ -39,15 +39,16 @@ def run(*, options_path: str | None = None, calibration_path: str | None = None,
 
     from bpms.gui.startup import StartupWindow
     from bpms.io.calib_file import load_calibration
-    from bpms.io.options import Options, load_options
+    from bpms.io.options import load_options
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("BPMS Suite")
-    options = load_options(options_path) if options_path else Options()
+    # none given: the start-up window takes the user's defaults (else factory)
+    options = load_options(options_path) if options_path else None
     calibration = load_calibration(calibration_path) if calibration_path else None
     startup = StartupWindow(options, calibration, recording_dir)
     startup.seed_spin.setValue(seed)
-    if options.problems:
+    if options is not None and options.problems:
         startup.load_options_file(options_path)  # shows the warning dialog
     if calibration is not None and calibration.problems:
         startup.load_calibration_file(calibration_path)

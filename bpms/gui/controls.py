@@ -27,7 +27,7 @@ from PyQt6.QtWidgets import (
 
 from bpms.gui.modes import SessionRunner
 from bpms.io.frames import FRAME_PERIOD_S
-from bpms.io.options import FilterOptions
+from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, option_range
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
 from bpms.pipeline.session import LiveStatus
@@ -103,8 +103,9 @@ class StatusPanel(QGroupBox):
 
 
 class GainsPanel(QGroupBox):
-    """The attitude filter (all 18 IMUs) and the Mahony gains, editable at run time (applied
-    from the next frame on)."""
+    """The attitude filter (all 18 IMUs) and the selected filter's own settings, editable at
+    run time (applied from the next frame on). Each box's range is the option's valid range
+    (``bpms.io.options.VALID_RANGES``)."""
 
     gainsChanged = pyqtSignal(dict)
     filterChanged = pyqtSignal(str)
@@ -116,23 +117,39 @@ class GainsPanel(QGroupBox):
         self.filter_combo = QComboBox()
         self.filter_combo.addItems(list(fields["algorithm"].metadata["choices"]))
         self.filter_combo.setCurrentText(options.algorithm)
-        self.filter_combo.setToolTip("mahony: the original DCM filter (SPEC §5); observer and "
+        self.filter_combo.setToolTip("mahony: the original DCM filter; observer and "
                                      "vqf keep the attitude right under body acceleration "
                                      "(docs/filters.md)")
         self.filter_combo.currentTextChanged.connect(self.filterChanged.emit)
+        self.filter_combo.currentTextChanged.connect(self.show_settings_of)
         form.addRow("filter", self.filter_combo)
         self.boxes: dict[str, QDoubleSpinBox] = {}
-        for name in GAIN_NAMES:
-            box = QDoubleSpinBox()
-            box.setDecimals(6)
-            box.setRange(0.0, 100.0)
-            box.setSingleStep(0.001 if name.startswith("kp") else 0.00001)
-            box.setValue(getattr(options, name))
-            box.setToolTip(fields[name].metadata.get("help", ""))
-            box.setKeyboardTracking(False)
-            box.valueChanged.connect(lambda v, n=name: self.gainsChanged.emit({n: v}))
-            self.boxes[name] = box
-            form.addRow(name, box)
+        self.labels: dict[str, QLabel] = {}
+        for algorithm, names in ALGORITHM_SETTINGS.items():
+            for name in names:
+                rng = option_range("filter", name)
+                box = QDoubleSpinBox()
+                box.setDecimals(6)
+                box.setRange(rng.lo if rng and rng.lo is not None else 0.0,
+                             rng.hi if rng and rng.hi is not None else 1e6)
+                box.setSingleStep(0.00001 if name.startswith("ki") else 0.001
+                                  if algorithm == "mahony" else 0.01)
+                box.setValue(getattr(options, name))
+                box.setToolTip(f"{fields[name].metadata.get('help', '')}; valid "
+                               f"{rng.describe() if rng else 'any'}")
+                box.setKeyboardTracking(False)
+                box.valueChanged.connect(lambda v, n=name: self.gainsChanged.emit({n: v}))
+                self.boxes[name] = box
+                self.labels[name] = QLabel(name.removeprefix(f"{algorithm}_"))
+                form.addRow(self.labels[name], box)
+        self.show_settings_of(options.algorithm)
+
+    def show_settings_of(self, algorithm: str) -> None:
+        """Show only ``algorithm``'s own settings."""
+        mine = set(ALGORITHM_SETTINGS.get(algorithm, ()))
+        for name, box in self.boxes.items():
+            box.setVisible(name in mine)
+            self.labels[name].setVisible(name in mine)
 
 
 class FilePanel(QGroupBox):

@@ -172,7 +172,11 @@ class MainWindow(QMainWindow):
 
     def _set_gains(self, gains: dict) -> None:
         if self.runner.session is not None:
-            self.runner.session.set_gains(**gains)
+            try:
+                self.runner.session.set_gains(**gains)
+            except ValueError as exc:  # outside the valid range: refused, said why
+                self.statusBar().showMessage(str(exc), 8000)
+                return
             setattr_all = self.options.filter
             for name, value in gains.items():
                 setattr(setattr_all, name, value)

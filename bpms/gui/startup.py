@@ -39,8 +39,10 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
+from bpms.gui import settings_store
 from bpms.gui.main_window import MainWindow, optional_module
 from bpms.gui.modes import MODE_LABELS, MODES, ModeConfig, ModeError, SessionRunner
+from bpms.io import defaults
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.link import discover_suit, list_candidate_ports
 from bpms.io.options import Options, load_options, options_from_dict, save_options
@@ -172,6 +174,11 @@ class OptionsDialog(QDialog):
                                    | QDialogButtonBox.StandardButton.Cancel)
         self.save_button = buttons.addButton("Save as…", QDialogButtonBox.ButtonRole.ActionRole)
         self.save_button.clicked.connect(self._save_as)
+        self.default_button = buttons.addButton("Save as default",
+                                                QDialogButtonBox.ButtonRole.ActionRole)
+        self.default_button.setToolTip("Use these options whenever none are given "
+                                       "(bpms config shows where they are kept)")
+        self.default_button.clicked.connect(self.save_as_default)
         buttons.accepted.connect(self.accept)
         buttons.rejected.connect(self.reject)
         layout = QVBoxLayout(self)
@@ -206,6 +213,10 @@ class OptionsDialog(QDialog):
         save_options(options, path)
         return options
 
+    def save_as_default(self) -> Path:
+        """Make the form's options the user's default (docs/configuration.md)."""
+        return defaults.save_default_options(self.options())
+
     def _save_as(self) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Save options", "options.toml",
                                               "TOML (*.toml)")
@@ -224,8 +235,10 @@ class StartupWindow(QWidget):
                  recording_dir: str | None = None, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("BPMS Suite — start")
-        self.options = options or Options()
-        self.calibration = calibration
+        # none given: the user's defaults, else factory (one notice in the log)
+        self.options = options or defaults.default_options()
+        self.calibration = calibration  # None: the user's default, else factory
+        self.calibration_path: str | None = None
         self.recording_dir = recording_dir
         self.main_window: MainWindow | None = None
         self.last_dialog: QMessageBox | None = None
@@ -285,6 +298,11 @@ class StartupWindow(QWidget):
         row.addWidget(load_cal)
         row.addWidget(self.wizard_button)
         form.addRow("Calibration", row)
+        self.default_button = QPushButton("Save as default")
+        self.default_button.setToolTip("Use these options and this calibration whenever none "
+                                       "are given, from the next start on (bpms config)")
+        self.default_button.clicked.connect(self.save_as_default)
+        form.addRow("", self.default_button)
         layout.addWidget(files_box)
 
         # -- GO ----------------------------------------------------------------------------
@@ -305,6 +323,7 @@ class StartupWindow(QWidget):
         self.refresh_ports()
         self.select_mode("suit" if self.port_combo.count() else "sim")
         self.resize(760, 420)
+        settings_store.restore_startup(self)  # mode, port, folder... of the last launch
 
     # -- pages -----------------------------------------------------------------------------
     def _suit_page(self) -> QWidget:
@@ -415,7 +434,22 @@ class StartupWindow(QWidget):
     def _show_files(self) -> None:
         self.options_label.setText(f"{self.options.source}")
         self.calibration_label.setText(self.calibration.source if self.calibration
-                                       else "factory")
+                                       else defaults.calibration_source())
+
+    def save_as_default(self) -> str:
+        """Make the options and calibration in force the user's defaults; returns what was
+        said in the status line."""
+        try:
+            saved = [f"options → {defaults.save_default_options(self.options)}"]
+            if self.calibration is not None:
+                source = self.calibration_path or self.calibration
+                saved.append(f"calibration → {defaults.save_default_calibration(source)}")
+        except (OSError, ValueError) as exc:
+            message = f"not saved as default: {exc}"
+        else:
+            message = "saved as default: " + "; ".join(saved)
+        self.status_label.setText(message)
+        return message
 
     def load_options_file(self, path: str | Path) -> Options:
         """Load options; problems → the warning dialog, factory values used for them."""
@@ -431,6 +465,7 @@ class StartupWindow(QWidget):
     def load_calibration_file(self, path: str | Path) -> CalibrationTable:
         """Load a Calib.cfg; problems → the warning dialog, factory values used for them."""
         self.calibration = load_calibration(path)
+        self.calibration_path = str(path)
         self._show_files()
         if self.calibration.problems:
             self.last_dialog = show_problems(self, "Calibration file", self.calibration.problems,
@@ -478,11 +513,32 @@ class StartupWindow(QWidget):
             saved = getattr(wizard, "saved", None)
             if saved:  # (Calib.cfg, companion): use the new calibration from now on
                 self.load_calibration_file(saved[0])
+                self.offer_calibration_default(saved[0])
 
         wizard.finished.connect(finished)
         wizard.show()
         self.calibration_wizard = wizard
         return wizard
+
+    def offer_calibration_default(self, path: str | Path) -> QMessageBox:
+        """Ask (non-blocking) whether a new calibration becomes the user's default."""
+        box = QMessageBox(QMessageBox.Icon.Question, "Default calibration",
+                          f"Make {path} your default calibration (used whenever none is "
+                          "given)?", QMessageBox.StandardButton.Yes
+                          | QMessageBox.StandardButton.No, self)
+
+        def answered(button: int) -> None:
+            if button == QMessageBox.StandardButton.Yes.value:
+                try:
+                    target = defaults.save_default_calibration(path)
+                    self.status_label.setText(f"default calibration: {target}")
+                except (OSError, ValueError) as exc:
+                    self.status_label.setText(f"not made the default: {exc}")
+
+        box.finished.connect(answered)
+        box.open()
+        self.last_dialog = box
+        return box
 
     # -- GO --------------------------------------------------------------------------------
     @property
@@ -493,6 +549,7 @@ class StartupWindow(QWidget):
         """Prepare the session in a worker thread, then open the main window."""
         if self.busy:
             return
+        settings_store.remember_startup(self)
         try:
             runner = SessionRunner(self.config(), self.options, self.calibration)
         except ModeError as exc:
@@ -517,6 +574,8 @@ class StartupWindow(QWidget):
 
     def open_main_window(self, runner: SessionRunner) -> MainWindow:
         window = MainWindow(runner)
+        settings_store.restore_main(window)
+        window.closed.connect(lambda: settings_store.remember_main(window))
         window.closed.connect(self._main_closed)
         self.main_window = window
         window.show()

@@ -4,37 +4,149 @@ Precedence everywhere (docs/configuration.md): an explicit file > the recording'
 user's default (``bpms.io.userdirs.config_dir()``) > the shipped factory files. This module
 owns the last two steps: it returns the user's default when one was saved, else the factory
 one, and says which (``source``).
+
+When a default is missing, entry points (the CLI commands, the GUI) say so once per process:
+one line through the ``bpms.config`` logger (stderr for the CLI, the log for the GUI). The
+Python API (``BodyPoseProcessor()``) takes the defaults silently (``announce=False``).
 """
 
 from __future__ import annotations
 
 import logging
+import shutil
+from pathlib import Path
 
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.options import Options, load_options
-from bpms.io.userdirs import default_calibration_path, default_options_path
+from bpms.io.userdirs import config_dir, default_calibration_path, default_options_path
 
 log = logging.getLogger("bpms.config")
 
+_announced: set[str] = set()
 
-def default_options() -> Options:
-    """The user's default options, or the factory options when none were saved."""
+
+def _announce_factory(kind: str) -> None:
+    """The one-line notice that ``kind`` ('options' / 'calibration') is the factory one: one
+    line naming every default missing at that moment, once per process."""
+    if kind in _announced:
+        return
+    missing = [name for name, path in (("options", default_options_path()),
+                                       ("calibration", default_calibration_path()))
+               if not path.is_file()] or [kind]
+    _announced.update(missing)
+    what = " and ".join(missing)
+    log.warning("no saved default %s in %s: factory %s used (save with "
+                "'bpms config save-default')", what, config_dir(), what)
+
+
+def announce_factory(options: bool = True, calibration: bool = True) -> None:
+    """Say (once per process, one line) which of the defaults asked for are missing; for entry
+    points that read their files quietly first and speak once the session really starts."""
+    wanted = [("options", default_options_path(), options),
+              ("calibration", default_calibration_path(), calibration)]
+    missing = [kind for kind, path, asked in wanted if asked and not path.is_file()]
+    if missing and not set(missing) <= _announced:
+        _announced.update(missing)
+        what = " and ".join(missing)
+        log.warning("no saved default %s in %s: factory %s used (save with "
+                    "'bpms config save-default')", what, config_dir(), what)
+
+
+def default_options(announce: bool = True) -> Options:
+    """The user's default options, or the factory options when none were saved
+    (``announce``: say so once per process)."""
     path = default_options_path()
     if path.is_file():
         options = load_options(path)
         options.source = f"user default ({path})"
         return options
+    if announce:
+        _announce_factory("options")
     options = Options()
     options.source = "factory"
     return options
 
 
-def default_calibration() -> CalibrationTable:
-    """The user's default calibration, or the shipped factory table when none was saved."""
+def default_calibration(announce: bool = True) -> CalibrationTable:
+    """The user's default calibration, or the shipped factory table when none was saved
+    (``announce``: say so once per process)."""
     path = default_calibration_path()
     if path.is_file():
         table = load_calibration(path)
         if not table.problems:
             table.source = f"user default ({path})"
         return table
+    if announce:
+        _announce_factory("calibration")
     return load_calibration(None)
+
+
+def calibration_source(announce: bool = True) -> str:
+    """Where the calibration used when none is given comes from: ``user default (PATH)`` or
+    ``factory`` (``announce``: the once-per-process notice when factory)."""
+    path = default_calibration_path()
+    if path.is_file():
+        return f"user default ({path})"
+    if announce:
+        _announce_factory("calibration")
+    return "factory"
+
+
+def options_or_default(path: str | Path | None, announce: bool = True) -> Options:
+    """``path``'s options when given (explicit file), else :func:`default_options`."""
+    if path:
+        return load_options(path)
+    return default_options(announce)
+
+
+def calibration_or_default(path: str | Path | None, announce: bool = True) -> CalibrationTable:
+    """``path``'s calibration when given (explicit file), else :func:`default_calibration`."""
+    if path:
+        return load_calibration(path)
+    return default_calibration(announce)
+
+
+def save_default_options(options: Options | str | Path) -> Path:
+    """Make ``options`` (an Options object or an options file) the user's default; returns
+    the default file's path. A file is copied as it is (comments kept) after a check that it
+    reads without problems (``ValueError`` naming them otherwise)."""
+    from bpms.io.options import save_options
+
+    target = default_options_path()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(options, Options):
+        save_options(options, target)
+        return target
+    loaded = load_options(options)
+    if loaded.problems:
+        raise ValueError("; ".join(str(p) for p in loaded.problems))
+    _copy(Path(options), target)
+    return target
+
+
+def save_default_calibration(calibration: CalibrationTable | str | Path) -> Path:
+    """Make ``calibration`` (a table or a ``Calib.cfg`` file) the user's default; returns the
+    default file's path. A file with problems is refused (``ValueError`` naming them)."""
+    from bpms.io.calib_file import save_legacy
+
+    target = default_calibration_path()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    table = (calibration if isinstance(calibration, CalibrationTable)
+             else load_calibration(calibration))
+    if table.problems:
+        raise ValueError("; ".join(str(p) for p in table.problems))
+    save_legacy(table, target)
+    # the modern companion (magnetometer ellipsoid fits) goes along when there is one
+    companion = target.with_suffix(".json")
+    if not isinstance(calibration, CalibrationTable) and Path(calibration).with_suffix(
+            ".json").is_file():
+        _copy(Path(calibration).with_suffix(".json"), companion)
+    elif companion.is_file():
+        companion.unlink()  # a stale fit must not meet another table
+    return target
+
+
+def _copy(source: Path, target: Path) -> None:
+    tmp = target.with_name(target.name + ".tmp")
+    shutil.copyfile(source, tmp)
+    tmp.replace(target)

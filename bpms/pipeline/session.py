@@ -39,6 +39,7 @@ from bpms.io.rawfile import RawWriter, RecordingError, new_header
 from bpms.io.udp import UdpForwarder
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.rate import RateMeter
+from bpms.pipeline.settings_queue import SettingsQueue
 
 log = logging.getLogger(__name__)
 _STOP = object()
@@ -66,6 +67,11 @@ class PoseSample:
     joint_angles: np.ndarray
     joint_positions: np.ndarray
     latency_s: float
+    #: ``[18, 3]`` the per-IMU angles to show / write / stream (Result.euler_output: segment
+    #: angles after Reset Zero when the corrected output is on, else = ``euler``)
+    euler_output: np.ndarray | None = None
+    #: ``[18]`` bool: the state guard re-initialised that IMU in this frame
+    reinitialised: np.ndarray | None = None
 
 
 @dataclass
@@ -96,6 +102,7 @@ class LiveStatus:
     forward_errors: int = 0
     latency_p99_ms: float = 0.0
     events: list[str] = field(default_factory=list)  # recent notable events, newest last
+    reinit_count: int = 0  # filter re-initialisations by the state guard (all IMUs)
 
 
 class _RawLogger(threading.Thread):
@@ -132,16 +139,26 @@ class _RawLogger(threading.Thread):
 class LiveSession:
     """Runs a :class:`FrameSource` through the pipeline until :meth:`stop`.
 
-    ``processor``: a BodyPoseProcessor (built from ``options`` and the factory calibration when
-    None). The calibration and options in force are written into raw recordings' headers.
+    ``processor``: a BodyPoseProcessor (built from ``options`` and the user's default
+    calibration, else the factory one, when None). The processor's calibration and options are
+    written into raw recordings' headers. Settings changes go through :attr:`settings`
+    (:class:`bpms.pipeline.settings_queue.SettingsQueue`).
     """
 
     def __init__(self, source: FrameSource, options: Options | None = None,
                  processor: BodyPoseProcessor | None = None, *,
                  recording_dir: str | Path | None = None, notes: str = "") -> None:
         self.source = source
-        self.options = options or Options()
+        if options is None:
+            from bpms.io.defaults import default_options
+
+            options = default_options(announce=False)  # the user's default, else factory
+        self.options = options
         self.processor = processor or BodyPoseProcessor(options=self.options)
+        self.settings = SettingsQueue()
+        self._reinit_seen = 0
+        self._reinit_noted = -1e9
+        self._reinit_imus: set[int] = set()
         self.notes = notes
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
@@ -212,17 +229,25 @@ class LiveSession:
 
     # -- commands -------------------------------------------------------------------------
     def reset_zero(self) -> None:
-        """Reset Zero at the next processed frame (SPEC §6)."""
-        self._commands.put(self.processor.reset_zero)
+        """Reset Zero at the next processed frame (docs/filter.md)."""
+        self.settings.reset_zero()
 
     def set_gains(self, **gains: float) -> None:
-        """Change filter gains/dt from the next frame on (see BodyPoseProcessor.set_gains)."""
-        self._commands.put(lambda: self.processor.set_gains(**gains))
+        """Change filter settings from the next frame on (see BodyPoseProcessor.set_gains).
+        Raises OptionRangeError (a ValueError naming the range) here, in the caller's thread,
+        for a value outside its valid range."""
+        self.settings.set_gains(**gains)
 
     def select_filter(self, algorithm: str) -> None:
         """Switch the attitude filter of all 18 IMUs (``FilterOptions.algorithm`` choices) at
-        the next frame; Reset Zero is kept. A failure (e.g. vqf not installed) is an event."""
-        self._commands.put(lambda: self.processor.select_filter(algorithm))
+        the next frame; Reset Zero and each filter's own values are kept. A failure (e.g. vqf
+        not installed) is an event."""
+        self.settings.select_filter(algorithm)
+
+    def set_corrected_output(self, on: bool | None = None) -> None:
+        """Per-IMU output angles corrected by Reset Zero (True), the sensor angles (False), or
+        toggle (None, the original's ``v`` key), from the next frame."""
+        self.settings.set_corrected_output(on)
 
     def start_logging(self, raw: bool = True, filtered: bool = True, name: str | None = None,
                       degrees: bool = False) -> RecordingStatus:
@@ -235,8 +260,10 @@ class LiveSession:
         raw_path, filtered_path = self._namer.next_paths()
         status = RecordingStatus()
         if raw:
+            # what the processor runs with (run-time gains included): the recording can be
+            # filtered again with the same numbers
             header = new_header(calibration=self.processor.table.values,
-                                options=_options_dict(self.options), notes=self.notes,
+                                options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description)
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
             logger = _RawLogger(writer, status, self.note)
@@ -304,7 +331,7 @@ class LiveSession:
             forwarded=fstats.sent if fstats else 0,
             forward_errors=fstats.errors if fstats else 0,
             latency_p99_ms=1e3 * lat[int(0.99 * (len(lat) - 1))] if lat else 0.0,
-            events=events)
+            events=events, reinit_count=self._reinit_seen)
 
     # -- threads ----------------------------------------------------------------------------
     def _acquire(self) -> None:
@@ -379,6 +406,7 @@ class LiveSession:
                 break
 
     def _run_commands(self) -> None:
+        self.settings.apply(self.processor, self.note)
         while True:
             try:
                 command = self._commands.get_nowait()
@@ -410,10 +438,13 @@ class LiveSession:
         angles = result.joint_angles
         positions = result.joint_positions
         done = time.perf_counter()
+        output = result.euler_output
         samples = [PoseSample(e.index, e.host_time, e.frame, decoded.raw[k], decoded.errors[k],
                               result.euler[k], result.R[k], result.C[k], angles[k],
-                              positions[k], done - e.arrival)
+                              positions[k], done - e.arrival, output[k],
+                              result.reinitialised[k])
                    for k, e in enumerate(events)]
+        self._note_reinit(result)
         self._processed += len(events)
         self._error_bits += int(decoded.errors.sum())
         self._log_filtered(events, result.euler, angles)
@@ -431,6 +462,21 @@ class LiveSession:
                 del self._latencies[:-2500]
         for sample in samples:
             self._fanout.publish(sample)
+
+    def _note_reinit(self, result) -> None:
+        """State-guard re-initialisations are events (logged, in the status): every one is
+        counted (``LiveStatus.reinit_count``), at most one event line per second."""
+        total = int(result.reinit_count.sum())
+        if total == self._reinit_seen:
+            return
+        self._reinit_seen = total
+        self._reinit_imus.update(int(i) for i in result.reinitialised.nonzero()[1])
+        now = time.monotonic()
+        if now - self._reinit_noted >= 1.0:
+            self.note(f"filter re-initialised (state not a rotation): IMU "
+                      f"{', '.join(map(str, sorted(self._reinit_imus)))}; {total} so far")
+            self._reinit_noted = now
+            self._reinit_imus.clear()
 
     def _log_filtered(self, events: list[FrameEvent], euler: np.ndarray,
                       angles: np.ndarray) -> None:
