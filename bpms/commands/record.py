@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
 from bpms.commands.sim import add_sim_options, build_arbiter
-from bpms.firmware.sim.server import PtyServer
+from bpms.firmware.sim.server import local_server
 from bpms.io.link import LinkError
 from bpms.io.options import load_options
 from bpms.io.rawfile import RecordingError
@@ -76,8 +76,8 @@ def run(args: argparse.Namespace) -> int:
     server = None
     port = args.port
     if args.sim:
-        server = PtyServer(build_arbiter(args)).start()
-        port = server.path
+        server = local_server(build_arbiter(args)).start()
+        port = server.address
         print(f"recording the simulated suit on {port}", flush=True)
     source = SuitFrameSource(port, options.serial)
     try:

@@ -26,10 +26,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bpms.filter.processor import BodyPoseProcessor
 from bpms.io.events import FrameEvent, FrameSource, SourceStatus
 from bpms.io.filtered_file import FilteredWriter
 from bpms.io.frames import FRAME_PERIOD_S, decode_frames
@@ -39,6 +39,9 @@ from bpms.io.rawfile import RawWriter, RecordingError, new_header
 from bpms.io.udp import UdpForwarder
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.rate import RateMeter
+
+if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
+    from bpms.filter.processor import BodyPoseProcessor
 
 log = logging.getLogger(__name__)
 _STOP = object()
@@ -141,7 +144,11 @@ class LiveSession:
                  recording_dir: str | Path | None = None, notes: str = "") -> None:
         self.source = source
         self.options = options or Options()
-        self.processor = processor or BodyPoseProcessor(options=self.options)
+        if processor is None:
+            from bpms.filter.processor import BodyPoseProcessor
+
+            processor = BodyPoseProcessor(options=self.options)
+        self.processor = processor
         self.notes = notes
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
