@@ -1,4 +1,4 @@
-"""Recording file names, as the original suite named them (SPEC §9).
+"""Recording file names, as the original suite named them (docs/raw-format.md).
 
 ``Raw_<name>_<seq>.bpmsraw`` and ``Filtered_<name>_<seq>.csv``: ``name`` is the user's file
 name, or a time stamp ``YYYYmmdd-HHMMSS`` when none is given; ``seq`` grows by one at each
@@ -16,11 +16,16 @@ FILTERED_PREFIX = "Filtered"
 RAW_SUFFIX = ".bpmsraw"
 FILTERED_SUFFIX = ".csv"
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+#: Longest stem kept: whole names stay far below every file system's limit (255 characters on
+#: Windows, macOS and Linux) and Windows' classic 260-character paths.
+MAX_STEM = 80
 
 
 def safe_stem(name: str) -> str:
-    """A file-system-safe version of a user-typed name ('' stays '')."""
-    return _UNSAFE.sub("_", name.strip()).strip("._")
+    """A file-system-safe version of a user-typed name ('' stays ''): only ASCII letters,
+    digits, ``.``, ``_`` and ``-``, so no path separator (``/`` or ``\\``) nor any character
+    Windows forbids (``<>:"|?*``) survives; at most :data:`MAX_STEM` characters."""
+    return _UNSAFE.sub("_", name.strip()).strip("._")[:MAX_STEM].strip("._")
 
 
 class RecordingNamer:
