@@ -123,6 +123,13 @@ def main(argv: list[str] | None = None) -> int:
     except CliError as exc:
         print(f"bpms {args.command}: {exc}", file=sys.stderr)
         return 2
+    except ImportError as exc:
+        from bpms.extras import MissingExtraError
+
+        if not isinstance(exc, MissingExtraError):
+            raise
+        print(f"bpms {args.command}: {exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"bpms {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -80,7 +80,7 @@ def is_raw_recording(path: str | Path) -> bool:
 def load_filtered(path: str | Path, options: str | Path | Options | None = None,
                   zero_at_s: Sequence[float] = ()) -> Processed:
     """A filtered CSV file (:mod:`bpms.io.filtered_file`) as a filter result: ``R`` from the
-    logged Euler angles (``Rz Ry Rx``, SPEC §5), segment orientations ``C`` by the same
+    logged Euler angles (``Rz Ry Rx``, docs/filter.md), segment orientations ``C`` by the same
     Reset Zero as the processor (:class:`bpms.filter.pose.PoseCalibrator`), hence the joint
     angles and positions. Raises :class:`bpms.io.filtered_file.FilteredFileError`."""
     from bpms.filter.processor import BodyPoseProcessor, Result

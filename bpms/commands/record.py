@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("port", nargs="?", metavar="PORT_OR_URL",
                    help="serial port or pyserial URL (default: discover the suit)")
     p.add_argument("-o", "--output", default=None, metavar="DIR",
-                   help="folder for the recordings (default: the options' logging.directory)")
+                   help="folder for the recordings (default: the options' logging.directory, "
+                        "else the per-user recordings folder)")
     p.add_argument("--name", default=None, help="file name stem (default: a time stamp)")
     p.add_argument("--notes", default="", help="free text stored in the raw file's header")
     p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
@@ -86,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         if server is not None:
             server.stop()
         raise CliError(str(exc)) from None
-    folder = Path(args.output or options.logging.directory)
+    folder = Path(args.output) if args.output else None  # None: options, else per-user folder
     session = LiveSession(source, options, recording_dir=folder, notes=args.notes)
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, signal.default_int_handler)

@@ -30,7 +30,7 @@ What happens, frame by frame (details in docs/filter.md):
 - joint angles and stick-figure joint positions (per-subject lengths ``Options.body``).
 
 The first frame given after construction or :meth:`BodyPoseProcessor.restart` is the first
-frame of the stream: dropping the stale first frame after a pause (SPEC §3) is the job of the
+frame of the stream: dropping the stale first frame after a pause (docs/suit.md) is the job of the
 acquisition layer, which does not record it.
 """
 
@@ -58,7 +58,7 @@ SETTLE_S = 0.5
 
 @dataclass
 class Result:
-    """Outputs of N frames. Angles in radians, lengths in metres, frames as SPEC §5/§6.
+    """Outputs of N frames. Angles in radians, lengths in metres, frames: docs/units.md.
 
     t: ``[N]`` s since the stream started, on the fixed filter clock (frame index × dt);
     R: ``[N, 18, 3, 3]`` DCM filter frame → NED; euler: ``[N, 18, 3]`` (roll, pitch, yaw);

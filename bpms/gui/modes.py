@@ -193,4 +193,6 @@ class SessionRunner:
 
 def recording_folder(options: Options, config: ModeConfig) -> Path:
     """Where Start Logging writes."""
-    return Path(config.recording_dir or options.logging.directory)
+    from bpms.io.naming import recordings_folder
+
+    return recordings_folder(config.recording_dir or options.logging.directory)

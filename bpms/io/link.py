@@ -1,4 +1,4 @@
-"""The suit link: the host side of the arbiter protocol (SPEC §3) over pyserial.
+"""The suit link: the host side of the arbiter protocol (docs/suit.md) over pyserial.
 
 Layers, lowest first:
 
@@ -73,7 +73,7 @@ class LinkStats:
     """Counters of a :class:`SuitLink` (the parser keeps the frame/resync counters)."""
 
     starts: int = 0
-    stale_discarded: int = 0  # first frames after a start, dropped (SPEC §3)
+    stale_discarded: int = 0  # first frames after a start, dropped (docs/suit.md)
     frames_read: int = 0  # frames returned by read_frames
     reply_bytes_skipped: int = 0  # bytes before/after a reply that were not part of it
 

@@ -28,7 +28,7 @@ def _opt(default: Any, help: str, **checks: Any) -> Any:
 
 @dataclass
 class FilterOptions:
-    """Attitude filter settings (SPEC §5); changeable at run time."""
+    """Attitude filter settings (docs/filter.md); changeable at run time."""
 
     algorithm: str = _opt(
         "mahony", "attitude filter for all 18 IMUs: 'mahony' (the original DCM filter), "
@@ -62,7 +62,7 @@ class FilterOptions:
 
 @dataclass
 class SensorOptions:
-    """Axis sign vectors from the calibrated board axes into the filter frame (SPEC §4)."""
+    """Axis sign vectors from the calibrated board axes into the filter frame (docs/units.md)."""
 
     accel_signs: list[float] = _opt([1.0, 1.0, 1.0], "accelerometer x, y, z signs", signs=True)
     mag_signs: list[float] = _opt([1.0, -1.0, -1.0], "magnetometer x, y, z signs", signs=True)
@@ -95,7 +95,7 @@ class UdpOptions:
 
 @dataclass
 class LoggingOptions:
-    directory: str = _opt("recordings", "folder for recordings")
+    directory: str = _opt("", "folder for recordings; empty = the per-user recordings folder")
     name: str = _opt("", "file name stem; empty = a time stamp")
     raw: bool = _opt(True, "record raw frames")
     filtered: bool = _opt(True, "record filtered angles")
@@ -107,7 +107,7 @@ class PoseOptions:
     reset_window_s: float = _opt(0.5, "Reset Zero averages the DCMs over this still window, s",
                                  min=0.0, max=10.0)
     heading_reference: str = _opt(
-        "hip", "body heading at Reset Zero: 'hip' IMU (SPEC §6) or the 'mean' of all IMUs' "
+        "hip", "body heading at Reset Zero: 'hip' IMU (docs/body-model.md), 'mean' of all IMUs' "
         "yaws (averages out mounting yaw errors)", choices=("hip", "mean"))
 
 

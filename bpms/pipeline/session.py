@@ -49,7 +49,7 @@ _STOP = object()
 
 @dataclass(frozen=True, slots=True)
 class PoseSample:
-    """One processed frame. Angles rad, lengths m, frames as SPEC §5/§6.
+    """One processed frame. Angles rad, lengths m, frames as docs/filter.md, docs/body-model.md.
 
     index: frame index in the source; host_time: s since the epoch (receive time);
     raw ``[18, 9]`` int16 counts; errors ``[18, 3]`` bool; euler ``[18, 3]`` filter roll,
@@ -219,7 +219,7 @@ class LiveSession:
 
     # -- commands -------------------------------------------------------------------------
     def reset_zero(self) -> None:
-        """Reset Zero at the next processed frame (SPEC §6)."""
+        """Reset Zero at the next processed frame (docs/body-model.md)."""
         self._commands.put(self.processor.reset_zero)
 
     def set_gains(self, **gains: float) -> None:

@@ -1,6 +1,6 @@
 """Sensor model of the simulated suit: true orientations and motion → raw counts.
 
-Filter-frame sensor values (SPEC §4/§5 units), for IMU i with true DCM ``R_i = C_i E_i``
+Filter-frame sensor values (docs/units.md), for IMU i with true DCM ``R_i = C_i E_i``
 (``E_i`` its mounting misalignment):
 
 - accel, Gravity counts, the gravity direction: ``Gravity_i R_iᵀ (g - a_lin) / 9.81`` with
