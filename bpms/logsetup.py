@@ -15,6 +15,18 @@ LOG_FILE_BACKUPS = 3  # ... keeping three older files
 _FORMAT = "%(levelname)s %(name)s: %(message)s"
 _FILE_FORMAT = "%(asctime)s %(levelname)s %(name)s [%(threadName)s]: %(message)s"
 
+#: Loggers whose warnings are problems in the user's files that are also collected in a
+#: ``problems`` list, which every command prints itself as ``bpms CMD: warning: ...``. On the
+#: console they would appear twice, so there they show only with ``-v``; the log file keeps
+#: them always.
+REPORTED_BY_COMMANDS = ("bpms.config", "bpms.io.rawfile", "bpms.io.legacy_raw")
+
+
+class _NotReportedTwice(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not (record.levelno < logging.ERROR
+                    and record.name.startswith(REPORTED_BY_COMMANDS))
+
 
 def log_file_path() -> Path:
     """The current log file (``bpms.log`` in the per-user log folder)."""
@@ -38,6 +50,8 @@ def configure_logging(verbosity: int = 0, command: str | None = None,
     console = logging.StreamHandler(sys.stderr)
     console.setLevel(level)
     console.setFormatter(logging.Formatter(_FORMAT))
+    if verbosity <= 0:
+        console.addFilter(_NotReportedTwice())
     console._bpms = True  # type: ignore[attr-defined]
     root.addHandler(console)
     root.setLevel(level)

@@ -23,9 +23,10 @@ def stderr_progress(label: str, done: int, total: int) -> None:
     """Progress line on stderr (``label: 42% (n/N frames)``), for more than 30,000 frames."""
     if total <= 30_000:
         return
-    end = "\n" if done >= total else ""
-    print(f"\r{label}: {100 * done // max(total, 1):3d}% ({done}/{total} frames)", end=end,
-          file=sys.stderr, flush=True)
+    from bpms.progress import write_progress  # \r only on a terminal
+
+    write_progress(f"{label}: {100 * done // max(total, 1):3d}% ({done}/{total} frames)",
+                   sys.stderr, final=done >= total)
 
 
 def header_calibration(recording: RawRecording) -> CalibrationTable | None:

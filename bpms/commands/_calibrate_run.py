@@ -28,6 +28,7 @@ from bpms.calibration.result import collect, format_summary, summary
 from bpms.commands import CliError
 from bpms.io.events import FrameSource
 from bpms.io.frames import N_IMUS
+from bpms.progress import is_terminal
 
 NO_FRAMES_S = 5.0  # give up when the source is silent this long
 
@@ -76,6 +77,7 @@ class Terminal:
         self.auto = auto
         self.lines: queue.Queue[str] = queue.Queue()
         self._last = 0.0
+        self.tty = is_terminal(sys.stdout)
         if not auto:
             threading.Thread(target=self._read, daemon=True).start()
 
@@ -85,13 +87,17 @@ class Terminal:
         self.lines.put("q")  # end of input
 
     def say(self, text: str) -> None:
-        print(("\n" if self._last else "") + text, flush=True)
+        print(("\n" if self._last and self.tty else "") + text, flush=True)
         self._last = 0.0
 
     def status(self, text: str, force: bool = False) -> None:
         now = time.monotonic()
-        if force or now - self._last > 0.25:
-            print("\r" + text[:150].ljust(100), end="", flush=True)
+        # On a terminal one line is rewritten 4 times a second; in a log, a line every 5 s.
+        if force or now - self._last > (0.25 if self.tty else 5.0):
+            if self.tty:
+                print("\r" + text[:150].ljust(100), end="", flush=True)
+            else:
+                print(text[:150], flush=True)
             self._last = now
 
     def answer(self) -> str | None:

@@ -137,6 +137,9 @@ class BodyPoseProcessor:
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
         self.table = _load_table(calibration)
         self.options = _load_options(options)
+        from bpms.filter.warmup import ensure_kernels  # compiled/loaded now, not in frame 1
+
+        ensure_kernels(self.options.filter.algorithm)
         ellipsoids = {}
         if isinstance(calibration, str | Path):
             # A magnetometer ellipsoid fit in the modern companion file (Calib.json beside
@@ -191,7 +194,10 @@ class BodyPoseProcessor:
         Raises ValueError for an unknown name, ``VqfMissingError`` without the vqf package."""
         from dataclasses import replace
 
+        from bpms.filter.warmup import ensure_kernels
+
         options = replace(self.options.filter, algorithm=algorithm)
+        ensure_kernels(algorithm)
         self.bank = make_bank(self.sensor_calibration.gravity, options)
         self.options.filter = options
 
