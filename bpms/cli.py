@@ -74,7 +74,8 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
     parser = argparse.ArgumentParser(
         prog="bpms",
         description="BPMS Suite: Body Pose Measurement System acquisition, filtering and analysis.",
-        epilog=f"'bpms COMMAND --help' explains a command. {docs_hint()}",
+        epilog=f"'bpms COMMAND --help' explains a command.\n{docs_hint()}",
+        formatter_class=argparse.RawDescriptionHelpFormatter,  # the path stays on one line
     )
     parser.add_argument("--version", action="version", version=f"bpms {bpms.__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0,
@@ -86,7 +87,9 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
             sub.add_parser(name, help=summary)
             continue
         module = importlib.import_module(f"bpms.commands.{name}")
-        module.register(sub)
+        command = module.register(sub)
+        if isinstance(command, argparse.ArgumentParser) and command.epilog is None:
+            command.epilog = docs_hint()  # docs/NAME.md in a help text: the pages are there
     return parser
 
 
