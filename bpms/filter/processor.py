@@ -47,6 +47,7 @@ from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_quaternion
+from bpms.filter.warmup import PATHS, ensure_kernels
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, load_options
@@ -137,9 +138,6 @@ class BodyPoseProcessor:
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
         self.table = _load_table(calibration)
         self.options = _load_options(options)
-        from bpms.filter.warmup import ensure_kernels  # compiled/loaded now, not in frame 1
-
-        ensure_kernels(self.options.filter.algorithm)
         ellipsoids = {}
         if isinstance(calibration, str | Path):
             # A magnetometer ellipsoid fit in the modern companion file (Calib.json beside
@@ -194,14 +192,17 @@ class BodyPoseProcessor:
         Raises ValueError for an unknown name, ``VqfMissingError`` without the vqf package."""
         from dataclasses import replace
 
-        from bpms.filter.warmup import ensure_kernels
-
         options = replace(self.options.filter, algorithm=algorithm)
-        ensure_kernels(algorithm)
         self.bank = make_bank(self.sensor_calibration.gravity, options)
         self.options.filter = options
 
     # -- running ------------------------------------------------------------------------
+    def load_kernels(self, live: bool = True) -> float:
+        """Compile (first run on a machine, with a notice) or load this filter's kernels now,
+        for whole recordings and, with ``live``, frame by frame; s taken. A live session
+        calls it before accepting the first frame (:mod:`bpms.filter.warmup`)."""
+        return ensure_kernels(self.options.filter.algorithm, PATHS if live else ("batch",))
+
     def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Raw ``[N, 18, 9]`` counts → filter inputs (accel, mag, gyro) ``[N, 18, 3]``: the
         numbers of ``SensorCalibration.calibrate`` (same formula and parameters), computed in
@@ -229,6 +230,7 @@ class BodyPoseProcessor:
         raw = np.asarray(raw)
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
+        ensure_kernels(self.options.filter.algorithm, ("batch",))  # first call: notice
         acc, mag, gyr = self.calibrate(raw)
         out = self.bank.process(acc, mag, gyr, errors=errors)
         before = len(self.pose.captures)
@@ -237,6 +239,7 @@ class BodyPoseProcessor:
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
+        ensure_kernels(self.options.filter.algorithm, ("live",))  # no-op once loaded
         acc, mag, gyr = self.calibrate(np.asarray(raw)[None])
         out = self.bank.step(acc[0], mag[0], gyr[0], errors)
         before = len(self.pose.captures)

@@ -24,15 +24,19 @@ from bpms.io.frames import N_CHANNELS, N_IMUS
 #: Filters whose kernels numba compiles (``vqf`` runs in the vqf package's own code).
 COMPILED_FILTERS = ("mahony", "observer")
 #: Say something when getting the kernels ready takes longer than this, s.
-NOTICE_AFTER_S = 1.0
+NOTICE_AFTER_S = 2.0
 
 _ready: set[str] = set()
 _lock = threading.RLock()
 
 
-def kernels_ready(algorithm: str) -> bool:
-    """True once :func:`ensure_kernels` has run for ``algorithm`` in this process."""
-    return algorithm not in COMPILED_FILTERS or algorithm in _ready
+#: The two ways the kernels are called: whole recordings in batches, and frame by frame live.
+PATHS = ("batch", "live")
+
+
+def kernels_ready(algorithm: str, paths: tuple[str, ...] = PATHS) -> bool:
+    """True once :func:`ensure_kernels` has run for ``algorithm`` and ``paths`` here."""
+    return algorithm not in COMPILED_FILTERS or all((algorithm, p) in _ready for p in paths)
 
 
 def _frames(n: int = 4) -> np.ndarray:
@@ -104,20 +108,25 @@ class Progress:
 
 
 def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
-                   stream: TextIO | None = None,
+                   paths: tuple[str, ...] = PATHS, stream: TextIO | None = None,
                    notice_after_s: float = NOTICE_AFTER_S) -> float:
     """Compile (first run) or load the kernels of ``algorithms`` (default: every compiled
-    filter) for the batch and the live path. Once per process and filter; thread-safe.
-    Returns the seconds it took (0 when nothing was left to do)."""
+    filter) for ``paths`` (``"batch"``: whole recordings, ``"live"``: frame by frame). Once per
+    process, filter and path; thread-safe. Returns the seconds it took (0 when nothing was
+    left to do)."""
     if algorithms is None:
         algorithms = COMPILED_FILTERS
     elif isinstance(algorithms, str):
         algorithms = (algorithms,)
+    todo = [(a, p) for a in algorithms if a in COMPILED_FILTERS for p in PATHS
+            if p in paths and (a, p) not in _ready]
+    if not todo:  # the common case, without taking the lock
+        return 0.0
     with _lock:
-        todo = [a for a in algorithms if a in COMPILED_FILTERS and a not in _ready]
+        todo = [key for key in todo if key not in _ready]
         if not todo:
             return 0.0
-        _ready.update(todo)  # the processors built below must not warm up again
+        _ready.update(todo)  # the processors built and run below must not warm up again
         from bpms.filter.processor import BodyPoseProcessor
         from bpms.io.options import Options
 
@@ -125,22 +134,22 @@ def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
         raw = _frames()
         errors = np.zeros((len(raw), N_IMUS, 3), dtype=bool)
         errors[1, 0, 1] = True  # one failed magnetometer: the hold path runs too
-        progress = Progress(2 * len(todo), stream, notice_after_s)
+        progress = Progress(len(todo), stream, notice_after_s)
         try:
-            for algorithm in todo:
+            for algorithm, path in todo:
                 options = Options()
                 options.filter.algorithm = algorithm
                 processor = BodyPoseProcessor(options=options)
-                progress.step(f"{algorithm}, whole recordings")
-                processor.process(raw)
-                processor.process(raw, errors)
-                progress.advance()
-                progress.step(f"{algorithm}, live frames")
-                for k in range(len(raw)):
-                    processor.step(raw[k])
-                    processor.step(raw[k], errors[k])
-                processor.reset_zero()
-                processor.step(raw[0])
+                progress.step(f"{algorithm}, {'whole recordings' if path == 'batch' else 'live'}")
+                if path == "batch":
+                    processor.process(raw)
+                    processor.process(raw, errors)
+                else:
+                    for k in range(len(raw)):
+                        processor.step(raw[k])
+                        processor.step(raw[k], errors[k])
+                    processor.reset_zero()
+                    processor.step(raw[0])
                 progress.advance()
         except BaseException:
             _ready.difference_update(todo)

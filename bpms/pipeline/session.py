@@ -149,6 +149,7 @@ class LiveSession:
 
             processor = BodyPoseProcessor(options=self.options)
         self.processor = processor
+        processor.load_kernels()  # compiled/loaded before any frame is accepted, not in frame 1
         self.notes = notes
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
