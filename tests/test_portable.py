@@ -215,3 +215,16 @@ def test_no_unix_only_import_at_module_level_in_bpms():
             offenders += [f"{path.relative_to(ROOT)}: {n}" for n in names if n in UNIX_ONLY]
     assert offenders == []
 
+
+
+def test_ports_lists_the_serial_ports_with_their_descriptions():
+    code = ("from bpms.io.link import describe_candidate_ports\n"
+            "import serial.tools.list_ports as lp\n"
+            "listed = {p.device for p in lp.comports()}\n"
+            "ours = describe_candidate_ports()\n"
+            "assert listed <= {d for d, _ in ours}, (listed, ours)\n"
+            "from bpms.cli import main\n"
+            "sys.exit(main(['ports']))\n")
+    done = blocked(code)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() and "Traceback" not in done.stderr
