@@ -55,9 +55,16 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the short recording")
     ap.add_argument("--top", type=int, default=15, help="rows of the importtime summary")
+    ap.add_argument("--python", default=None, metavar="PATH",
+                    help="time the bpms installed for this interpreter (e.g. a virtualenv made "
+                         "from the wheel) instead of this source tree")
     args = ap.parse_args()
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "QT_QPA_PLATFORM": "offscreen"}
-    py = sys.executable
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    if args.python:
+        env.pop("PYTHONPATH", None)
+    else:
+        env["PYTHONPATH"] = str(ROOT)
+    py = args.python or sys.executable
     with tempfile.TemporaryDirectory() as tmp:
         raw = Path(tmp) / "Raw_short_1.bpmsraw"
         out = Path(tmp) / "Filtered_short_1.csv"
@@ -69,11 +76,14 @@ def main() -> None:
         filt = [py, "-m", "bpms", "filter", str(raw), "-o", str(out), "--force"]
         cases = [
             ("python -c 'import numpy' (reference)", [py, "-c", "import numpy"], None),
+            ("python -c 'import numba' (filter's floor)", [py, "-c", "import numba"], None),
             ("bpms --help", [py, "-m", "bpms", "--help"], 2.0),
             ("bpms filter --help", [py, "-m", "bpms", "filter", "--help"], None),
             (f"bpms filter ({args.seconds:g} s recording)", filt, 4.0),
-            ("import the start-up window (Qt)", [py, "-c", "import bpms.gui.startup"], None),
         ]
+        if not subprocess.run([py, "-c", "import PyQt6"], env=env, capture_output=True).returncode:
+            cases.append(("import the start-up window (Qt)",
+                          [py, "-c", "import bpms.gui.startup"], None))
         # Interleaved rounds, so that a burst of load elsewhere hits every case alike.
         times: dict[str, list[float]] = {name: [] for name, _, _ in cases}
         for _ in range(args.repeats):
@@ -87,10 +97,14 @@ def main() -> None:
             verdict = "" if aim is None else (f"≤ {aim:g}×  " + ("met" if t / ref <= aim
                                                                  else "NOT met"))
             print(f"{name:<42} {t:7.3f} {t / ref:8.2f}  {verdict}")
-        heavy = subprocess.run(
-            [py, "-c", "import sys, bpms.gui.startup; "
-             "print(sorted(m for m in ('numba', 'OpenGL', 'matplotlib') if m in sys.modules))"],
-            env=env, cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
+        has_qt = not subprocess.run([py, "-c", "import PyQt6"], env=env,
+                                    capture_output=True).returncode
+        heavy = "n/a (no Qt installed)"
+        if has_qt:
+            heavy = subprocess.run(
+                [py, "-c", "import sys, bpms.gui.startup; print(sorted(m for m in "
+                 "('numba', 'OpenGL', 'matplotlib') if m in sys.modules))"],
+                env=env, cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
         print(f"start-up window imports of numba/OpenGL/matplotlib: {heavy}")
         print(f"\n-X importtime of `bpms filter` (cumulative, top {args.top}):")
         for us, name in importtime(filt, env, args.top):
