@@ -89,7 +89,7 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
         module = importlib.import_module(f"bpms.commands.{name}")
         command = module.register(sub)
         if isinstance(command, argparse.ArgumentParser) and command.epilog is None:
-            command.epilog = docs_hint()  # docs/NAME.md in a help text: the pages are there
+            command.epilog = docs_hint()  # the pages that help texts name are there
     return parser
 
 
