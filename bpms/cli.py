@@ -3,13 +3,16 @@
 A command module defines ``register(subparsers) -> argparse.ArgumentParser`` whose parser sets
 ``run=callable(args) -> int``. Errors meant for the user are raised as :class:`CliError` and
 printed as one line; the exit status is then 2.
+
+Command modules are found by name without importing them; only the command asked for is
+imported (all of them only for ``bpms --help``), and a module's ``register`` imports nothing
+heavy, so that every command starts quickly and imports only what it uses.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import logging
 import pkgutil
 import sys
 
@@ -20,36 +23,114 @@ from bpms.commands import CliError
 #: What ``bpms`` with no arguments runs.
 DEFAULT_COMMAND = "gui"
 
+#: Commands that also keep a rotating log file in the per-user log folder.
+LOGGED_COMMANDS = frozenset({"gui", "record"})
 
-def build_parser() -> argparse.ArgumentParser:
+#: Where users find the documentation (shown by ``bpms --help``).
+PROJECT_URL = "https://github.com/bpms-suite/bpms"
+
+
+def command_names() -> list[str]:
+    """The sub-commands: every public module of :mod:`bpms.commands`, sorted (not imported)."""
+    return sorted(info.name for info in pkgutil.iter_modules(bpms.commands.__path__)
+                  if not info.name.startswith("_"))
+
+
+def command_summary(name: str) -> str | None:
+    """The one-line ``help=`` that command ``name``'s ``register`` gives ``add_parser``, read
+    from the module's source without importing it; None when it is not a plain string."""
+    import ast
+    import importlib.util
+
+    spec = importlib.util.find_spec(f"bpms.commands.{name}")
+    if spec is None or spec.origin is None or not spec.origin.endswith(".py"):
+        return None
+    try:
+        with open(spec.origin, encoding="utf-8") as f:
+            tree = ast.parse(f.read(), spec.origin)
+    except (OSError, SyntaxError, ValueError):
+        return None
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr == "add_parser" and node.args
+                and isinstance(node.args[0], ast.Constant) and node.args[0].value == name):
+            for kw in node.keywords:
+                if kw.arg == "help":
+                    try:
+                        value = ast.literal_eval(kw.value)
+                    except ValueError:
+                        return None
+                    return value if isinstance(value, str) else None
+    return None
+
+
+def build_parser(only: str | None = None, *, overview: bool = False) -> argparse.ArgumentParser:
+    """The argument parser with every sub-command, or only the command ``only``.
+
+    ``overview``: for ``bpms --help``, list the commands with the help line their modules'
+    source gives, without importing them (a module whose line cannot be read is imported)."""
+    from bpms.docs_location import docs_hint
+
     parser = argparse.ArgumentParser(
         prog="bpms",
         description="BPMS Suite: Body Pose Measurement System acquisition, filtering and analysis.",
+        epilog=f"'bpms COMMAND --help' explains a command.\n{docs_hint()}",
+        formatter_class=argparse.RawDescriptionHelpFormatter,  # the path stays on one line
     )
     parser.add_argument("--version", action="version", version=f"bpms {bpms.__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0,
                         help="more log output (-v info, -vv debug)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for info in sorted(pkgutil.iter_modules(bpms.commands.__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
+    for name in command_names() if only is None else [only]:
+        summary = command_summary(name) if overview else None
+        if summary is not None:
+            sub.add_parser(name, help=summary)
             continue
-        module = importlib.import_module(f"bpms.commands.{info.name}")
-        module.register(sub)
+        module = importlib.import_module(f"bpms.commands.{name}")
+        command = module.register(sub)
+        if isinstance(command, argparse.ArgumentParser) and command.epilog is None:
+            command.epilog = docs_hint()  # the pages that help texts name are there
     return parser
+
+
+def _command_in(argv: list[str]) -> str | None:
+    """The sub-command named in ``argv`` (the first word that is not an option), if any."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word
+    return None
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    parser = build_parser()
     asks_help = {"-h", "--help", "--version"} & set(argv)
-    if not asks_help and not [a for a in argv if not a.startswith("-")]:
+    command = _command_in(argv)
+    if command is None and not asks_help:
         argv = [*argv, DEFAULT_COMMAND]
+        command = DEFAULT_COMMAND
+    known = command in command_names()
+    # Only the command asked for is imported; the overview of all of them imports none.
+    parser = build_parser(command if known else None, overview=not known)
     args = parser.parse_args(argv)
-    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    if getattr(args, "run", None) is None:  # e.g. only -v given to a bare parser
+        parser.print_help()
+        return 2
+    from bpms.logsetup import configure_logging
+
+    configure_logging(args.verbose, args.command,
+                      to_file=getattr(args, "log_file", args.command in LOGGED_COMMANDS))
     try:
         return int(args.run(args) or 0)
     except CliError as exc:
+        print(f"bpms {args.command}: {exc}", file=sys.stderr)
+        return 2
+    except ImportError as exc:
+        from bpms.extras import MissingExtraError
+
+        if not isinstance(exc, MissingExtraError):
+            raise
         print(f"bpms {args.command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

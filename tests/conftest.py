@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 # 2D Qt widgets render offscreen; OpenGL tests run in their own Xvfb subprocess.
@@ -31,3 +32,14 @@ def _fresh_user_folder(tmp_path_factory, monkeypatch):
     for variable, sub in (("BPMS_CONFIG_DIR", "config"), ("BPMS_DATA_DIR", "data"),
                           ("BPMS_LOG_DIR", "log")):
         monkeypatch.setenv(variable, str(root / sub))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _filters_compiled():
+    """The numba filters compiled (first run on a machine) or loaded once, quietly, before any
+    test: no test's output then depends on whether the compile notice appeared."""
+    import io
+
+    from bpms.filter.warmup import ensure_kernels
+
+    ensure_kernels(stream=io.StringIO())

@@ -49,6 +49,8 @@ ensure_venv() {
     log "installing bpms and its dev extra into $VENV"
     "$PY" -m pip install -q --upgrade pip >/dev/null
     "$PY" -m pip install -q -e ".[dev]"
+    log "compiling the filters for this machine (bpms warmup)"
+    "$VENV/bin/bpms" warmup || log "bpms warmup failed: the filters compile at their first use"
     touch "$stamp"
   fi
 }

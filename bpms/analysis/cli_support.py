@@ -21,8 +21,8 @@ def add_filter_option(parser: argparse.ArgumentParser) -> None:
                         help="attitude filter (default: the options'; for walking 'observer' "
                              "or 'vqf', see docs/filters.md)")
     parser.add_argument("--heading", choices=("hip", "mean"), default=None,
-                        help="body heading at Reset Zero: the hip IMU (SPEC §6) or the mean of "
-                             "all IMUs (averages out mounting yaw errors; docs/analysis.md)")
+                        help="body heading at Reset Zero: the hip IMU or the mean of "
+                             "all IMUs (averages out mounting yaw errors; docs/body-model.md)")
 
 
 def processed(command: str, path: str, calibration: str | None = None,

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-#: Shank IMUs of the suit (SPEC §7 numbering, 0-based).
+#: Shank IMUs of the suit (numbering of docs/suit.md, 0-based).
 SHANK_IMUS = {"right": 2, "left": 14}
 #: The ADXL345 range of recordings that do not say (the original firmware's ±2 g).
 LEGACY_ACCEL_RANGE_G = 2.0

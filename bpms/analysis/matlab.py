@@ -1,7 +1,7 @@
 """A CSV for MATLAB (``readtable``/``readmatrix``): one header row, one row per frame.
 
 Columns: ``time_s``; per IMU its filter orientation as a quaternion (``imu0_right_leg_qw`` ...,
-filter frame → NED, unitless) and Euler angles (``imu0_right_leg_roll_deg`` ..., SPEC §5);
+filter frame → NED, unitless) and Euler angles (``imu0_right_leg_roll_deg`` ..., docs/filter.md);
 then the 28 joint angles (``joint_knee_r_flexion_deg`` ...). Degrees (radians with
 ``degrees=False``, names ending ``_rad``). Missing values are ``NaN``.
 """

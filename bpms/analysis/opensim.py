@@ -73,6 +73,6 @@ def write_orientations(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
 
 def calibration_window(settle_frames: int, window_frames: int, n: int) -> tuple[int, int]:
     """Frame range ``[lo, hi)`` of the calibration pose: the averaging window of the automatic
-    Reset Zero (``settle`` frames after the start, ``window`` frames long; SPEC §6)."""
+    Reset Zero (``settle`` frames after the start, ``window`` frames long; docs/body-model.md)."""
     lo = min(n, max(0, settle_frames))
     return lo, min(n, lo + max(1, window_frames))

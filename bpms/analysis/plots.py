@@ -12,8 +12,10 @@ from bpms.filter.joints import JOINT_ANGLE_NAMES
 
 
 def _pyplot():
-    import matplotlib
+    from bpms.extras import require
 
+    matplotlib = require(
+        "matplotlib", "or leave the figures out (rom --no-figures, track --no-figure)")
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
 

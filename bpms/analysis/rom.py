@@ -1,4 +1,4 @@
-"""Range of motion (SPEC §7, dissertation chapter 3.3): min, max and range of every joint angle
+"""Range of motion (docs/body-model.md): min, max and range of every joint angle
 over a time window, for one or several trials side by side."""
 
 from __future__ import annotations

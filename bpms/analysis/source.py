@@ -23,9 +23,10 @@ def stderr_progress(label: str, done: int, total: int) -> None:
     """Progress line on stderr (``label: 42% (n/N frames)``), for more than 30,000 frames."""
     if total <= 30_000:
         return
-    end = "\n" if done >= total else ""
-    print(f"\r{label}: {100 * done // max(total, 1):3d}% ({done}/{total} frames)", end=end,
-          file=sys.stderr, flush=True)
+    from bpms.progress import write_progress  # \r only on a terminal
+
+    write_progress(f"{label}: {100 * done // max(total, 1):3d}% ({done}/{total} frames)",
+                   sys.stderr, final=done >= total)
 
 
 def header_calibration(recording: RawRecording) -> CalibrationTable | None:
@@ -80,7 +81,7 @@ def is_raw_recording(path: str | Path) -> bool:
 def load_filtered(path: str | Path, options: str | Path | Options | None = None,
                   zero_at_s: Sequence[float] = ()) -> Processed:
     """A filtered CSV file (:mod:`bpms.io.filtered_file`) as a filter result: ``R`` from the
-    logged Euler angles (``Rz Ry Rx``, SPEC §5), segment orientations ``C`` by the same
+    logged Euler angles (``Rz Ry Rx``, docs/filter.md), segment orientations ``C`` by the same
     Reset Zero as the processor (:class:`bpms.filter.pose.PoseCalibrator`), hence the joint
     angles and positions. Raises :class:`bpms.io.filtered_file.FilteredFileError`."""
     from bpms.filter.processor import BodyPoseProcessor, Result

@@ -1,4 +1,4 @@
-"""Dead-reckoning walked path (SPEC §8, dissertation chapter 3.4).
+"""Dead-reckoning walked path (docs/body-model.md, dissertation chapter 3.4).
 
 Heel strikes are peaks of the foot accelerometer magnitude (g) above
 ``options.track.heel_strike_g``, at least ``min_step_interval_s`` apart on each foot, or come

@@ -1,4 +1,4 @@
-"""The sensor calibration tool's core (SPEC §4), free of Qt.
+"""The sensor calibration tool's core (docs/units.md), free of Qt.
 
 - :mod:`.procedures` — gyroscope, accelerometer and magnetometer procedures as state machines
   fed with raw frames;

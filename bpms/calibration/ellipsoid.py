@@ -65,7 +65,7 @@ def sphere_residual(points: np.ndarray, ellipsoid: MagEllipsoid) -> float:
 
 
 def min_max_ellipsoid(min_max: np.ndarray) -> MagEllipsoid:
-    """The SPEC §4 min/max calibration ``[3, 2]`` written as an axis-aligned ellipsoid."""
+    """The docs/units.md min/max calibration ``[3, 2]`` written as an axis-aligned ellipsoid."""
     centre = min_max.mean(axis=1)
     return MagEllipsoid(center=centre,
                         matrix=np.diag(MAG_FULL_SCALE / (min_max[:, 1] - centre)))

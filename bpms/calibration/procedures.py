@@ -1,4 +1,4 @@
-"""The three calibration procedures (SPEC §4) as state machines fed with raw frames.
+"""The three calibration procedures (docs/units.md) as state machines fed with raw frames.
 
 Each procedure takes raw readings ``feed(raw [18, 9] counts, errors [18, 3] bool | None)`` one
 frame at a time (or :meth:`feed_many`), from whatever source: the suit link, the simulated

@@ -3,7 +3,7 @@ quality figures.
 
 Merging is per value: only what was measured changes (one IMU, one sensor, even one accel pose);
 everything else keeps the existing file's value, so replacing one IMU recalibrates only that
-IMU. Gravity of an IMU is recomputed (SPEC eq. 2.4) whenever its accelerometer values change.
+IMU. Gravity of an IMU is recomputed (docs/units.md) whenever its accelerometer values change.
 """
 
 from __future__ import annotations

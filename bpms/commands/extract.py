@@ -1,4 +1,4 @@
-"""``bpms extract raw|filtered|vicon|qualisys``: the translators (SPEC §9) — one or several
+"""``bpms extract raw|filtered|vicon|qualisys``: the translators (docs/analysis.md) — one or several
 IMUs, or one rigid body of a Vicon/Qualisys export, to a CSV whose header names every column
 with its unit. Missing arguments are asked for when stdin is a terminal; otherwise they are a
 usage error. See docs/analysis.md."""

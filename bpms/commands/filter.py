@@ -25,6 +25,7 @@ from bpms.io.frames import decode_frames
 from bpms.io.options import FilterOptions, Options, load_options, options_from_dict
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_recording
+from bpms.progress import write_progress
 
 CHUNK_FRAMES = 15_000  # 5 min of recording per kernel call (keeps memory flat)
 PROGRESS_ABOVE_FRAMES = 30_000
@@ -120,12 +121,10 @@ def run(args: argparse.Namespace) -> int:
                 writer.write_block(result.t, result.euler,
                                    result.joint_angles if args.joints else None)
                 if show:
-                    print(f"\rfiltering {args.raw_file}: {100 * hi // n:3d}% ({hi}/{n} frames)",
-                          end="", file=sys.stderr, flush=True)
+                    write_progress(f"filtering {args.raw_file}: {100 * hi // n:3d}% "
+                                   f"({hi}/{n} frames)", sys.stderr, final=hi >= n)
     except OSError as exc:
         raise CliError(f"cannot write {out_path}: {exc.strerror or exc}") from exc
-    if show:
-        print(file=sys.stderr)
     elapsed = time.perf_counter() - t_start
     print(f"{out_path}: {n} frames filtered in {elapsed:.1f} s "
           f"({n * 18 / max(elapsed, 1e-9) / 1e6:.2f} M IMU updates/s incl. file I/O)",

@@ -19,7 +19,8 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", metavar="options.toml", help="options file to load")
     p.add_argument("--calibration", metavar="Calib.cfg", help="calibration file to load")
     p.add_argument("--recording-dir", metavar="DIR",
-                   help="folder for recordings (default: the options' logging.directory)")
+                   help="folder for recordings (default: the options' logging.directory, else "
+                        "the per-user recordings folder)")
     p.set_defaults(run=run)
     return p
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from bpms.commands import CliError
 from bpms.commands.sim import add_sim_options, build_arbiter
-from bpms.firmware.sim.server import PtyServer
+from bpms.firmware.sim.server import local_server
 from bpms.io.frames import FRAME_DTYPE, error_words_to_flags
 from bpms.io.link import DEFAULT_BAUD, LinkError, SuitLink, discover_suit, list_candidate_ports
 from bpms.io.options import SerialOptions
@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
         if port is None:
             if args.no_sim:
                 raise CliError(f"no suit answered on {len(candidates)} candidate port(s)")
-            server = PtyServer(build_arbiter(args)).start()
-            port = server.path
+            server = local_server(build_arbiter(args)).start()
+            port = server.address
             print(f"no suit answered on {len(candidates)} candidate port(s); "
                   f"started the simulated suit on {port}", flush=True)
     signal.signal(signal.SIGTERM, _sigterm)

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
 from bpms.commands.sim import add_sim_options, build_arbiter
-from bpms.firmware.sim.server import PtyServer
+from bpms.firmware.sim.server import local_server
 from bpms.io.link import LinkError
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
@@ -34,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("port", nargs="?", metavar="PORT_OR_URL",
                    help="serial port or pyserial URL (default: discover the suit)")
     p.add_argument("-o", "--output", default=None, metavar="DIR",
-                   help="folder for the recordings (default: the options' logging.directory)")
+                   help="folder for the recordings (default: the options' logging.directory, "
+                        "else the per-user recordings folder)")
     p.add_argument("--name", default=None, help="file name stem (default: a time stamp)")
     p.add_argument("--notes", default="", help="free text stored in the raw file's header")
     p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
@@ -83,8 +84,8 @@ def run(args: argparse.Namespace) -> int:
     server = None
     port = args.port
     if args.sim:
-        server = PtyServer(build_arbiter(args)).start()
-        port = server.path
+        server = local_server(build_arbiter(args)).start()
+        port = server.address
         print(f"recording the simulated suit on {port}", flush=True)
     source = SuitFrameSource(port, options.serial)
     try:
@@ -95,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     # the one-line notice about missing defaults, now that recording really starts
     announce_factory(options=not args.options, calibration=not args.calibration)
-    folder = Path(args.output or options.logging.directory)
+    folder = Path(args.output) if args.output else None  # None: options, else per-user folder
     session = LiveSession(source, options, processor, recording_dir=folder, notes=args.notes)
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, signal.default_int_handler)

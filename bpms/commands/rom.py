@@ -1,4 +1,4 @@
-"""``bpms rom RAW_FILE... [--from T0 --to T1] [--reset-at T]``: range of motion (SPEC §7) — min,
+"""``bpms rom RAW_FILE... [--from T0 --to T1] [--reset-at T]``: range of motion — min,
 max and range of every joint angle over a window, as CSV + Markdown tables and one PNG figure
 per joint group; several files give a side-by-side comparison. See docs/analysis.md."""
 

@@ -1,8 +1,9 @@
 """``bpms sim --pty | --tcp PORT``: run the simulated suit until Ctrl-C.
 
-The first line printed is where to connect: the pseudo-terminal's device path (``/dev/pts/N``)
-or ``socket://127.0.0.1:PORT``. The suit speaks the arbiter protocol (SPEC §3) and streams the
-scripted motion of docs/simulated-suit.md, looped, with optional fault injection.
+The first line printed is where to connect: the pseudo-terminal's device path (``/dev/pts/N``,
+Linux and macOS) or ``socket://127.0.0.1:PORT`` (every platform, Windows included). The suit
+speaks the arbiter protocol (docs/frame-format.md) and streams the scripted motion of
+docs/simulated-suit.md, looped, with optional fault injection.
 """
 
 from __future__ import annotations
@@ -11,11 +12,12 @@ import argparse
 import signal
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
-from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
-from bpms.firmware.sim.server import PtyServer, SimServer, TcpServer
-from bpms.io.calib_file import load_calibration
+
+if TYPE_CHECKING:  # numpy and the sensor model load when the suit is built, not for --help
+    from bpms.firmware.sim.arbiter import Arbiter
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -24,7 +26,8 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--pty", action="store_true",
-                       help="serve on a new pseudo-terminal (its path is printed first)")
+                       help="serve on a new pseudo-terminal (its path is printed first; "
+                            "Linux and macOS)")
     where.add_argument("--tcp", type=int, metavar="PORT",
                        help="serve on 127.0.0.1:PORT (0 = any free port; the URL is printed)")
     add_sim_options(p)
@@ -72,6 +75,9 @@ def _probability(name: str, value: float) -> float:
 
 def build_arbiter(args: argparse.Namespace) -> Arbiter:
     """An :class:`Arbiter` streaming the scripted motion, configured from the options."""
+    from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
+    from bpms.io.calib_file import load_calibration
+
     table = None
     if args.calibration:
         table = load_calibration(args.calibration)
@@ -98,15 +104,16 @@ def _sigterm(signum, frame) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bpms.firmware.sim.server import PtyServer, SimServer, TcpServer, pty_available
+
+    if args.pty and not pty_available():
+        raise CliError("this system has no pseudo-terminals: use --tcp PORT "
+                       "(then open socket://127.0.0.1:PORT)")
     arbiter = build_arbiter(args)
     server: SimServer
     try:
-        if args.pty:
-            server = PtyServer(arbiter)
-            where = server.path
-        else:
-            server = TcpServer(arbiter, port=args.tcp)
-            where = server.url
+        server = PtyServer(arbiter) if args.pty else TcpServer(arbiter, port=args.tcp)
+        where = server.address
     except OSError as exc:
         raise CliError(f"cannot open the transport: {exc.strerror or exc}") from None
     print(where, flush=True)

@@ -1,4 +1,4 @@
-"""``bpms track RAW_FILE [--declination DEG]``: the dead-reckoning walked path (SPEC §8) —
+"""``bpms track RAW_FILE [--declination DEG]``: the dead-reckoning walked path —
 heel-strike times, per-step vectors and the 3-D track as CSV, plus a PNG plan view.
 Thresholds come from the options (``[track]``) and can be overridden here.
 See docs/analysis.md."""

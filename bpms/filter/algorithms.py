@@ -8,7 +8,7 @@ down, mag ±100, gyro rad/s, ``[N, n, 3]`` batch or ``[n, 3]`` live) and returns
 the first valid frame of a stream (or after :meth:`reset`) aligns the filter, a failed sensor
 holds its last good value (counted in ``held_count``), gains change from the next frame on.
 
-- ``mahony``: :class:`bpms.filter.bank.FilterBank`, the original (SPEC §5), unchanged;
+- ``mahony``: :class:`bpms.filter.bank.FilterBank`, the original (docs/filter.md), unchanged;
 - ``observer``: :class:`ObserverBank` over :mod:`bpms.filter.observer`;
 - ``vqf``: :class:`VqfBank` over :mod:`bpms.filter.vqf_filter` (needs the ``vqf`` package);
 - ``adaptive``: :class:`bpms.filter.adaptive_bank.AdaptiveBank` over

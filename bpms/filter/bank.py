@@ -1,4 +1,4 @@
-"""FilterBank: 18 DCM Mahony filters (SPEC §5) driven by the numba kernels of
+"""FilterBank: 18 DCM Mahony filters (docs/filter.md) driven by the numba kernels of
 :mod:`bpms.filter.mahony`, with run-time gains, resets and the failed-sensor hold.
 
 Inputs are calibrated filter-frame vectors (``SensorCalibration.calibrate``): accel in Gravity
@@ -44,7 +44,7 @@ class FilterBank:
     ``gravity``: ``[n]`` accelerometer counts per g (the calibration's Gravity). Gains are read
     from :attr:`params` at every call, so changing them (:meth:`set_gains`) takes effect at the
     next frame. :meth:`reset` re-initialises one IMU or all: the next valid frame of that IMU
-    only initialises it (SPEC §5).
+    only initialises it (docs/filter.md).
     """
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:

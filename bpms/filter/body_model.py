@@ -1,4 +1,4 @@
-"""The stick-figure body model (SPEC §6, appendix C).
+"""The stick-figure body model (docs/body-model.md, appendix C).
 
 Segment orientations ``C[18, 3, 3]`` map segment axes to the world frame (north-east-down).
 A segment's axes coincide with the body's (X forward, Y right, Z down) in the calibration

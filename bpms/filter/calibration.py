@@ -1,6 +1,6 @@
-"""Sensor calibration: raw counts ↔ filter units (SPEC §4), for all 18 IMUs at once.
+"""Sensor calibration: raw counts ↔ filter units (docs/units.md), for all 18 IMUs at once.
 
-Filter frame: X forward, Y right, Z down, after the IMU's pre-rotation R* (SPEC §1).
+Filter frame: X forward, Y right, Z down, after the IMU's pre-rotation R* (docs/suit.md).
 - accelerometer: "Gravity counts" (|a| ≈ Gravity ≈ 256–270 at rest), pointing *down*
   (the filter's accel is the gravity direction, +Gravity on Z when level);
 - magnetometer: scaled so the full per-axis range is ±100;
@@ -56,7 +56,7 @@ class SensorCalibration:
     #: Optional magnetometer ellipsoid correction (hard + soft iron): when set, the board
     #: magnetometer is ``signs * (mag_matrix @ (raw - mag_center))`` instead of the per-axis
     #: min/max formula. ``[18, 3, 3]`` and ``[18, 3]``; IMUs without an ellipsoid carry the
-    #: min/max values as a diagonal matrix. None (the default) keeps the SPEC §4 path untouched.
+    #: min/max values as a diagonal matrix. None (the default) keeps the min/max path untouched.
     mag_matrix: np.ndarray | None = None
     mag_center: np.ndarray | None = None
 
@@ -66,7 +66,7 @@ class SensorCalibration:
         ellipsoids: dict[int, MagEllipsoid] | None = None,
     ) -> SensorCalibration:
         """Offsets ``(min+max)/2``; accel scale ``Gravity/(max-offset)``; mag scale
-        ``100/(max-offset)`` (SPEC §4). ``ellipsoids``: optional per-IMU magnetometer
+        ``100/(max-offset)`` (docs/units.md). ``ellipsoids``: optional per-IMU magnetometer
         ellipsoid fits that replace the min/max magnetometer values of those IMUs."""
         cal = cls._from_table(table, sensors)
         return cal.with_ellipsoids(ellipsoids) if ellipsoids else cal
@@ -159,7 +159,7 @@ class SensorCalibration:
 
     def physical_units(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Raw ``[..., 18, 9]`` → (accel m/s², mag gauss, gyro rad/s) in signed board axes,
-        for display and logging (SPEC §4)."""
+        for display and logging (docs/units.md)."""
         acc, _, gyr = self.board_units(raw)
         raw = np.asarray(raw, dtype=np.float64)
         mag = (raw[..., 3:6] - self.mag_offset) * MAG_GAUSS_PER_COUNT * self.mag_signs

@@ -1,9 +1,9 @@
-"""Joint angles (SPEC §7, dissertation chapter 3.1).
+"""Joint angles (docs/body-model.md, dissertation chapter 3.1).
 
 - Elbow and knee flexion: the angle between the two segments' long axes (eq. 3.8), radians,
   0 in the calibration pose.
 - Multi-DOF joints: ``R = C_static^T C_dynamic`` of the two calibrated segment orientations,
-  then roll/pitch/yaw as SPEC §5 step 5, named as Table 3.1: roll = adduction/abduction,
+  then roll/pitch/yaw as docs/filter.md step 5, named as Table 3.1: roll = adduction/abduction,
   pitch = flexion/extension, yaw = lateral/medial rotation.
 """
 

@@ -1,4 +1,4 @@
-"""The DCM Mahony complementary filter (SPEC §5, Razor AHRS lineage) for 18 IMUs at once.
+"""The DCM Mahony complementary filter (docs/filter.md, Razor AHRS lineage) for 18 IMUs at once.
 
 numba-compiled kernels, no Python per frame and no heap allocation per IMU update:
 
@@ -11,7 +11,7 @@ pointing down (|a| ≈ Gravity ≈ 256–270 at rest), magnetometer ±100, gyros
 DCM ``R`` maps the filter frame to world north-east-down; Euler angles (roll, pitch, yaw) in
 radians as :mod:`bpms.filter.rotations`.
 
-Per frame and IMU (all SPEC §5):
+Per frame and IMU (all docs/filter.md):
 
 - an IMU that is not initialised (first frame of a stream, or after a reset) is initialised
   from the frame ("Reset_Mahony": ωI = ωP = 0, roll/pitch from the accelerometer, yaw from the
@@ -53,7 +53,7 @@ N_PARAMS = 5
 
 @njit(cache=True)
 def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> float:
-    """SPEC §5 step 1: tilt-compensated magnetic heading H, rad."""
+    """docs/filter.md step 1: tilt-compensated magnetic heading H, rad."""
     cr = math.cos(roll)
     sr = math.sin(roll)
     cp = math.cos(pitch)
@@ -94,7 +94,7 @@ def _init_imu(i, a, m, R, w_i, w_p, euler, trig):
 
 @njit(cache=True)
 def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, euler, trig):
-    """One filter step (SPEC §5 steps 1–5) of IMU ``i``; scalars only, no allocation."""
+    """One filter step (docs/filter.md steps 1–5) of IMU ``i``; scalars only, no allocation."""
     # 1. heading with the previous roll and pitch; their sines and cosines were cached by the
     # previous step (or the initialisation), and sin H, cos H come without atan2.
     cr, sr, cp, sp = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]

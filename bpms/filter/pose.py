@@ -1,8 +1,8 @@
-"""Pose calibration ("Reset Zero", SPEC §6): filter DCMs → calibrated segment orientations.
+"""Pose calibration ("Reset Zero", docs/body-model.md): DCMs → calibrated segment orientations.
 
 At a capture, ``R0_i`` = the DCM of IMU i averaged over the still window that ends at the
 capture frame (the matrices are averaged and re-orthonormalised by the polar decomposition,
-via SVD); ψ0 = the yaw of the hip IMU (id 6) of its averaged ``R0`` (SPEC §6; option
+via SVD); ψ0 = the yaw of the hip IMU (id 6) of its averaged ``R0`` (docs/body-model.md; option
 ``pose.heading_reference = "mean"`` takes the circular mean of all IMUs' yaws instead, which
 averages out the hip IMU's mounting yaw error). From then on
 
@@ -78,7 +78,7 @@ HEADING_REFERENCES = ("hip", "mean")
 
 def body_heading(R0: np.ndarray, reference: str = "hip", hip: int = HIP_IMU) -> float | None:
     """The body's heading ψ0 (rad) at a capture, from the captured DCMs ``R0[18, 3, 3]``:
-    ``"hip"``, the yaw of the hip IMU (SPEC §6); ``"mean"``, the circular mean of the yaws of
+    ``"hip"``, the hip IMU's yaw (docs/body-model.md); ``"mean"``, the circular mean of the yaws of
     every IMU (each is level in the calibration pose, so each yaw is the body heading plus that
     IMU's mounting yaw error, which averages out). None when no IMU it needs has data."""
     finite = np.isfinite(R0).all(axis=(-1, -2))

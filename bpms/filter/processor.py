@@ -36,7 +36,7 @@ Calibration and options left out (None) are the user's defaults (:mod:`bpms.io.d
 else the factory ones; docs/configuration.md gives the precedence.
 
 The first frame given after construction or :meth:`BodyPoseProcessor.restart` is the first
-frame of the stream: dropping the stale first frame after a pause (SPEC §3) is the job of the
+frame of the stream: dropping the stale first frame after a pause (docs/suit.md) is the job of the
 acquisition layer, which does not record it.
 """
 
@@ -58,6 +58,7 @@ from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarde
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
+from bpms.filter.warmup import PATHS, ensure_kernels
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, check_option, load_options
@@ -69,7 +70,7 @@ SETTLE_S = 0.5
 
 @dataclass
 class Result:
-    """Outputs of N frames. Angles in radians, lengths in metres, frames as SPEC §5/§6.
+    """Outputs of N frames. Angles in radians, lengths in metres, frames: docs/units.md.
 
     t: ``[N]`` s since the stream started, on the fixed filter clock (frame index × dt);
     R: ``[N, 18, 3, 3]`` DCM filter frame → NED; euler (= :attr:`euler_sensor`):
@@ -318,6 +319,12 @@ class BodyPoseProcessor:
         self.options.filter = options
 
     # -- running ------------------------------------------------------------------------
+    def load_kernels(self, live: bool = True) -> float:
+        """Compile (first run on a machine, with a notice) or load this filter's kernels now,
+        for whole recordings and, with ``live``, frame by frame; s taken. A live session
+        calls it before accepting the first frame (:mod:`bpms.filter.warmup`)."""
+        return ensure_kernels(self.options.filter.algorithm, PATHS if live else ("batch",))
+
     def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Raw ``[N, 18, 9]`` counts → filter inputs (accel, mag, gyro) ``[N, 18, 3]``: the
         numbers of ``SensorCalibration.calibrate`` (same formula and parameters), computed in
@@ -355,6 +362,7 @@ class BodyPoseProcessor:
         raw = np.asarray(raw)
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
+        ensure_kernels(self.options.filter.algorithm, ("batch",))  # first call: notice
         acc, mag, gyr = self.calibrate(raw)
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
             errors = failed_inputs(acc, mag, gyr, errors)
@@ -366,6 +374,7 @@ class BodyPoseProcessor:
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
+        ensure_kernels(self.options.filter.algorithm, ("live",))  # no-op once loaded
         raw = np.asarray(raw)
         acc, mag, gyr = self.calibrate(raw[None])
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values

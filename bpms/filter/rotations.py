@@ -1,4 +1,4 @@
-"""Rotation-matrix helpers in the filter's conventions (SPEC §5).
+"""Rotation-matrix helpers in the filter's conventions (docs/filter.md).
 
 A DCM ``R`` maps body-frame vectors to the world frame (north-east-down): ``v_w = R v_b``.
 Euler angles are roll φ (about X), pitch θ (about Y), yaw ψ (about Z), with
@@ -12,7 +12,7 @@ import numpy as np
 
 def euler_to_dcm(roll: np.ndarray | float, pitch: np.ndarray | float,
                  yaw: np.ndarray | float) -> np.ndarray:
-    """``Rz(yaw) Ry(pitch) Rx(roll)``, shape ``[..., 3, 3]`` (SPEC §5 initialisation matrix)."""
+    """``Rz(yaw) Ry(pitch) Rx(roll)``, shape ``[..., 3, 3]`` (docs/units.md)."""
     roll, pitch, yaw = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64)
                                              for v in (roll, pitch, yaw)))
     c1, s1 = np.cos(roll), np.sin(roll)
@@ -32,7 +32,7 @@ def euler_to_dcm(roll: np.ndarray | float, pitch: np.ndarray | float,
 
 
 def dcm_to_euler(R: np.ndarray) -> np.ndarray:
-    """``[..., 3, 3]`` → ``[..., 3]`` (roll, pitch, yaw) in radians (SPEC §5 step 5)."""
+    """``[..., 3, 3]`` → ``[..., 3]`` (roll, pitch, yaw) in radians (docs/filter.md step 5)."""
     R = np.asarray(R, dtype=np.float64)
     pitch = -np.arcsin(np.clip(R[..., 2, 0], -1.0, 1.0))
     roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])

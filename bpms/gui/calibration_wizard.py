@@ -1,4 +1,4 @@
-"""The sensor calibration wizard (SPEC §4): choose IMUs and sensors, then gyro, accelerometer
+"""The sensor calibration wizard (docs/units.md): choose IMUs and sensors, then gyro, accelerometer
 and magnetometer steps live against the suit, a summary (old vs new, quality figures) and save.
 
 The procedures are the Qt-free state machines of :mod:`bpms.calibration.procedures`; a display

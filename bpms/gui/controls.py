@@ -8,6 +8,7 @@ the pipeline threads (the GUI thread never filters or writes files).
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import (
@@ -30,7 +31,9 @@ from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, option_range
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
-from bpms.pipeline.session import LiveStatus
+
+if TYPE_CHECKING:  # the filter (numba) loads with the first session, not the window
+    from bpms.pipeline.session import LiveStatus
 
 GAIN_NAMES = ("kp_rollpitch", "ki_rollpitch", "kp_yaw", "ki_yaw")
 SPEEDS: tuple[tuple[str, float | None], ...] = (

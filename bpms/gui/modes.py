@@ -13,16 +13,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from bpms.filter.processor import BodyPoseProcessor
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.link import LinkError
 from bpms.io.options import Options
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_recording
 from bpms.io.replay import ReplaySource
-from bpms.pipeline.session import LiveSession
 from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
+
+if TYPE_CHECKING:  # the filter (numba) loads when a session is built, not with the window
+    from bpms.pipeline.session import LiveSession
 
 MODES = ("suit", "udp", "file", "sim")
 MODE_LABELS = {
@@ -57,11 +59,11 @@ class SimulatedSuit:
 
     def __init__(self, seed: int = 0) -> None:
         from bpms.firmware.sim.arbiter import Arbiter, MotionSource
-        from bpms.firmware.sim.server import PtyServer
+        from bpms.firmware.sim.server import local_server
 
         self.arbiter = Arbiter(MotionSource.simulated(seed=seed), seed=seed)
-        self.server = PtyServer(self.arbiter).start()
-        self.path: str = self.server.path
+        self.server = local_server(self.arbiter).start()  # a pty, or TCP where there is none
+        self.path: str = self.server.address
 
     def close(self) -> None:
         self.server.stop()
@@ -94,6 +96,9 @@ class SessionRunner:
         return self._data_on
 
     def _new_session(self, source) -> LiveSession:
+        from bpms.filter.processor import BodyPoseProcessor
+        from bpms.pipeline.session import LiveSession
+
         processor = BodyPoseProcessor(calibration=self.calibration, options=self.options)
         return LiveSession(source, self.options, processor,
                            recording_dir=self.config.recording_dir,
@@ -188,4 +193,6 @@ class SessionRunner:
 
 def recording_folder(options: Options, config: ModeConfig) -> Path:
     """Where Start Logging writes."""
-    return Path(config.recording_dir or options.logging.directory)
+    from bpms.io.naming import recordings_folder
+
+    return recordings_folder(config.recording_dir or options.logging.directory)

@@ -295,7 +295,7 @@ def cells_plot(cells: list[tuple[int, int]], angle_unit: str = "deg",
 
 
 def joint_angle_plot(angle_unit: str = "deg", history_s: float = 60.0) -> PlotWindow:
-    """The 28 joint angles, grouped (SPEC §7)."""
+    """The 28 joint angles, grouped (docs/body-model.md)."""
     window = PlotWindow("BPMS joint angles", joint_angle_groups(angle_unit), history_s)
     window.resize(900, 900)
     return window

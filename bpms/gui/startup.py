@@ -44,7 +44,7 @@ from bpms.gui.main_window import MainWindow, optional_module
 from bpms.gui.modes import MODE_LABELS, MODES, ModeConfig, ModeError, SessionRunner
 from bpms.io import defaults
 from bpms.io.calib_file import CalibrationTable, load_calibration
-from bpms.io.link import discover_suit, list_candidate_ports
+from bpms.io.link import describe_candidate_ports, discover_suit
 from bpms.io.options import Options, load_options, options_from_dict, save_options
 from bpms.io.problems import FileProblem
 
@@ -396,7 +396,10 @@ class StartupWindow(QWidget):
     def refresh_ports(self) -> None:
         current = self.port_combo.currentText()
         self.port_combo.clear()
-        self.port_combo.addItems(list_candidate_ports())
+        for device, description in describe_candidate_ports():  # what the OS calls each port
+            self.port_combo.addItem(device)
+            self.port_combo.setItemData(self.port_combo.count() - 1, description or device,
+                                        Qt.ItemDataRole.ToolTipRole)
         if current:
             self.port_combo.setCurrentText(current)
         elif self.options.serial.port:

@@ -93,7 +93,7 @@ def ground_grid(vp: ModuleType, size_m: float = 2.0, step_m: float = 0.5) -> lis
 class BodyScene:
     """The stick figure in its own vpython canvas.
 
-    lengths: segment lengths (default SPEC §6); show_axes: draw each IMU's axes (red x,
+    lengths: segment lengths (default docs/body-model.md); show_axes: draw each IMU's axes (red x,
     green y, blue z, segment axes); keys in the browser: x/y/z view along an axis, d toggle
     the axes, r reset the view (as in the Qt window).
     """

@@ -1,4 +1,4 @@
-"""Sensor calibration values and the legacy ``Calib.cfg`` file (SPEC §4).
+"""Sensor calibration values and the legacy ``Calib.cfg`` file (docs/units.md).
 
 Per IMU, 16 numbers in this order: ``Gravity, AxMin, AxMax, AyMin, AyMax, AzMin, AzMax,
 MxMin, MxMax, MyMin, MyMax, MzMin, MzMax, GxAvg, GyAvg, GzAvg`` (raw counts, except Gravity,

@@ -2,7 +2,7 @@
 ellipsoids and provenance, written beside the legacy ``Calib.cfg`` (``Calib.cfg`` →
 ``Calib.json``). See docs/calibration.md for the layout.
 
-The legacy file stays the reference for the 16 SPEC §4 numbers; the modern one adds what the
+The legacy file stays the reference for the 16 docs/units.md numbers; the modern one adds what the
 legacy format cannot hold (ellipsoids, when and how each IMU was calibrated, quality figures).
 Reading never raises for bad content: problems are reported and the IMU falls back.
 """

@@ -1,4 +1,4 @@
-"""The filtered file (SPEC §10): CSV text, one row per frame.
+"""The filtered file (docs/filter.md): CSV text, one row per frame.
 
 Columns: ``time_s`` (seconds since the stream started, on the fixed 50 Hz filter clock), then
 roll, pitch, yaw of IMU 0..17 (``imu0_right_leg_roll_rad``, ...), then optionally the 28 joint

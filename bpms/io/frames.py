@@ -1,4 +1,4 @@
-"""The suit's 340-byte frame (SPEC §2): constants, encoder, vectorised decoder.
+"""The suit's 340-byte frame (docs/frame-format.md): constants, encoder, vectorised decoder.
 
 Layout::
 
@@ -34,7 +34,7 @@ END_OFFSET = FRAME_SIZE - len(END)
 FRAME_RATE_HZ = 50.0
 FRAME_PERIOD_S = 1.0 / FRAME_RATE_HZ
 
-#: IMU names in wire order (SPEC §1).
+#: IMU names in wire order (docs/suit.md).
 IMU_NAMES: tuple[str, ...] = (
     "Right Leg",
     "Right Foot",

@@ -1,4 +1,4 @@
-"""Reader for the original suite's raw files (SPEC §10), without ever executing code.
+"""Reader for the original suite's raw files (docs/raw-format.md), without ever executing code.
 
 The original (Python 2.7) wrote one ``pickle.dump([host_time, frame_str], f)`` per frame,
 protocol 0 (text) by default, 1 or 2 possibly; ``frame_str`` is the 340-byte frame as a Python 2

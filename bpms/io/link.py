@@ -1,4 +1,4 @@
-"""The suit link: the host side of the arbiter protocol (SPEC §3) over pyserial.
+"""The suit link: the host side of the arbiter protocol (docs/suit.md) over pyserial.
 
 Layers, lowest first:
 
@@ -43,13 +43,22 @@ class LinkError(Exception):
     """A suit-link problem, with a one-line message for the user."""
 
 
-def list_candidate_ports() -> list[str]:
-    """Serial ports that may lead to the suit: pyserial's list plus ``/dev/rfcomm*``."""
-    ports = [p.device for p in serial.tools.list_ports.comports()]
-    for path in sorted(glob.glob("/dev/rfcomm*")):
-        if path not in ports:
-            ports.append(path)
+def describe_candidate_ports() -> list[tuple[str, str]]:
+    """``(device, description)`` of every serial port that may lead to the suit: pyserial's
+    list (``COMn`` on Windows, ``/dev/cu.*`` on macOS, USB and Bluetooth ports on Linux) plus
+    Linux's ``/dev/rfcomm*`` Bluetooth bindings, which pyserial does not list."""
+    ports = [(p.device, p.description if p.description not in (None, "", "n/a") else "")
+             for p in serial.tools.list_ports.comports()]
+    extra = sorted(glob.glob("/dev/rfcomm*")) + sorted(glob.glob("/dev/cu.*"))
+    for path in extra:
+        if path not in (d for d, _ in ports):
+            ports.append((path, "Bluetooth serial port" if "rfcomm" in path else ""))
     return ports
+
+
+def list_candidate_ports() -> list[str]:
+    """The devices of :func:`describe_candidate_ports`."""
+    return [device for device, _ in describe_candidate_ports()]
 
 
 def discover_suit(candidates: list[str] | None = None, timeout_s: float = 1.0,
@@ -73,7 +82,7 @@ class LinkStats:
     """Counters of a :class:`SuitLink` (the parser keeps the frame/resync counters)."""
 
     starts: int = 0
-    stale_discarded: int = 0  # first frames after a start, dropped (SPEC §3)
+    stale_discarded: int = 0  # first frames after a start, dropped (docs/suit.md)
     frames_read: int = 0  # frames returned by read_frames
     reply_bytes_skipped: int = 0  # bytes before/after a reply that were not part of it
 

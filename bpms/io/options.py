@@ -187,8 +187,7 @@ class FilterOptions:
 
 @dataclass
 class SensorOptions:
-    """Axis sign vectors from the calibrated board axes into the filter frame
-    (docs/calibration.md)."""
+    """Axis sign vectors from the calibrated board axes into the filter frame (docs/units.md)."""
 
     accel_signs: list[float] = _opt([1.0, 1.0, 1.0], "accelerometer x, y, z signs", signs=True)
     mag_signs: list[float] = _opt([1.0, -1.0, -1.0], "magnetometer x, y, z signs", signs=True)
@@ -225,7 +224,7 @@ class UdpOptions:
 
 @dataclass
 class LoggingOptions:
-    directory: str = _opt("recordings", "folder for recordings")
+    directory: str = _opt("", "folder for recordings; empty = the per-user recordings folder")
     name: str = _opt("", "file name stem; empty = a time stamp")
     raw: bool = _opt(True, "record raw frames")
     filtered: bool = _opt(True, "record filtered angles")
@@ -236,7 +235,7 @@ class LoggingOptions:
 class PoseOptions:
     reset_window_s: float = _opt(0.5, "Reset Zero averages the DCMs over this still window, s")
     heading_reference: str = _opt(
-        "hip", "body heading at Reset Zero: the 'hip' IMU's yaw (docs/filter.md) or the "
+        "hip", "body heading at Reset Zero: the 'hip' IMU's yaw (docs/body-model.md) or the "
         "'mean' of all IMUs' yaws (averages out mounting yaw errors)")
     corrected_output: bool = _opt(
         True, "per-IMU Euler angles shown, written and streamed are the segment orientations "

@@ -1,6 +1,6 @@
 """Streaming frame parser: arbitrary byte chunks in, whole 340-byte frames out.
 
-The frame has no sequence number and no checksum (SPEC §2), and its payload may contain the
+The frame has no sequence number and no checksum (docs/frame-format.md); its payload may contain the
 marker bytes ``$#`` / ``#$`` by chance. The parser therefore accepts a *candidate* only when a
 ``$#`` is followed, exactly 338 bytes later, by ``#$``; anything else is discarded byte range
 by byte range and the parser resynchronises on the next ``$#``.

@@ -1,4 +1,4 @@
-"""A raw recording played back as a frame source (SPEC §9 file mode).
+"""A raw recording played back as a frame source (raw-file playback, docs/gui.md).
 
 Pacing uses the suit's nominal period (20 ms per frame) divided by the speed, not the
 recorded host times: those carry the Bluetooth jitter and bursts of the live session, while

@@ -1,4 +1,4 @@
-"""Live-stream forwarding over UDP (SPEC §9): datagram codec, forwarder (server), source (client).
+"""Live-stream forwarding over UDP (docs/udp.md): codec, forwarder (server), source (client).
 
 The byte-exact format, the counter semantics and multicast notes are in ``docs/udp.md``.
 Every datagram is a 32-byte header followed by a payload; all fields are big-endian (network

@@ -26,10 +26,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bpms.filter.processor import BodyPoseProcessor
 from bpms.io.events import FrameEvent, FrameSource, SourceStatus
 from bpms.io.filtered_file import FilteredWriter
 from bpms.io.frames import FRAME_PERIOD_S, decode_frames
@@ -41,13 +41,16 @@ from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.rate import RateMeter
 from bpms.pipeline.settings_queue import SettingsQueue
 
+if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
+    from bpms.filter.processor import BodyPoseProcessor
+
 log = logging.getLogger(__name__)
 _STOP = object()
 
 
 @dataclass(frozen=True, slots=True)
 class PoseSample:
-    """One processed frame. Angles rad, lengths m, frames as SPEC §5/§6.
+    """One processed frame. Angles rad, lengths m, frames as docs/filter.md, docs/body-model.md.
 
     index: frame index in the source; host_time: s since the epoch (receive time);
     raw ``[18, 9]`` int16 counts; errors ``[18, 3]`` bool; euler ``[18, 3]`` filter roll,
@@ -154,7 +157,12 @@ class LiveSession:
 
             options = default_options(announce=False)  # the user's default, else factory
         self.options = options
-        self.processor = processor or BodyPoseProcessor(options=self.options)
+        if processor is None:
+            from bpms.filter.processor import BodyPoseProcessor
+
+            processor = BodyPoseProcessor(options=self.options)
+        self.processor = processor
+        processor.load_kernels()  # compiled/loaded before any frame is accepted, not in frame 1
         self.settings = SettingsQueue()
         self._reinit_seen = 0
         self._reinit_noted = -1e9
@@ -229,7 +237,7 @@ class LiveSession:
 
     # -- commands -------------------------------------------------------------------------
     def reset_zero(self) -> None:
-        """Reset Zero at the next processed frame (docs/filter.md)."""
+        """Reset Zero at the next processed frame (docs/body-model.md)."""
         self.settings.reset_zero()
 
     def set_gains(self, **gains: float) -> None:

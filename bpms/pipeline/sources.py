@@ -16,7 +16,7 @@ log = logging.getLogger(__name__)
 
 
 class UdpFrameSource:
-    """Raw frames received from a BPMS UDP forwarder (SPEC §9 UDP client mode).
+    """Raw frames received from a BPMS UDP forwarder (docs/udp.md UDP client mode).
 
     Frame indices come from the sender's suit time, so filtered files written here line up with
     the sender's. A new sender session (restart) is a discontinuity: the filters re-initialise.
@@ -56,7 +56,7 @@ class UdpFrameSource:
 
 
 class SuitFrameSource:
-    """The suit over serial/Bluetooth (SPEC §3) as a pipeline source, with a watchdog.
+    """The suit over serial/Bluetooth (docs/suit.md) as a pipeline source, with a watchdog.
 
     Connecting: discover the suit when no port is given, read the battery, start the stream
     (``SuitLink.start`` drops the stale first frame). The first frame after every (re)start

@@ -1,4 +1,4 @@
-"""The arbiter board's protocol (SPEC §3), transport-independent, with fault injection.
+"""The arbiter board's protocol (docs/suit.md), transport-independent, with fault injection.
 
 Host → suit bytes go to :meth:`Arbiter.receive`; the bytes due for the host come out of
 :meth:`Arbiter.poll` (a transport calls it often, see :mod:`bpms.firmware.sim.server`).

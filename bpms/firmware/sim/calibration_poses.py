@@ -1,6 +1,6 @@
 """Raw frames for scripted sensor-calibration poses (the calibration tool's simulated suit).
 
-The operator's moves, per IMU filter frame (SPEC §4/§5 units), turned into raw counts through a
+The operator's moves, per IMU filter frame (docs/units.md), turned into raw counts through a
 *true* calibration table (and optional true soft-iron ellipsoids) that may differ from the
 factory one:
 

@@ -2,9 +2,12 @@
 
 - :class:`PtyServer`: ``os.openpty()`` in raw mode; the host opens :attr:`~PtyServer.path`
   (``/dev/pts/N``) with pyserial like a Bluetooth SPP port. The server keeps a slave fd open
-  itself, so the pty survives clients closing and reopening it.
+  itself, so the pty survives clients closing and reopening it. Unix only: ``tty`` is
+  imported when a pty is made, never at import time.
 - :class:`TcpServer`: one client at a time on 127.0.0.1, for pyserial's
-  ``socket://127.0.0.1:PORT``. A client that disconnects stops the stream.
+  ``socket://127.0.0.1:PORT``. A client that disconnects stops the stream. Every platform.
+- :func:`local_server`: whichever the platform offers (a pty where there is one, else TCP);
+  :attr:`SimServer.address` is what to open with pyserial either way.
 
 Both run the same loop (:meth:`SimServer.serve_forever`) in the foreground or in a thread
 (:meth:`SimServer.start`). Nothing ever blocks for long: every wait is bounded, writes are
@@ -22,10 +25,12 @@ import select
 import socket
 import threading
 import time
-import tty
+from typing import TYPE_CHECKING
 
-from bpms.firmware.sim.arbiter import Arbiter
 from bpms.io.frames import FRAME_SIZE
+
+if TYPE_CHECKING:
+    from bpms.firmware.sim.arbiter import Arbiter
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +62,11 @@ class SimServer:
 
     def _connected(self) -> bool:
         return True
+
+    @property
+    def address(self) -> str:  # pragma: no cover - abstract
+        """What a host opens with pyserial: a device path or a ``socket://`` URL."""
+        raise NotImplementedError
 
     def close(self) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -139,6 +149,11 @@ class PtyServer(SimServer):
     """The simulated suit on a pseudo-terminal; :attr:`path` is the device to open."""
 
     def __init__(self, arbiter: Arbiter) -> None:
+        if not pty_available():
+            raise OSError(errno.ENOSYS, "pseudo-terminals are not available on this system "
+                                        "(use the TCP transport)")
+        import tty  # Unix only: imported here so that importing this module works everywhere
+
         super().__init__(arbiter)
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
@@ -146,6 +161,10 @@ class PtyServer(SimServer):
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
         self._closed = False
+
+    @property
+    def address(self) -> str:
+        return self.path
 
     def _fds(self) -> list:
         return [] if self._closed else [self._master]
@@ -187,6 +206,10 @@ class TcpServer(SimServer):
         self.url = f"socket://{self.host}:{self.port}"
         self._client: socket.socket | None = None
         self.clients = 0
+
+    @property
+    def address(self) -> str:
+        return self.url
 
     def _connected(self) -> bool:
         return self._client is not None
@@ -242,3 +265,28 @@ class TcpServer(SimServer):
             self._drop_client()
         with contextlib.suppress(OSError):
             self._listener.close()
+
+
+def pty_available() -> bool:
+    """True where this platform offers pseudo-terminals (``os.openpty`` and ``tty``)."""
+    if not hasattr(os, "openpty"):
+        return False
+    try:
+        import tty  # noqa: F401  (termios underneath; absent on Windows)
+    except ImportError:
+        return False
+    return True
+
+
+def local_server(arbiter: Arbiter, transport: str = "auto") -> SimServer:
+    """The simulated suit on a local transport, not started.
+
+    ``transport``: ``"pty"``, ``"tcp"`` (127.0.0.1, a free port) or ``"auto"`` (a pty where
+    the platform offers one, else TCP). Open :attr:`SimServer.address` with pyserial.
+    Raises OSError when the transport cannot be opened.
+    """
+    if transport not in ("auto", "pty", "tcp"):
+        raise ValueError(f"unknown transport {transport!r} (auto, pty or tcp)")
+    if transport == "pty" or (transport == "auto" and pty_available()):
+        return PtyServer(arbiter)
+    return TcpServer(arbiter)

@@ -1,4 +1,4 @@
-// Arbiter board logic (dissertation 2.3.1.3, SPEC §3): command bytes from the host, polling of
+// Arbiter board logic (dissertation 2.3.1.3, docs/suit.md): command bytes from the host, polling of
 // the six clusters through the serial multiplexer, the 340-byte frame every 20 ms.
 #ifndef BPMS_ARBITER_LOGIC_H
 #define BPMS_ARBITER_LOGIC_H

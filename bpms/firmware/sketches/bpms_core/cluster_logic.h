@@ -1,4 +1,4 @@
-// Cluster board logic (dissertation 2.3.1.2, SPEC §3): answer each poll with the reading
+// Cluster board logic (dissertation 2.3.1.2, docs/suit.md): answer each poll with the reading
 // stored at the previous poll, then read the three IMUs anew.
 #ifndef BPMS_CLUSTER_LOGIC_H
 #define BPMS_CLUSTER_LOGIC_H

@@ -1,4 +1,4 @@
-// BPMS wire protocol (SPEC.md §2, §3): constants and pure helpers shared by the cluster and
+// BPMS wire protocol (docs/frame-format.md, docs/suit.md): constants and pure helpers shared by the cluster and
 // arbiter sketches and by the host test build.
 //
 // Plain C++11 for the AVR: no heap, no STL, no exceptions; only <stdint.h>/<string.h>.
@@ -10,7 +10,7 @@
 
 namespace bpms {
 
-// --- frame layout (SPEC §2) ---------------------------------------------------------------
+// --- frame layout (docs/frame-format.md) ---------------------------------------------------------------
 const uint8_t N_CLUSTERS = 6;
 const uint8_t IMUS_PER_CLUSTER = 3;
 const uint8_t SENSORS_PER_IMU = 3;  // 0 accel, 1 mag, 2 gyro
@@ -31,7 +31,7 @@ inline uint16_t error_bit(uint8_t slot, uint8_t sensor) {
     return static_cast<uint16_t>(1u << (slot * SENSORS_PER_IMU + sensor));
 }
 
-// --- arbiter commands (SPEC §3) -------------------------------------------------------------
+// --- arbiter commands (docs/suit.md) -------------------------------------------------------------
 const uint8_t CMD_STREAM = 0x00;
 const uint8_t CMD_BATTERY = 0x01;
 const uint8_t CMD_IDENTIFY = 0x02;

@@ -45,7 +45,7 @@ const uint8_t ITG_GYRO_XOUT_H = 0x1D;  // X H, X L, Y H, Y L, Z H, Z L, big-endi
 
 // Board axis i = sign[i] * chip axis src[i]. "Board order" is the Razor AHRS convention for the
 // SEN-10724 (X along the HMC5883L's x): the ADXL345 and ITG-3200 have x and y swapped with
-// respect to it. Signs stay +1 here: SPEC §4 puts the sign changes on the host.
+// respect to it. Signs stay +1 here: docs/units.md puts the sign changes on the host.
 struct AxisMap {
     uint8_t src[AXES];
     int8_t sign[AXES];

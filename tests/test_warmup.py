@@ -1,0 +1,82 @@
+"""Getting the compiled filters ready: the notice, its progress lines, and when it happens."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+from pathlib import Path
+
+from bpms.filter import warmup
+from bpms.filter.warmup import Progress, ensure_kernels, kernels_ready
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def _show(stream, steps: int = 3) -> str:
+    progress = Progress(steps, stream, notice_after_s=0.0)
+    progress._timer.join(5)  # the notice is due at once
+    for k in range(steps):
+        progress.step(f"step {k}")
+        progress.advance()
+    progress.close()
+    return stream.getvalue()
+
+
+def test_progress_rewrites_one_line_on_a_terminal():
+    text = _show(Terminal())
+    assert text.count("\n") == 1 and text.endswith("\n")  # one line, ended once
+    assert text.count("\r") >= 4 and "3/3 done in" in text.split("\r")[-1]
+
+
+def test_progress_writes_plain_lines_elsewhere():
+    text = _show(io.StringIO())
+    assert "\r" not in text
+    lines = text.splitlines()
+    assert len(lines) >= 4 and lines[-1].endswith(" s") and "3/3 done in" in lines[-1]
+    assert all(line.startswith("bpms: compiling the filters") for line in lines)
+
+
+def test_nothing_is_said_when_it_is_quick():
+    stream = io.StringIO()
+    progress = Progress(2, stream, notice_after_s=60.0)
+    progress.step("a")
+    progress.advance()
+    progress.close()
+    assert stream.getvalue() == ""
+
+
+def test_kernels_are_ready_once_and_a_live_session_loads_them_before_any_frame(monkeypatch):
+    from bpms.pipeline.session import LiveSession
+
+    monkeypatch.setattr(warmup, "_ready", set())  # as in a fresh process
+    assert not kernels_ready("mahony")
+    assert kernels_ready("vqf")  # not compiled by numba: nothing to wait for
+
+    class Silent:  # a frame source that never delivers a frame
+        def read(self, timeout: float = 0.1) -> list:
+            return []
+
+        def status(self):  # pragma: no cover - never asked here
+            raise NotImplementedError
+
+        def close(self) -> None:
+            pass
+
+    session = LiveSession(Silent())  # built, not started: not one frame has been offered
+    assert session.processor is not None
+    assert kernels_ready("mahony", ("batch", "live"))
+    assert ensure_kernels("mahony") == 0.0  # once per process
+
+
+def test_bpms_warmup_command_says_the_filters_are_ready():
+    done = subprocess.run([sys.executable, "-m", "bpms", "warmup", "--filter", "mahony"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.strip().splitlines()[-1].startswith("bpms warmup: the filters (mahony)")
+    assert "\r" not in done.stderr
