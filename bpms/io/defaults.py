@@ -20,7 +20,8 @@ from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.options import Options, load_options
 from bpms.io.userdirs import config_dir, default_calibration_path, default_options_path
 
-log = logging.getLogger("bpms.config")
+# not "bpms.config": that logger carries file problems, which commands print themselves
+log = logging.getLogger("bpms.defaults")
 
 _announced: set[str] = set()
 
