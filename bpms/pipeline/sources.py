@@ -3,12 +3,22 @@ the UDP client (:class:`UdpFrameSource`) and the suit link (:class:`SuitFrameSou
 
 from __future__ import annotations
 
-import contextlib
 import logging
+import threading
 import time
+from collections.abc import Callable
 
 from bpms.io.events import FrameEvent, SourceStatus
-from bpms.io.link import LinkError, SuitLink, discover_suit
+from bpms.io.link import (
+    CMD_IDENTIFY,
+    DeviceGone,
+    LinkClosed,
+    LinkError,
+    SuitLink,
+    Transport,
+    discover_suit,
+)
+from bpms.io.link_states import LOST_STATES, LinkEvent, LinkState, next_state
 from bpms.io.options import SerialOptions
 from bpms.io.udp import UdpSource
 
@@ -56,96 +66,179 @@ class UdpFrameSource:
 
 
 class SuitFrameSource:
-    """The suit over serial/Bluetooth (SPEC §3) as a pipeline source, with a watchdog.
+    """The suit over serial/Bluetooth (SPEC §3) as a pipeline source, driven by the link state
+    machine of :mod:`bpms.io.link_states` (states, events and the one transition function).
 
     Connecting: discover the suit when no port is given, read the battery, start the stream
     (``SuitLink.start`` drops the stale first frame). The first frame after every (re)start
     carries ``discontinuity``, so the filters re-initialise while Reset Zero stays in force.
 
-    Watchdog: a Bluetooth link that leaves range often raises nothing — reads just time out.
-    After ``serial.link_lost_after_s`` without a byte the state becomes "link lost" and the
-    port is kept listening, so a suit that comes back streaming is picked up at once; every
-    ``retry_s`` of further silence the stream is restarted (identify + start), which brings
-    back a suit that was switched off and on. A read error (the device vanished) closes the
-    port and reopens it every ``retry_s``. Everything already recorded stays recorded.
+    Watchdog: a Bluetooth link that leaves range often raises nothing: reads just time out.
+    After ``serial.link_lost_after_s`` without a byte the state becomes *silent* and the port
+    keeps listening, so a suit that comes back streaming is taken at once; every ``retry_s``
+    of further silence the suit is probed and, when it answers ``BPMS`` (it was switched off
+    and on), the stream is restarted. A read or write error (device removed, TCP connection
+    dropped) makes it *gone*: the port is closed and reopened every ``retry_s``. Everything
+    already received stays received.
+
+    ``simulated``: the source is the simulated suit (status says SIMULATED). ``opener``
+    (port, baud) → :class:`Transport` and ``clock`` / ``sleep`` replace the real port and
+    time in tests. :meth:`read` runs on one (acquisition) thread; :meth:`close`,
+    :meth:`stop_stream`, :meth:`start_stream` and :meth:`status` are safe from any thread.
     """
 
     def __init__(self, port: str | None = None, serial: SerialOptions | None = None, *,
-                 retry_s: float = 1.0) -> None:
+                 retry_s: float = 1.0, simulated: bool = False,
+                 opener: Callable[[str, int], Transport] | None = None,
+                 clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], object] | None = None) -> None:
         self.port = port
         self.serial = serial or SerialOptions()
         self.retry_s = retry_s
+        self.simulated = simulated
+        self._opener = opener
+        self._clock = clock
+        self._wake = threading.Event()
+        self._sleep = sleep or self._wake.wait
+        self._lock = threading.RLock()  # guards state and link changes
         self._link: SuitLink | None = None
-        self._state = "connecting"
+        self._state = LinkState.CONNECTING
         self._reason = ""
         self._battery: float | None = None
         self._count = 0
         self._discontinuity = True
-        self._last_data = time.monotonic()
+        self._last_data = clock()
         self._next_attempt = 0.0
         self._old_resyncs = 0
         self._old_discarded = 0
         self.connections = 0
         self.links_lost = 0
-        self._closed = False
+        self.restarts = 0  # streams restarted after a power-cycle or a reopened port
+        self.history: list[tuple[LinkState, LinkEvent, LinkState]] = []  # last 64 transitions
         self._want_stream = True  # Start/Stop Data; applied by read() (the acquisition thread)
+
+    # -- the one place where the state changes ----------------------------------------------
+    def _event(self, event: LinkEvent, reason: str = "") -> LinkState:
+        """Apply ``event``: the new state comes from :func:`next_state`; entering a state
+        does its bookkeeping here and nowhere else."""
+        with self._lock:
+            old = self._state
+            new = next_state(old, event)
+            self._state = new
+            self.history = (self.history + [(old, event, new)])[-64:]
+            now = self._clock()
+            if new is LinkState.STREAMING:
+                self._reason = ""
+                self._last_data = now
+                if old is not LinkState.STREAMING:
+                    self._discontinuity = True
+                    if old in LOST_STATES:
+                        log.warning("suit link %s: streaming again (%s)",
+                                    self.connected_port or self.port, event.value)
+            elif new in LOST_STATES or new is LinkState.CONNECTING:
+                self._reason = reason or self._reason
+                if old not in LOST_STATES and new is not LinkState.CONNECTING:
+                    self.links_lost += 1
+                    log.warning("suit link lost (%s): %s", new.value, reason)
+                if new is LinkState.SILENT and old is not LinkState.SILENT:
+                    self._next_attempt = now + self.retry_s
+                if new in (LinkState.GONE, LinkState.CONNECTING):
+                    self._next_attempt = now + self.retry_s
+                    if new is LinkState.GONE:
+                        self._close_link()
+            elif new is LinkState.STOPPED:
+                self._reason = ""
+            elif new is LinkState.CLOSED:
+                self._wake.set()
+            return new
+
+    @property
+    def state(self) -> LinkState:
+        return self._state
 
     @property
     def connected_port(self) -> str | None:
-        return self._link.port if self._link is not None else None
+        link = self._link
+        return link.port if link is not None else None
 
     @property
     def reason(self) -> str:
         """Why the link is not streaming (empty while it is)."""
         return self._reason
 
-    def connect(self) -> None:
-        """Open the port (discovering it when none was given) and start the stream.
-        Raises LinkError with a one-line reason."""
+    # -- opening --------------------------------------------------------------------------
+    def _open(self) -> SuitLink:
+        """Open the port (discovering it when none was given), identify the suit, read the
+        battery and start the stream when wanted. Raises LinkError."""
         timeout = self.serial.discovery_timeout_s
         port = self.port or discover_suit(None, timeout, self.serial.baud)
         if port is None:
             raise LinkError("no suit answered on any serial port (is it paired, switched on, "
                             "charged?)")
-        link = SuitLink(port, self.serial.baud, self.serial.read_timeout_s, timeout)
+        transport = None
+        if self._opener is not None:
+            try:
+                transport = self._opener(port, self.serial.baud)
+            except OSError as exc:
+                raise DeviceGone(f"cannot open {port}: {exc.strerror or exc}") from None
+        link = SuitLink(port, self.serial.baud, self.serial.read_timeout_s, timeout,
+                        transport=transport, clock=self._clock)
         try:
             link.identify()
             try:
                 self._battery = link.battery_volts()
             except LinkError as exc:
+                if isinstance(exc, DeviceGone):
+                    raise
                 log.info("battery not read: %s", exc)
             if self._want_stream:
                 link.start()
         except LinkError:
             link.close()
             raise
-        self._link = link
-        self.connections += 1
-        self._streaming_again("suit link on " + port)
+        return link
 
-    def _streaming_again(self, message: str) -> None:
-        if self._state == "link lost":
-            log.warning("%s: streaming again", message)
-        self._state = "streaming" if self._want_stream else "stopped"
-        self._reason = ""
-        self._discontinuity = True
-        self._last_data = time.monotonic()
+    def _attach(self, link: SuitLink) -> None:
+        with self._lock:
+            if self._state is LinkState.CLOSED:
+                link.close(CMD_IDENTIFY if link.streaming else b"")
+                return
+            self._link = link
+            self.connections += 1
+            if self.connections > 1:
+                self.restarts += 1
+        self._event(LinkEvent.OPENED if self._want_stream else LinkEvent.OPENED_IDLE)
 
-    def _lost(self, reason: str) -> None:
-        if self._state != "link lost":
-            self.links_lost += 1
-            log.warning("suit link lost: %s", reason)
-        self._state = "link lost"
-        self._reason = reason
-        self._next_attempt = time.monotonic() + self.retry_s
+    def connect(self) -> None:
+        """Open the port (discovering it when none was given) and start the stream.
+        Raises LinkError with a one-line reason (the source stays *connecting*)."""
+        try:
+            link = self._open()
+        except LinkError as exc:
+            if self._state is LinkState.CONNECTING:
+                self._event(LinkEvent.OPEN_FAILED, str(exc))
+            raise
+        self._attach(link)
+
+    def _reopen(self) -> None:
+        self._event(LinkEvent.RETRY)
+        try:
+            link = self._open()
+        except LinkError as exc:
+            if self._state is LinkState.REOPENING:
+                self._event(LinkEvent.OPEN_FAILED, str(exc))
+            return
+        self._attach(link)
 
     def _close_link(self) -> None:
-        link, self._link = self._link, None
+        with self._lock:
+            link, self._link = self._link, None
         if link is not None:
             self._old_resyncs += link.parser.stats.resyncs
             self._old_discarded += link.parser.stats.discarded_bytes
             link.close()
 
+    # -- Start / Stop Data ----------------------------------------------------------------
     def stop_stream(self) -> None:
         """Stop Data: the suit stops streaming (frames already sent still arrive); the link
         stays open and the watchdog rests. Safe from any thread."""
@@ -156,64 +249,101 @@ class SuitFrameSource:
         self._want_stream = True
 
     def _apply_stream_request(self, link: SuitLink) -> None:
-        if self._want_stream and not link.streaming and self._state != "link lost":
-            link.start()
-            self._streaming_again("Start Data")
-        elif not self._want_stream and link.streaming:
-            link.send_stop()
-            self._state = "stopped"
-
-    def read(self, timeout: float = 0.1) -> list[FrameEvent]:
-        if self._closed:
-            return []
-        now = time.monotonic()
-        if self._link is None:
-            if now < self._next_attempt or not self._want_stream:
-                time.sleep(max(0.0, min(timeout, self._next_attempt - now)) or timeout)
-                return []
+        state = self._state
+        if self._want_stream and state is LinkState.STOPPED:
             try:
-                self.connect()
+                link.start()
+            except DeviceGone:
+                raise
             except LinkError as exc:
-                self._reason = str(exc)
-                self._next_attempt = time.monotonic() + self.retry_s
-                return []
+                self._event(LinkEvent.START_FAILED, str(exc))
+                return
+            self._event(LinkEvent.START)
+        elif not self._want_stream and state in (LinkState.STREAMING, LinkState.SILENT):
+            link.send_stop()
+            self._event(LinkEvent.STOP)
+
+    # -- the acquisition loop -------------------------------------------------------------
+    def read(self, timeout: float = 0.1) -> list[FrameEvent]:
+        state = self._state
+        if state is LinkState.CLOSED:
+            return []
         link = self._link
-        assert link is not None
+        if link is None:  # connecting or gone: (re)open when it is time
+            now = self._clock()
+            wait = self._next_attempt - now
+            if wait > 0 or not self._want_stream and state is LinkState.GONE:
+                self._sleep(min(timeout, wait) if wait > 0 else timeout)
+                return []
+            if state is LinkState.GONE:
+                self._reopen()
+            else:
+                try:
+                    self.connect()
+                except LinkError:
+                    pass
+            return []
         try:
             self._apply_stream_request(link)
             frames = link.read_frames(timeout)
-            now = time.monotonic()
-            if not frames and self._want_stream:
-                silent = now - self._last_data
-                if self._state != "link lost" and silent > self.serial.link_lost_after_s:
-                    self._lost(f"no data for {silent:.1f} s")
-                elif self._state == "link lost" and now >= self._next_attempt:
-                    self._next_attempt = now + self.retry_s
-                    link.identify(keep_frames=True)  # LinkError while the suit is away
-                    link.start()
-                    self._streaming_again(f"suit on {link.port} answered")
-        except LinkError as exc:
-            if self._closed:  # closing the port under a read is not a lost link
-                return []
-            away = "did not answer" in str(exc) or "no frame" in str(exc)
-            if self._state == "link lost" and away:
-                self._reason = str(exc)  # still away (or back and streaming): keep listening
-                return []
-            self._lost(str(exc))
-            self._close_link()
+            if not frames:
+                self._watchdog(link)
+                frames = link.read_frames(0.0) if link.streaming else []
+        except LinkClosed:
+            return []
+        except DeviceGone as exc:
+            if self._state is not LinkState.CLOSED:
+                self._event(LinkEvent.DEVICE_GONE, str(exc))
             return []
         if not frames:
             return []
-        if self._state == "link lost":
-            self._streaming_again(f"suit on {link.port} is back")
-        self._last_data = now
-        host_time = time.time()
-        events = []
-        for frame in frames:
-            events.append(FrameEvent(host_time, frame, self._count, self._discontinuity))
-            self._discontinuity = False
-            self._count += 1
+        with self._lock:
+            if self._state is LinkState.CLOSED:
+                return []
+            self._event(LinkEvent.FRAMES)
+            self._last_data = self._clock()
+            host_time = time.time()
+            events = []
+            for frame in frames:
+                events.append(FrameEvent(host_time, frame, self._count, self._discontinuity))
+                self._discontinuity = False
+                self._count += 1
         return events
+
+    def _watchdog(self, link: SuitLink) -> None:
+        """No frame in this read: maybe the link went quiet, maybe it is time to probe."""
+        state = self._state
+        if not self._want_stream:
+            return
+        now = self._clock()
+        if state is LinkState.STREAMING:
+            silent = now - self._last_data
+            if silent > self.serial.link_lost_after_s:
+                self._event(LinkEvent.QUIET, f"no data for {silent:.1f} s")
+        elif state is LinkState.SILENT and now >= self._next_attempt:
+            self._next_attempt = now + self.retry_s
+            try:
+                link.identify(keep_frames=True)
+            except (DeviceGone, LinkClosed):
+                raise
+            except LinkError as exc:
+                if not link.streaming:  # still away (frames would mean it streams again)
+                    self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
+                return
+            # It answered while we saw no frame: power-cycled (idle). Start anew; the
+            # frames of a stream our probe just stopped stay pending, in order.
+            try:
+                link.start()
+            except (DeviceGone, LinkClosed):
+                raise
+            except LinkError as exc:
+                self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
+                return
+            self.restarts += 1
+            self._event(LinkEvent.RESTARTED)
+
+    def _reason_base(self) -> str:
+        return self._reason.split(";")[0] or "silent"
 
     def status(self) -> SourceStatus:
         link = self._link
@@ -222,16 +352,21 @@ class SuitFrameSource:
             resyncs += link.parser.stats.resyncs
             discarded += link.parser.stats.discarded_bytes
         where = link.port if link is not None else (self.port or "discovery")
-        return SourceStatus(f"suit {where}", "closed" if self._closed else self._state,
+        prefix = "SIMULATED suit" if self.simulated else "suit"
+        return SourceStatus(f"{prefix} {where}", self._state.value,
                             battery_v=self._battery, resyncs=resyncs, discarded_bytes=discarded,
                             counters={"connections": self.connections,
-                                      "links_lost": self.links_lost})
+                                      "links_lost": self.links_lost,
+                                      "restarts": self.restarts},
+                            reason=self._reason, simulated=self.simulated)
 
     def close(self) -> None:
-        """Stop the stream (best effort) and close the port."""
-        self._closed = True
-        link, self._link = self._link, None
+        """Stop the stream (best effort) and close the port. Safe from any thread: a read
+        blocked on the port returns at once."""
+        with self._lock:
+            if self._state is LinkState.CLOSED:
+                return
+            self._event(LinkEvent.CLOSE)
+            link, self._link = self._link, None
         if link is not None:
-            with contextlib.suppress(LinkError):
-                link.send_stop()
-            link.close()
+            link.close(CMD_IDENTIFY)
