@@ -24,6 +24,9 @@ from bpms.io.udp import UdpSource
 
 log = logging.getLogger(__name__)
 
+#: Frames this long after Stop Data mean the suit did not hear it: it is told again, s.
+STOP_REPEAT_S = 0.5
+
 
 class UdpFrameSource:
     """Raw frames received from a BPMS UDP forwarder (SPEC §9 UDP client mode).
@@ -114,8 +117,10 @@ class SuitFrameSource:
         self.connections = 0
         self.links_lost = 0
         self.restarts = 0  # streams restarted after a power-cycle or a reopened port
-        self.history: list[tuple[LinkState, LinkEvent, LinkState]] = []  # last 64 transitions
+        # the last 64 transitions (frames while streaming left out)
+        self.history: list[tuple[LinkState, LinkEvent, LinkState]] = []
         self._want_stream = True  # Start/Stop Data; applied by read() (the acquisition thread)
+        self._stop_sent = 0.0
 
     # -- the one place where the state changes ----------------------------------------------
     def _event(self, event: LinkEvent, reason: str = "") -> LinkState:
@@ -125,7 +130,8 @@ class SuitFrameSource:
             old = self._state
             new = next_state(old, event)
             self._state = new
-            self.history = (self.history + [(old, event, new)])[-64:]
+            if new is not old or event is not LinkEvent.FRAMES:
+                self.history = (self.history + [(old, event, new)])[-64:]
             now = self._clock()
             if new is LinkState.STREAMING:
                 self._reason = ""
@@ -261,6 +267,7 @@ class SuitFrameSource:
             self._event(LinkEvent.START)
         elif not self._want_stream and state in (LinkState.STREAMING, LinkState.SILENT):
             link.send_stop()
+            self._stop_sent = self._clock()
             self._event(LinkEvent.STOP)
 
     # -- the acquisition loop -------------------------------------------------------------
@@ -297,6 +304,13 @@ class SuitFrameSource:
             return []
         if not frames:
             return []
+        if self._state is LinkState.STOPPED and self._clock() - self._stop_sent > STOP_REPEAT_S:
+            # Frames long after Stop Data: the suit did not hear it (it was out of range)
+            try:
+                link.send_stop()
+            except LinkError as exc:
+                log.info("Stop Data repeated: %s", exc)
+            self._stop_sent = self._clock()
         with self._lock:
             if self._state is LinkState.CLOSED:
                 return []
