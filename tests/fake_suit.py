@@ -20,7 +20,7 @@ from __future__ import annotations
 import errno
 import struct
 
-from bpms.io.link import LinkClosed
+from bpms.io.link import LinkClosedError
 
 STALE = 0xFFFFFFFF
 PERIOD = 0.02
@@ -149,7 +149,7 @@ class FakeTransport:
 
     def _check(self) -> None:
         if self.closed:
-            raise LinkClosed("closed")
+            raise LinkClosedError("closed")
         if self.generation != self.suit.generation:
             if self.suit.gone_kind == "tcp_drop":
                 raise ConnectionResetError(errno.ECONNRESET, "Connection reset by peer")

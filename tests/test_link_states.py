@@ -182,7 +182,7 @@ def test_close_from_another_thread_wakes_a_blocking_read():
             try:
                 while source.state is not S.CLOSED:
                     source.read(30.0)
-            except BaseException as exc:  # noqa: BLE001 - the test reports it
+            except BaseException as exc:
                 errors.append(exc)
             done.set()
 

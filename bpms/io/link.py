@@ -9,10 +9,10 @@ Layers, lowest first:
   far (:class:`bpms.io.parser.FrameParser`; its stats are the resync counters).
 
 Every read waits at most a bounded time. Problems raise a typed :class:`LinkError` with a
-one-line message: :class:`LinkTimeout` (nothing, or not the awaited reply, came in time),
-:class:`NotASuit` (bytes came, but neither ``BPMS`` nor frames), :class:`DeviceGone` (the
+one-line message: :class:`LinkTimeoutError` (nothing, or not the awaited reply, came in time),
+:class:`NotASuitError` (bytes came, but neither ``BPMS`` nor frames), :class:`DeviceGoneError` (the
 port cannot be opened, read or written: unplugged, out of range, connection dropped) and
-:class:`LinkClosed` (the link was closed, possibly from another thread, under a read).
+:class:`LinkClosedError` (the link was closed, possibly from another thread, under a read).
 
 The bytes move through a :class:`Transport`; :class:`SerialTransport` is pyserial's (a device
 path or any URL), opened non-blocking, whose waits use ``select`` on the port's descriptor and
@@ -55,26 +55,26 @@ class LinkError(Exception):
     """A suit-link problem, with a one-line message for the user."""
 
 
-class LinkTimeout(LinkError):
+class LinkTimeoutError(LinkError):
     """The other end sent nothing (or not the awaited reply or frame) in time."""
 
 
-class NotASuit(LinkError):
+class NotASuitError(LinkError):
     """Bytes came back, but neither ``BPMS`` nor suit frames: another device."""
 
 
-class DeviceGone(LinkError):
+class DeviceGoneError(LinkError):
     """The port cannot be opened, read or written (device removed, connection dropped)."""
 
 
-class LinkClosed(LinkError):
+class LinkClosedError(LinkError):
     """The link was closed (possibly by another thread) during or before the operation."""
 
 
 class Transport(Protocol):
     """A byte pipe to the suit. ``read`` waits up to ``wait_s`` for the first bytes and
     returns b"" when none came; it raises OSError when the device is gone and
-    :class:`LinkClosed` once closed. ``close`` may be called from any thread: it wakes a
+    :class:`LinkClosedError` once closed. ``close`` may be called from any thread: it wakes a
     blocked ``read``, writes ``goodbye`` (best effort) and releases the port."""
 
     def read(self, wait_s: float) -> bytes: ...
@@ -102,11 +102,11 @@ class SerialTransport:
     def read(self, wait_s: float) -> bytes:
         with self._io:
             if self._closing:
-                raise LinkClosed("the link is closed")
+                raise LinkClosedError("the link is closed")
             if self._fd is not None:
                 ready, _, _ = select.select([self._fd, self._wake_r], [], [], max(wait_s, 0.0))
                 if self._closing:
-                    raise LinkClosed("the link was closed during a read")
+                    raise LinkClosedError("the link was closed during a read")
                 return self._ser.read(READ_CHUNK) if self._fd in ready else b""
             deadline = time.monotonic() + wait_s
             while True:
@@ -114,13 +114,13 @@ class SerialTransport:
                 if data or time.monotonic() >= deadline:
                     return data
                 if self._closing:
-                    raise LinkClosed("the link was closed during a read")
+                    raise LinkClosedError("the link was closed during a read")
                 time.sleep(0.002)
 
     def write(self, data: bytes) -> None:
         with self._io:
             if self._closing:
-                raise LinkClosed("the link is closed")
+                raise LinkClosedError("the link is closed")
             self._ser.write(data)
             self._ser.flush()
 
@@ -209,7 +209,7 @@ class SuitLink:
             try:
                 transport = open_serial(port, baud)
             except (serial.SerialException, OSError, ValueError) as exc:
-                raise DeviceGone(f"cannot open {port}: {_reason(exc)}") from None
+                raise DeviceGoneError(f"cannot open {port}: {_reason(exc)}") from None
         self._t = transport
 
     # -- low level ------------------------------------------------------------------------
@@ -218,7 +218,7 @@ class SuitLink:
             self._t.write(data)
         except (serial.SerialException, OSError) as exc:
             self.streaming = False
-            raise DeviceGone(f"cannot write to {self.port}: {_reason(exc)}") from None
+            raise DeviceGoneError(f"cannot write to {self.port}: {_reason(exc)}") from None
 
     def _read(self, wait_s: float) -> bytes:
         """The bytes available now, waiting up to ``wait_s`` for the first ones."""
@@ -226,7 +226,7 @@ class SuitLink:
             return self._t.read(wait_s)
         except (serial.SerialException, OSError) as exc:
             self.streaming = False  # the stream is gone with the port
-            raise DeviceGone(f"cannot read from {self.port}: {_reason(exc)}") from None
+            raise DeviceGoneError(f"cannot read from {self.port}: {_reason(exc)}") from None
 
     def _command(self, cmd: bytes, reply: re.Pattern[bytes], what: str,
                  keep_frames: bool | None = None) -> re.Match[bytes]:
@@ -258,7 +258,7 @@ class SuitLink:
                 shown = bytes(buf[-24:])
                 got = f"got {len(buf)} bytes ending {shown!r}" if buf else "no answer"
                 suit_like = bool(frames) or bool(FrameParser().feed(bytes(buf)))
-                kind = NotASuit if buf and not suit_like else LinkTimeout
+                kind = NotASuitError if buf and not suit_like else LinkTimeoutError
                 raise kind(f"{self.port} did not answer {what} within "
                            f"{self.reply_timeout_s:g} s ({got})")
             buf += self._read(min(left, 0.05))
@@ -291,8 +291,8 @@ class SuitLink:
             left = deadline - self._clock()
             if left <= 0:
                 self.streaming = False
-                raise LinkTimeout(f"{self.port} sent no frame within {self.reply_timeout_s:g} s "
-                                "of the start command")
+                raise LinkTimeoutError(f"{self.port} sent no frame within "
+                                       f"{self.reply_timeout_s:g} s of the start command")
             frames = self.parser.feed(self._read(min(left, 0.05)))
         self.stats.stale_discarded += 1
         self._pending += frames[1:]
@@ -330,7 +330,7 @@ class SuitLink:
 
     def close(self, goodbye: bytes = b"") -> None:
         """Close the port, from any thread: a blocked read returns at once (raising
-        :class:`LinkClosed`). ``goodbye``: bytes to send first, best effort (``CMD_IDENTIFY``
+        :class:`LinkClosedError`). ``goodbye``: bytes to send first, best effort (``CMD_IDENTIFY``
         stops a stream)."""
         self.streaming = False
         with contextlib.suppress(serial.SerialException, OSError):

@@ -24,10 +24,10 @@
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import Enum, StrEnum
 
 
-class LinkState(str, Enum):
+class LinkState(StrEnum):
     CONNECTING = "connecting"
     STREAMING = "streaming"
     SILENT = "silent"

@@ -164,61 +164,113 @@ def new_header(*, calibration: np.ndarray | None = None, options: dict[str, Any]
 class RawWriter:
     """Appends records to a new raw file; data reach the disk at least every ``flush_interval_s``.
 
-    Raises :class:`RecordingError` on any OS error (disk full, folder not writable); the file
-    keeps every record written before the last successful flush.
+    Raises :class:`RecordingError` on any OS error (disk full, folder not writable, device
+    removed) and when the file has vanished under it (its folder was removed: the file can
+    no longer be reached, whatever is written to it is lost). The file keeps every record
+    written before the last successful flush; :meth:`records_on_disk` says how many a reader
+    will find. Call :meth:`flush_if_due` regularly (also when no frame comes) so that every
+    record reaches the disk within ``flush_interval_s``.
     """
 
     def __init__(self, path: str | Path, header: dict[str, Any],
                  flush_interval_s: float = 1.0) -> None:
         self.path = Path(path)
         self.flush_interval_s = flush_interval_s
-        self.records = 0
+        self.records = 0  # records handed to the file
+        self.synced_records = 0  # records known to be on the disk (last successful flush)
+        self.failed = False
         header_bytes = _header_bytes(header)
+        self._data_offset = _PREAMBLE.size + len(header_bytes)
         try:
             # "x": never overwrite an existing recording.
             self._file = self.path.open("xb")
             self._file.write(_PREAMBLE.pack(MAGIC, FORMAT_VERSION, len(header_bytes)))
             self._file.write(header_bytes)
             self._sync()
+            st = os.fstat(self._file.fileno())
         except OSError as exc:
             raise RecordingError(f"cannot create {self.path}: {exc.strerror or exc}") from exc
+        self._identity = (st.st_dev, st.st_ino)
         self._last_flush = time.monotonic()
+        self._first_unsynced: float | None = None
         self._record = bytearray(RECORD_SIZE)
 
     def _sync(self) -> None:
         self._file.flush()
         os.fsync(self._file.fileno())
 
+    def _fail(self, exc: OSError | None, what: str) -> RecordingError:
+        self.failed = True
+        why = (exc.strerror or str(exc)) if exc is not None else what
+        return RecordingError(f"writing {self.path} failed: {why}")
+
     def write(self, host_time: float, frame: bytes) -> None:
         """Append one record (host receive time in s since the epoch, 340-byte frame)."""
         if len(frame) != FRAME_SIZE:
             raise ValueError(f"a frame is {FRAME_SIZE} bytes, got {len(frame)}")
+        if self.failed:
+            raise RecordingError(f"writing {self.path} failed earlier: recording stopped")
         struct.pack_into("<d", self._record, 0, host_time)
         self._record[8:] = frame
         try:
             self._file.write(self._record)
-            self.records += 1
-            if time.monotonic() - self._last_flush >= self.flush_interval_s:
-                self.flush()
         except OSError as exc:
-            raise RecordingError(f"writing {self.path} failed: {exc.strerror or exc}") from exc
+            raise self._fail(exc, "") from exc
+        self.records += 1
+        if self._first_unsynced is None:
+            self._first_unsynced = time.monotonic()
+        self.flush_if_due()
+
+    def flush_if_due(self) -> None:
+        """Flush when the oldest record not yet on the disk is ``0.8·flush_interval_s`` old
+        (so that, with a caller polling every 0.1 s, none waits longer than the interval)."""
+        first = self._first_unsynced
+        if first is not None and time.monotonic() - first >= 0.8 * self.flush_interval_s:
+            self.flush()
 
     def flush(self) -> None:
-        """Push everything written so far to the disk."""
-        self._sync()
+        """Push everything written so far to the disk; check the file is still reachable."""
+        if self.failed:
+            raise RecordingError(f"writing {self.path} failed earlier: recording stopped")
+        try:
+            self._sync()
+            gone = os.fstat(self._file.fileno()).st_nlink == 0
+        except OSError as exc:
+            raise self._fail(exc, "") from exc
+        if gone:
+            raise self._fail(None, "the file was removed (was its folder deleted?)")
+        self.synced_records = self.records
         self._last_flush = time.monotonic()
+        self._first_unsynced = None
+
+    def records_on_disk(self) -> int:
+        """Whole records a reader finds in the file now (0 when the file is gone)."""
+        try:
+            st = os.stat(self.path)
+        except OSError:
+            return 0
+        if (st.st_dev, st.st_ino) != self._identity:
+            return 0
+        return max(0, min(self.records, (st.st_size - self._data_offset) // RECORD_SIZE))
 
     @property
     def size_bytes(self) -> int:
-        return self._file.tell()
+        return self._data_offset + self.records * RECORD_SIZE
 
     def close(self) -> None:
+        """Flush and close. Raises RecordingError when the last flush fails (the file is
+        closed all the same)."""
         if self._file.closed:
             return
         try:
-            self._sync()
+            if not self.failed:
+                self.flush()
         finally:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError as exc:  # a buffered tail that cannot be written
+                if not self.failed:
+                    raise self._fail(exc, "") from exc
 
     def __enter__(self) -> RawWriter:
         return self

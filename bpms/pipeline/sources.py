@@ -3,6 +3,7 @@ the UDP client (:class:`UdpFrameSource`) and the suit link (:class:`SuitFrameSou
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -11,8 +12,8 @@ from collections.abc import Callable
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.link import (
     CMD_IDENTIFY,
-    DeviceGone,
-    LinkClosed,
+    DeviceGoneError,
+    LinkClosedError,
     LinkError,
     SuitLink,
     Transport,
@@ -131,7 +132,7 @@ class SuitFrameSource:
             new = next_state(old, event)
             self._state = new
             if new is not old or event is not LinkEvent.FRAMES:
-                self.history = (self.history + [(old, event, new)])[-64:]
+                self.history = [*self.history, (old, event, new)][-64:]
             now = self._clock()
             if new is LinkState.STREAMING:
                 self._reason = ""
@@ -186,7 +187,7 @@ class SuitFrameSource:
             try:
                 transport = self._opener(port, self.serial.baud)
             except OSError as exc:
-                raise DeviceGone(f"cannot open {port}: {exc.strerror or exc}") from None
+                raise DeviceGoneError(f"cannot open {port}: {exc.strerror or exc}") from None
         link = SuitLink(port, self.serial.baud, self.serial.read_timeout_s, timeout,
                         transport=transport, clock=self._clock)
         try:
@@ -194,7 +195,7 @@ class SuitFrameSource:
             try:
                 self._battery = link.battery_volts()
             except LinkError as exc:
-                if isinstance(exc, DeviceGone):
+                if isinstance(exc, DeviceGoneError):
                     raise
                 log.info("battery not read: %s", exc)
             if self._want_stream:
@@ -259,7 +260,7 @@ class SuitFrameSource:
         if self._want_stream and state is LinkState.STOPPED:
             try:
                 link.start()
-            except DeviceGone:
+            except DeviceGoneError:
                 raise
             except LinkError as exc:
                 self._event(LinkEvent.START_FAILED, str(exc))
@@ -279,16 +280,14 @@ class SuitFrameSource:
         if link is None:  # connecting or gone: (re)open when it is time
             now = self._clock()
             wait = self._next_attempt - now
-            if wait > 0 or not self._want_stream and state is LinkState.GONE:
+            if wait > 0 or (not self._want_stream and state is LinkState.GONE):
                 self._sleep(min(timeout, wait) if wait > 0 else timeout)
                 return []
             if state is LinkState.GONE:
                 self._reopen()
             else:
-                try:
+                with contextlib.suppress(LinkError):  # the reason is kept in the status
                     self.connect()
-                except LinkError:
-                    pass
             return []
         try:
             self._apply_stream_request(link)
@@ -296,9 +295,9 @@ class SuitFrameSource:
             if not frames:
                 self._watchdog(link)
                 frames = link.read_frames(0.0) if link.streaming else []
-        except LinkClosed:
+        except LinkClosedError:
             return []
-        except DeviceGone as exc:
+        except DeviceGoneError as exc:
             if self._state is not LinkState.CLOSED:
                 self._event(LinkEvent.DEVICE_GONE, str(exc))
             return []
@@ -338,7 +337,7 @@ class SuitFrameSource:
             self._next_attempt = now + self.retry_s
             try:
                 link.identify(keep_frames=True)
-            except (DeviceGone, LinkClosed):
+            except (DeviceGoneError, LinkClosedError):
                 raise
             except LinkError as exc:
                 if not link.streaming:  # still away (frames would mean it streams again)
@@ -348,7 +347,7 @@ class SuitFrameSource:
             # frames of a stream our probe just stopped stay pending, in order.
             try:
                 link.start()
-            except (DeviceGone, LinkClosed):
+            except (DeviceGoneError, LinkClosedError):
                 raise
             except LinkError as exc:
                 self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
