@@ -66,8 +66,9 @@ def full_disk(tmp_path: Path, how: str):
     disk = tmp_path / "small"
     disk.mkdir()
     mounted = (how == "tmpfs" and os.name == "posix" and os.geteuid() == 0
-               and shutil.which("mount") is not None and subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs",
-                                   str(disk)], capture_output=True).returncode == 0)
+               and shutil.which("mount") is not None
+               and subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)],
+                                  capture_output=True).returncode == 0)
     try:
         if mounted:
             yield disk, [sys.executable, "-m", "bpms"]
