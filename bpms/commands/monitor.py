@@ -26,7 +26,7 @@ from bpms.firmware.sim.server import PtyServer
 from bpms.io.events import SourceStatus
 from bpms.io.frames import FRAME_DTYPE, error_words_to_flags
 from bpms.io.link import DEFAULT_BAUD, LinkError, discover_suit, list_candidate_ports
-from bpms.io.options import SerialOptions
+from bpms.io.options import SerialOptions, UdpOptions
 
 if TYPE_CHECKING:
     from bpms.pipeline.sources import SuitFrameSource
@@ -46,6 +46,12 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=defaults.discovery_timeout_s,
                    metavar="S", help="wait for a reply this long, s "
                                      f"(default {defaults.discovery_timeout_s:g})")
+    p.add_argument("--listen", metavar="HOST:PORT", nargs="?", const=UdpOptions().listen,
+                   default=None,
+                   help="monitor a UDP stream (bpms record --udp, the GUI's UDP server) "
+                        f"instead of the suit; default address {UdpOptions().listen} "
+                        "(all interfaces). The shared key, if any, comes from the "
+                        "BPMS_UDP_KEY environment variable")
     p.add_argument("--sim", action="store_true",
                    help="monitor the simulated suit (every status line says SIMULATED)")
     p.add_argument("--no-sim", action="store_true", help=argparse.SUPPRESS)  # the default now
@@ -69,6 +75,8 @@ def _sigterm(signum, frame) -> None:
 def run(args: argparse.Namespace) -> int:
     from bpms.pipeline.sources import SuitFrameSource
 
+    if args.listen is not None:
+        return _monitor_udp(args)
     server = None
     port = args.port
     if args.sim:
@@ -138,3 +146,48 @@ def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
                 next_line = now + 1.0
         if seconds is not None and now - t0 >= seconds:
             return
+
+
+def udp_status_line(elapsed: float, rate: float, frames: int, status: SourceStatus) -> str:
+    """One status line of a UDP stream: counters, then the state and "another sender"."""
+    c = status.counters
+    line = (f"t {elapsed:6.1f} s  rate {rate:5.1f} Hz  frames {frames:7d}  lost {c['lost']}  "
+            f"duplicated {c['duplicated']}  reordered {c['reordered']}  "
+            f"malformed {c['malformed']}  foreign {c['foreign']}  "
+            f"unauthenticated {c['unauthenticated']}  {status.state}")
+    if status.warning:
+        line += f"  WARNING: {status.warning}"
+    return line
+
+
+def _monitor_udp(args: argparse.Namespace) -> int:
+    from bpms.io.udp import UdpConfigError
+    from bpms.pipeline.sources import UdpFrameSource
+
+    try:
+        source = UdpFrameSource(args.listen)
+    except (UdpConfigError, OSError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    signal.signal(signal.SIGTERM, _sigterm)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    print(f"listening for UDP on {source.udp.listening}", flush=True)
+    t0 = time.monotonic()
+    next_line = t0 + 1.0
+    frames = window = 0
+    window_t0 = t0
+    try:
+        while args.seconds is None or time.monotonic() - t0 < args.seconds:
+            got = source.read(0.05)
+            frames += len(got)
+            window += len(got)
+            now = time.monotonic()
+            if now >= next_line:
+                print(udp_status_line(now - t0, window / (now - window_t0), frames,
+                                      source.status()), flush=True)
+                window, window_t0 = 0, now
+                next_line = max(next_line + 1.0, now + 0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        source.close()
+    return 0

@@ -36,7 +36,7 @@ from bpms.io.frames import FRAME_PERIOD_S, decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
-from bpms.io.udp import UdpForwarder
+from bpms.io.udp import UdpForwarder, key_from_env
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.rate import RateMeter
 from bpms.pipeline.raw_logger import STOP as RAW_STOP
@@ -254,7 +254,7 @@ class LiveSession:
         """Send every raw frame and pose to ``targets`` (default: the options' list)."""
         self.stop_forwarding()
         self._forwarder = UdpForwarder(targets or self.options.udp.forward_to,
-                                       self.options.udp.multicast_ttl)
+                                       self.options.udp.multicast_ttl, key=key_from_env())
         return self._forwarder
 
     def stop_forwarding(self) -> None:

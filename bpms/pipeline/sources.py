@@ -21,7 +21,7 @@ from bpms.io.link import (
 )
 from bpms.io.link_states import LOST_STATES, LinkEvent, LinkState, next_state
 from bpms.io.options import SerialOptions
-from bpms.io.udp import UdpSource
+from bpms.io.udp import UdpSource, key_from_env
 
 log = logging.getLogger(__name__)
 
@@ -34,12 +34,18 @@ class UdpFrameSource:
 
     Frame indices come from the sender's suit time, so filtered files written here line up with
     the sender's. A new sender session (restart) is a discontinuity: the filters re-initialise.
+    ``key``: the shared UDP key (default: the ``BPMS_UDP_KEY`` environment variable). While
+    datagrams of another sender arrive (and are ignored), the status' ``warning`` says so.
     """
 
-    def __init__(self, listen: str, multicast_group: str | None = None) -> None:
-        self.udp = UdpSource(listen, multicast_group)
+    def __init__(self, listen: str, multicast_group: str | None = None, *,
+                 key: bytes | None = None, silent_after_s: float = 1.0) -> None:
+        self.udp = UdpSource(listen, multicast_group,
+                             key=key if key is not None else key_from_env())
+        self.silent_after_s = silent_after_s
         self._session: int | None = None
         self._state = "connecting"
+        self._last_frame = time.monotonic()
 
     def read(self, timeout: float = 0.1) -> list[FrameEvent]:
         out: list[FrameEvent] = []
@@ -47,23 +53,31 @@ class UdpFrameSource:
         while received is not None:
             new_session = received.session != self._session
             self._session = received.session
+            # the receiver keeps suit times within 0..1e8 s, so this is a sane integer
             index = round(received.suit_time / 0.02)
             out.append(FrameEvent(received.recv_time, received.frame, index, new_session))
             self._state = "streaming"
             if len(out) >= 256:
                 break
             received = self.udp.read(0.0)
+        now = time.monotonic()
+        if out:
+            self._last_frame = now
+        elif self._state == "streaming" and now - self._last_frame > self.silent_after_s:
+            self._state = "silent"
         return out
 
     def status(self) -> SourceStatus:
         s = self.udp.stats
-        host, port = self.udp.address
+        warning = (f"another sender ({s.another_sender}) on this port: ignored"
+                   if s.another_sender else "")
         return SourceStatus(
-            f"UDP {host}:{port}" + (f" group {self.udp.multicast_group}"
-                                    if self.udp.multicast_group else ""),
+            f"UDP on {self.udp.listening}",
             "closed" if self.udp.closed else self._state,
             counters={"lost": s.lost, "duplicated": s.duplicated, "reordered": s.reordered,
-                      "malformed": s.malformed, "restarts": s.restarts})
+                      "malformed": s.malformed, "restarts": s.restarts, "foreign": s.foreign,
+                      "unauthenticated": s.unauthenticated},
+            warning=warning)
 
     def close(self) -> None:
         self.udp.close()
