@@ -47,7 +47,7 @@ from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_quaternion
-from bpms.io.calib_file import CalibrationTable, load_calibration
+from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, load_options
 from bpms.io.recordings import open_recording
@@ -113,8 +113,8 @@ def _quaternions(R: np.ndarray) -> np.ndarray:
 
 
 def _load_table(calibration: str | Path | CalibrationTable | None) -> CalibrationTable:
-    if isinstance(calibration, CalibrationTable):
-        return calibration
+    if isinstance(calibration, CalibrationTable):  # checked at the door, whatever its origin
+        return checked(calibration)
     return load_calibration(calibration)
 
 

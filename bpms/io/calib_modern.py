@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from bpms.filter.calibration import MagEllipsoid
-from bpms.io.calib_file import CalibrationTable, load_factory_calibration
+from bpms.io.calib_file import FIELDS, CalibrationTable, check_record, load_factory_calibration
 from bpms.io.frames import N_IMUS
 from bpms.io.problems import FileProblem, report
 
@@ -109,6 +109,9 @@ def _parse_imu(rec: Any) -> tuple[int, np.ndarray, MagEllipsoid | None, dict]:
         raise ValueError("a min is not below its max")
     row = np.concatenate([[g], np.stack([amin, amax], 1).ravel(),
                           np.stack([mmin, mmax], 1).ravel(), _vector(rec["gyro_avg"])])
+    bad = check_record(row)  # the same door as Calib.cfg and recording headers
+    if bad is not None:
+        raise ValueError(f"{FIELDS[bad[0]]}: {bad[1]}")
     ell = None
     if "ellipsoid" in rec["mag"]:
         e = rec["mag"]["ellipsoid"]
