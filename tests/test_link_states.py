@@ -155,6 +155,16 @@ def test_a_probe_that_meets_the_returning_suit():
     run.check_nothing_lost_or_stale()
 
 
+def test_frames_during_an_unanswered_probe_mean_streaming_again():
+    # The probe at 4.0 s goes out while the radio is still silent; the suit is back at 4.1 s,
+    # within the probe's wait: its frames end the wait (no restart, no stale frame).
+    run = Run([("silence", 2.0, 2.1)]).until(7.0)
+    assert run.states == [S.CONNECTING, S.STREAMING, S.SILENT, S.STREAMING]
+    assert run.source.restarts == 0 and run.suit.stale_sent == 1
+    assert run.first_after(4.05) - 4.1 <= 0.2
+    run.check_nothing_lost_or_stale()
+
+
 def test_start_data_while_the_suit_is_away_goes_silent_then_recovers():
     run = Run([("silence", 2.0, 4.0)]).until(1.0)
     run.source.stop_stream()

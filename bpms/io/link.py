@@ -38,6 +38,7 @@ from typing import Protocol
 import serial
 import serial.tools.list_ports
 
+from bpms.io.frames import FRAME_SIZE
 from bpms.io.parser import FrameParser
 
 log = logging.getLogger(__name__)
@@ -269,6 +270,40 @@ class SuitLink:
         that arrive before the reply are kept for read_frames when streaming (or
         ``keep_frames``); if they arrive but the reply does not, the stream is on."""
         self._command(CMD_IDENTIFY, re.compile(re.escape(IDENTITY)), "'BPMS'", keep_frames)
+
+    def probe(self, grace_s: float = 0.1) -> bool:
+        """Ask a silent suit whether it is there (0x02). True: it answered ``BPMS``, so it is
+        idle (switched off and on, or the probe stopped its stream): it needs a start. False:
+        frames came and no ``BPMS`` within ``grace_s`` after them: it streams again (the
+        frames are kept for read_frames). Raises :class:`LinkTimeoutError` when nothing came
+        within ``reply_timeout_s``, :class:`NotASuitError` for other bytes."""
+        self._write(CMD_IDENTIFY)
+        buf = bytearray()
+        deadline = self._clock() + self.reply_timeout_s
+        frames_at: float | None = None
+        while True:
+            at = buf.find(IDENTITY)
+            if at >= 0:
+                self._pending += self.parser.feed(bytes(buf[:at]))
+                self.stats.reply_bytes_skipped += len(buf) - at - len(IDENTITY)
+                self._synced = True
+                self.streaming = False
+                return True
+            now = self._clock()
+            if frames_at is None and len(buf) >= FRAME_SIZE and FrameParser().feed(bytes(buf)):
+                frames_at = now
+            if frames_at is not None and now - frames_at >= grace_s:
+                self._pending += self.parser.feed(bytes(buf))
+                self.streaming = True
+                return False
+            if now >= deadline and frames_at is None:
+                if buf:
+                    raise NotASuitError(f"{self.port} answered the probe with "
+                                        f"{len(buf)} bytes that are neither BPMS nor frames")
+                raise LinkTimeoutError(f"{self.port} did not answer within "
+                                       f"{self.reply_timeout_s:g} s (no answer)")
+            wait = min(deadline - now, 0.02) if frames_at is None else 0.02
+            buf += self._read(max(wait, 0.0))
 
     def battery_volts(self) -> float:
         """Send 0x01 and return the battery voltage, V (reply ``V3.27\\n``)."""

@@ -350,15 +350,16 @@ class SuitFrameSource:
         elif state is LinkState.SILENT and now >= self._next_attempt:
             self._next_attempt = now + self.retry_s
             try:
-                link.identify(keep_frames=True)
+                answered = link.probe()
             except (DeviceGoneError, LinkClosedError):
                 raise
-            except LinkError as exc:
-                if not link.streaming:  # still away (frames would mean it streams again)
-                    self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
+            except LinkError as exc:  # still away
+                self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
                 return
-            # It answered while we saw no frame: power-cycled (idle). Start anew; the
-            # frames of a stream our probe just stopped stay pending, in order.
+            if not answered:  # frames came: it streams again (read() delivers them)
+                return
+            # It answered BPMS: power-cycled (idle), or our probe stopped its stream. Start
+            # anew; frames of a stream the probe just stopped stay pending, in order.
             try:
                 link.start()
             except (DeviceGoneError, LinkClosedError):
