@@ -80,7 +80,7 @@ def test_one_bad_field_in_a_header_names_its_imu_and_field(tmp_path, motion, fac
     done = bpms("filter", str(raw), "-o", str(out))
     assert done.returncode == 0
     lines = [line for line in done.stderr.splitlines() if "factory values used" in line]
-    assert lines and all("IMU 7 field 11 (MyMax)" in line for line in lines)
+    assert lines and all("IMU 7: MyMin ≥ MyMax" in line for line in lines)
     assert rows(out) == factory_csv
 
 
@@ -107,7 +107,7 @@ def test_calib_cfg_with_an_absurd_gyro_average(tmp_path):
     wheres = [p.where for p in loaded.problems]
     assert len(wheres) == 2
     assert wheres[0].startswith("IMU 4") and "(GxAvg)" in wheres[0]
-    assert wheres[1].startswith("IMU 9") and "(AzMax)" in wheres[1]
+    assert wheres[1] == "IMU 9 (line 10)" and "AzMin ≥ AzMax" in loaded.problems[1].message
 
 
 def test_json_calibration_with_absurd_values(tmp_path):

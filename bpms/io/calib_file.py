@@ -92,7 +92,8 @@ def _record_problem(values: list[str]) -> tuple[int, str] | None:
 
 
 def check_record(row: np.ndarray) -> tuple[int, str] | None:
-    """(field index, message) of the first unusable value of one IMU record, or None.
+    """(field index, message) of the first unusable value of one IMU record, or None. The
+    index is -1 for a min/max pair (the message names both fields).
 
     The one check every calibration door uses (``Calib.cfg``, JSON, a recording's header,
     whatever reaches the filter): every value finite; Gravity in (0, 32768] counts per g;
@@ -108,10 +109,12 @@ def check_record(row: np.ndarray) -> tuple[int, str] | None:
         if abs(row[k]) > MAX_COUNTS:
             return k, f"{FIELDS[k]} {row[k]:g} is outside the sensor's ±{MAX_COUNTS:g} counts"
     for axis, (lo, hi) in enumerate(row[1:13].reshape(6, 2)):
+        lo_name, hi_name = FIELDS[1 + 2 * axis], FIELDS[2 + 2 * axis]
+        if hi <= lo:  # (the message names both fields: no single field index)
+            return -1, f"{lo_name} ≥ {hi_name} (min must be below max: {lo:g} ≥ {hi:g})"
         if hi - lo < MIN_RANGE_COUNTS:
-            return (2 + 2 * axis, f"{FIELDS[1 + 2 * axis]} {lo:g} … {FIELDS[2 + 2 * axis]} "
-                    f"{hi:g} is not a usable range (max must exceed min by "
-                    f"{MIN_RANGE_COUNTS:g} counts or more)")
+            return -1, (f"{lo_name} {lo:g} … {hi_name} {hi:g} is too narrow a range (max must "
+                        f"exceed min by {MIN_RANGE_COUNTS:g} counts or more)")
     return None
 
 
@@ -127,7 +130,8 @@ def checked(table: CalibrationTable, where: str | Path | None = None) -> Calibra
     out = table.copy()
     for imu, (k, message) in bad:
         out.values[imu] = factory.values[imu]
-        report(out.problems, where or table.source, f"IMU {imu} field {k + 1} ({FIELDS[k]})",
+        field_name = f" field {k + 1} ({FIELDS[k]})" if k >= 0 else ""
+        report(out.problems, where or table.source, f"IMU {imu}{field_name}",
                message, f"factory values used for IMU {imu}")  # report() logs it
     return out
 

@@ -109,7 +109,7 @@ def _parse_imu(rec: Any) -> tuple[int, np.ndarray, MagEllipsoid | None, dict]:
                           np.stack([mmin, mmax], 1).ravel(), _vector(rec["gyro_avg"])])
     bad = check_record(row)  # the same door as Calib.cfg and recording headers
     if bad is not None:
-        raise ValueError(f"{FIELDS[bad[0]]}: {bad[1]}")
+        raise ValueError(bad[1] if bad[0] < 0 else f"{FIELDS[bad[0]]}: {bad[1]}")
     ell = None
     if "ellipsoid" in rec["mag"]:
         e = rec["mag"]["ellipsoid"]
