@@ -206,3 +206,12 @@ def test_close_from_another_thread_wakes_a_blocking_read():
     assert errors == [] and source.state is S.CLOSED
     assert woke < 2.0  # far below the 30 s read timeout
     assert source.read(0.1) == []
+
+
+def test_a_connect_that_finishes_after_close_leaves_nothing_open():
+    run = Run([])
+    run.source.close()  # e.g. the GUI closed while a connect was under way
+    run.source.connect()
+    assert run.source.state is S.CLOSED and run.source.connected_port is None
+    assert run.suit.opens == 1 and not run.suit.streaming  # the stream it started was stopped
+    assert run.source.read(0.1) == []

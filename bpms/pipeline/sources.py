@@ -143,6 +143,8 @@ class SuitFrameSource:
         does its bookkeeping here and nowhere else."""
         with self._lock:
             old = self._state
+            if old is LinkState.CLOSED:  # closed by another thread meanwhile: nothing to do
+                return old
             new = next_state(old, event)
             self._state = new
             if new is not old or event is not LinkEvent.FRAMES:
@@ -228,7 +230,7 @@ class SuitFrameSource:
             self.connections += 1
             if self.connections > 1:
                 self.restarts += 1
-        self._event(LinkEvent.OPENED if self._want_stream else LinkEvent.OPENED_IDLE)
+            self._event(LinkEvent.OPENED if link.streaming else LinkEvent.OPENED_IDLE)
 
     def connect(self) -> None:
         """Open the port (discovering it when none was given) and start the stream.
