@@ -90,14 +90,25 @@ def test_monitor_counts_faults_over_tcp_in_fast_mode():
     assert code == 0
 
 
-def test_monitor_without_a_suit_starts_the_simulated_one():
+def test_monitor_without_a_suit_never_passes_off_the_simulated_one():
     mon = subprocess.run(bpms("monitor", "--seconds", "1.5", "--timeout", "0.3"), cwd=ROOT,
                          capture_output=True, text=True, timeout=60)
+    assert mon.returncode == 2 and mon.stdout == ""
+    (line,) = mon.stderr.strip().splitlines()
+    assert re.fullmatch(r"bpms monitor: no suit answered on \d+ candidate port\(s\) .*--sim.*",
+                        line), line
+
+
+def test_monitor_sim_says_simulated_on_every_line():
+    mon = subprocess.run(bpms("monitor", "--sim", "--seconds", "2.5"), cwd=ROOT,
+                         capture_output=True, text=True, timeout=60)
     assert mon.returncode == 0, mon.stderr
-    first = mon.stdout.splitlines()[0]
-    assert re.fullmatch(r"no suit answered on \d+ candidate port\(s\); "
-                        r"started the simulated suit on /dev/pts/\d+", first), first
-    assert status_lines(mon.stdout)
+    lines = mon.stdout.splitlines()
+    assert re.fullmatch(r"connected to the SIMULATED suit on /dev/pts/\d+; battery 3\.35 V",
+                        lines[0]), lines[0]
+    assert len(lines) >= 3 and all(line.endswith("  SIMULATED") for line in lines[1:])
+    status = status_lines("\n".join(line.removesuffix("  SIMULATED") for line in lines))
+    assert len(status) == len(lines) - 1 and int(status[-1]["frames"]) >= 50
 
 
 def test_monitor_on_a_port_that_does_not_exist():

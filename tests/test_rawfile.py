@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from bpms.io.frames import FRAME_SIZE, decode_frames, encode_frames
+from bpms.io.frames import FRAME_DTYPE, FRAME_SIZE, decode_frames, encode_frames
 from bpms.io.rawfile import (
     RECORD_SIZE,
     RawFileError,
@@ -67,7 +67,7 @@ def test_torn_last_record_is_ignored_with_a_warning(tmp_path):
     assert "incomplete" in rec.problems[0]
 
 
-def test_damaged_record_is_skipped_and_counted(tmp_path):
+def test_damaged_record_keeps_its_slot_and_is_counted(tmp_path):
     frames, times, _ = frames_and_times(10)
     path = tmp_path / "r.bpmsraw"
     write_raw(path, times, frames, new_header())
@@ -76,7 +76,11 @@ def test_damaged_record_is_skipped_and_counted(tmp_path):
     data[offset + 3 * RECORD_SIZE + 8] = ord("X")  # frame 3 loses its start marker
     path.write_bytes(bytes(data))
     rec = read_raw(path)
-    assert len(rec) == 9 and "1 damaged record" in rec.problems[0]
+    assert len(rec) == 10 and "1 damaged record" in rec.problems[0]  # the slot is kept
+    assert rec.damaged.tolist() == [3] and rec.decode().errors[3].all()
+    expected = np.frombuffer(frames, dtype=FRAME_DTYPE)
+    keep = [k for k in range(10) if k != 3]
+    assert rec.frames[keep].tobytes() == expected[keep].tobytes()
 
 
 @pytest.mark.parametrize(

@@ -390,9 +390,12 @@ def _send_raw(sock, address, frame, session, seqs):
                     address)
 
 
-def test_wrap_restart_and_stale_over_sockets(source):
+def test_wrap_restart_and_stale_over_sockets():
     frame = make_frames(1)[0]
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    # A new session takes over at once here (by default only after 1 s of silence of the
+    # active one: tests/test_udp_hardening.py).
+    source = UdpSource("127.0.0.1:0", takeover_after_s=0.0)
     try:
         # Wrap: 2**32-3 .. 2**32-1, then 0, 2 (1 lost): no restart.
         _send_raw(sock, source.address, frame, 11, [SEQ_MOD - 3, SEQ_MOD - 2, SEQ_MOD - 1, 0, 2])
@@ -407,6 +410,7 @@ def test_wrap_restart_and_stale_over_sockets(source):
         assert [(g.session, g.seq) for g in got] == [(12, 0), (12, 1)]
     finally:
         sock.close()
+        source.close()
     s = source.stats
     assert (s.restarts, s.stale, s.lost, s.delivered, s.duplicated) == (1, 1, 1, 7, 0)
 

@@ -1,10 +1,13 @@
 """``bpms monitor [PORT_OR_URL]``: connect to the suit and print one status line per second.
 
 Without a port, the suit is discovered (every candidate serial port is sent 0x02 and must
-answer ``BPMS``); when nothing answers, the simulated suit is started in-process on a
-pseudo-terminal instead. The battery is read once, the stream started (its stale first frame
-dropped), then every second: elapsed time, frame rate (Hz, over the last second), frames,
-resyncs, discarded bytes, error bits and the battery voltage. Ctrl-C (or ``--seconds``) stops
+answer ``BPMS``); when nothing answers, monitor says so and exits 2: only ``--sim`` starts
+the simulated suit, and then every line says SIMULATED. The battery is read once, the stream
+started (its stale first frame dropped), then every second: elapsed time, frame rate (Hz,
+over the last second), frames, resyncs, discarded bytes, error bits and the battery voltage,
+followed by the link state and its reason whenever the link is not streaming. The link is
+watched like ``bpms record`` watches it: a silent suit is probed and restarted after a
+power-cycle, a dropped port or TCP connection is reopened. Ctrl-C (or ``--seconds``) stops
 the stream, closes the port and exits 0.
 """
 
@@ -12,17 +15,21 @@ from __future__ import annotations
 
 import argparse
 import signal
-import sys
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bpms.commands import CliError
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
+from bpms.io.events import SourceStatus
 from bpms.io.frames import FRAME_DTYPE, error_words_to_flags
-from bpms.io.link import DEFAULT_BAUD, LinkError, SuitLink, discover_suit, list_candidate_ports
-from bpms.io.options import SerialOptions
+from bpms.io.link import DEFAULT_BAUD, LinkError, discover_suit, list_candidate_ports
+from bpms.io.options import SerialOptions, UdpOptions
+
+if TYPE_CHECKING:
+    from bpms.pipeline.sources import SuitFrameSource
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -39,8 +46,14 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=defaults.discovery_timeout_s,
                    metavar="S", help="wait for a reply this long, s "
                                      f"(default {defaults.discovery_timeout_s:g})")
-    p.add_argument("--no-sim", action="store_true",
-                   help="fail instead of starting the simulated suit when none is found")
+    p.add_argument("--listen", metavar="HOST:PORT", nargs="?", const=UdpOptions().listen,
+                   default=None,
+                   help="monitor a UDP stream (bpms record --udp, the GUI's UDP server) "
+                        f"instead of the suit; default address {UdpOptions().listen} "
+                        "(all interfaces). The shared key, if any, comes from the "
+                        "BPMS_UDP_KEY environment variable")
+    p.add_argument("--sim", action="store_true",
+                   help="monitor the simulated suit (every status line says SIMULATED)")
     add_sim_options(p)
     p.set_defaults(run=run)
     return p
@@ -59,78 +72,121 @@ def _sigterm(signum, frame) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bpms.pipeline.sources import SuitFrameSource
+
+    if args.listen is not None:
+        return _monitor_udp(args)
     server = None
     port = args.port
-    if port is None:
+    if args.sim:
+        server = local_server(build_arbiter(args)).start()
+        port = server.address
+    elif port is None:
         candidates = list_candidate_ports()
         port = discover_suit(candidates, timeout_s=args.timeout, baud=args.baud)
         if port is None:
-            if args.no_sim:
-                raise CliError(f"no suit answered on {len(candidates)} candidate port(s)")
-            server = local_server(build_arbiter(args)).start()
-            port = server.address
-            print(f"no suit answered on {len(candidates)} candidate port(s); "
-                  f"started the simulated suit on {port}", flush=True)
+            raise CliError(f"no suit answered on {len(candidates)} candidate port(s) (is it "
+                           "paired, switched on, charged? --sim monitors the simulated suit)")
     signal.signal(signal.SIGTERM, _sigterm)
     signal.signal(signal.SIGINT, signal.default_int_handler)  # even when started in background
-    try:
-        return _monitor(port, args)
-    finally:
-        if server is not None:
-            server.stop()
-
-
-def _monitor(port: str, args: argparse.Namespace) -> int:
-    try:
-        link = SuitLink(port, baud=args.baud, reply_timeout_s=args.timeout)
-    except LinkError as exc:
-        raise CliError(str(exc)) from None
+    serial = SerialOptions(baud=args.baud, discovery_timeout_s=args.timeout)
+    source = SuitFrameSource(port, serial, simulated=server is not None)
     try:
         try:
-            link.identify()
-            volts = link.battery_volts()
-            print(f"connected to the suit on {port}; battery {volts:.2f} V", flush=True)
-            link.start()
+            source.connect()
         except LinkError as exc:
             raise CliError(str(exc)) from None
-        try:
-            _status_loop(link, volts, args.seconds)
-        except LinkError as exc:
-            raise CliError(f"link lost: {exc}") from None
+        status = source.status()
+        volts = f"{status.battery_v:.2f} V" if status.battery_v is not None else "unknown"
+        what = "the SIMULATED suit" if source.simulated else "the suit"
+        print(f"connected to {what} on {port}; battery {volts}", flush=True)
+        _status_loop(source, args.seconds)
     except KeyboardInterrupt:
         pass
     finally:
-        try:
-            if link.streaming:
-                link.stop()
-        except (LinkError, KeyboardInterrupt) as exc:
-            print(f"bpms monitor: warning: {exc or 'interrupted while stopping'}",
-                  file=sys.stderr)
-        link.close()
+        source.close()  # stops the stream (best effort)
+        if server is not None:
+            server.stop()
     return 0
 
 
-def _status_loop(link: SuitLink, volts: float, seconds: float | None) -> None:
+def status_line(elapsed: float, rate: float, frames: int, error_bits: int,
+                status: SourceStatus) -> str:
+    """One status line; the link state and reason follow while it is not streaming."""
+    battery = f"{status.battery_v:.2f}" if status.battery_v is not None else "-"
+    line = (f"t {elapsed:6.1f} s  rate {rate:5.1f} Hz  frames {frames:7d}  "
+            f"resyncs {status.resyncs:4d}  discarded {status.discarded_bytes:6d} B  "
+            f"error bits {error_bits:5d}  battery {battery} V")
+    if status.state != "streaming":
+        line += f"  {status.state.upper()}" + (f": {status.reason}" if status.reason else "")
+    if status.simulated:
+        line += "  SIMULATED"
+    return line
+
+
+def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
     t0 = time.monotonic()
     next_line = t0 + 1.0
     frames = error_bits = 0
     window_frames = 0
     window_t0 = t0
     while True:
-        got = link.read_frames(0.05)
+        got = [e.frame for e in source.read(0.05)]
         frames += len(got)
         window_frames += len(got)
         error_bits += count_error_bits(got)
         now = time.monotonic()
         if now >= next_line:
-            st = link.parser.stats
             rate = window_frames / (now - window_t0)
-            print(f"t {now - t0:6.1f} s  rate {rate:5.1f} Hz  frames {frames:7d}  "
-                  f"resyncs {st.resyncs:4d}  discarded {st.discarded_bytes:6d} B  "
-                  f"error bits {error_bits:5d}  battery {volts:.2f} V", flush=True)
+            print(status_line(now - t0, rate, frames, error_bits, source.status()), flush=True)
             window_frames, window_t0 = 0, now
             next_line += 1.0
             if next_line < now:  # fell behind (suspended): no burst of lines
                 next_line = now + 1.0
         if seconds is not None and now - t0 >= seconds:
             return
+
+
+def udp_status_line(elapsed: float, rate: float, frames: int, status: SourceStatus) -> str:
+    """One status line of a UDP stream: counters, then the state and "another sender"."""
+    c = status.counters
+    line = (f"t {elapsed:6.1f} s  rate {rate:5.1f} Hz  frames {frames:7d}  lost {c['lost']}  "
+            f"duplicated {c['duplicated']}  reordered {c['reordered']}  "
+            f"malformed {c['malformed']}  foreign {c['foreign']}  "
+            f"unauthenticated {c['unauthenticated']}  {status.state}")
+    if status.warning:
+        line += f"  WARNING: {status.warning}"
+    return line
+
+
+def _monitor_udp(args: argparse.Namespace) -> int:
+    from bpms.io.udp import UdpConfigError
+    from bpms.pipeline.sources import UdpFrameSource
+
+    try:
+        source = UdpFrameSource(args.listen)
+    except (UdpConfigError, OSError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    signal.signal(signal.SIGTERM, _sigterm)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    print(f"listening for UDP on {source.udp.listening}", flush=True)
+    t0 = time.monotonic()
+    next_line = t0 + 1.0
+    frames = window = 0
+    window_t0 = t0
+    try:
+        while args.seconds is None or time.monotonic() - t0 < args.seconds:
+            got = source.read(0.05)
+            frames += len(got)
+            window += len(got)
+            now = time.monotonic()
+            if now >= next_line:
+                print(udp_status_line(now - t0, window / (now - window_t0), frames,
+                                      source.status()), flush=True)
+                window, window_t0 = 0, now
+                next_line = max(next_line + 1.0, now + 0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        source.close()
+    return 0

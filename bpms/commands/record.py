@@ -3,8 +3,11 @@
 Records raw frames (and, with ``--filtered``, the filtered file) with no GUI, printing one
 status line per second; Ctrl-C (or SIGTERM, or ``--seconds``) closes the files cleanly. Data
 reach the disk at least once per second, so even a power cut keeps all but the last second.
-A lost link is reported and reconnected by itself; the same file goes on (with a gap).
-Without PORT the suit is discovered; ``--sim`` records the simulated suit instead.
+A lost link is reported (state silent or gone) and reconnected by itself; the same file goes
+on (with a gap). A write error (disk full, folder removed, device unplugged) is shown in every
+later status line; the final line gives the frames on the disk and the frames lost, and the
+exit code is 1. Without PORT the suit is discovered (a real suit only); ``--sim`` records
+the simulated suit instead, and then every status line says SIMULATED.
 """
 
 from __future__ import annotations
@@ -24,7 +27,10 @@ from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
 
 if TYPE_CHECKING:  # the pipeline (numba, the filter bank) loads when recording starts, so
-    from bpms.pipeline.session import LiveStatus  # `bpms --help` and the GUI start quickly
+    from bpms.pipeline.session import (  # `bpms --help` and the GUI start quickly
+        LiveStatus,
+        RecordingStatus,
+    )
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -54,17 +60,35 @@ def _interrupt(signum, frame) -> None:
 
 
 def status_line(status: LiveStatus, elapsed: float) -> str:
-    """One status line: state, rate (Hz), frames, recording size, errors, link events."""
+    """One status line: state, rate (Hz), frames, recording size, errors, link events; then
+    why the link is down, a write error and SIMULATED, whenever they apply."""
     src = status.source
     rec = status.recording
     raw = (f"raw {rec.raw_bytes / 1e3:8.1f} kB {rec.raw_path.name}"
            if rec is not None and rec.raw_path is not None else "raw -")
     battery = f"{src.battery_v:.2f} V" if src.battery_v is not None else "-"
-    return (f"t {elapsed:7.1f} s  {src.state:<10}  {status.rate_hz:5.1f} Hz  "
+    line = (f"t {elapsed:7.1f} s  {src.state:<10}  {status.rate_hz:5.1f} Hz  "
             f"frames {status.frames:7d}  {raw}  error bits {status.error_bits:5d}  "
             f"resyncs {src.resyncs:3d}  links lost {src.counters.get('links_lost', 0)}  "
-            f"battery {battery}"
-            + (f"  filter re-inits {status.reinit_count}" if status.reinit_count else ""))
+            f"battery {battery}")
+    if status.reinit_count:
+        line += f"  filter re-inits {status.reinit_count}"
+    if src.state != "streaming" and src.reason:
+        line += f"  ({src.reason})"
+    if rec is not None and rec.error:
+        line += f"  WRITE ERROR, not recording: {rec.error}"
+    if src.simulated:
+        line += "  SIMULATED"
+    return line
+
+
+def summary(status: RecordingStatus) -> tuple[str, int]:
+    """The closing line and the exit code (1 when the recording failed)."""
+    if status.error:
+        return (f"recording FAILED: {status.error}; {status.raw_on_disk} frames on disk in "
+                f"{status.raw_path}, {status.raw_lost} frames lost", 1)
+    lost = f", {status.raw_lost} frames lost" if status.raw_lost else ""
+    return f"recorded {status.raw_on_disk} frames to {status.raw_path}{lost}", (1 if lost else 0)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,8 +110,8 @@ def run(args: argparse.Namespace) -> int:
     if args.sim:
         server = local_server(build_arbiter(args)).start()
         port = server.address
-        print(f"recording the simulated suit on {port}", flush=True)
-    source = SuitFrameSource(port, options.serial)
+        print(f"recording the SIMULATED suit on {port}", flush=True)
+    source = SuitFrameSource(port, options.serial, simulated=args.sim)
     try:
         source.connect()
     except LinkError as exc:
@@ -125,8 +149,9 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("stopping", file=sys.stderr, flush=True)
     finally:
-        session.stop()
+        session.stop()  # closes the raw file: `recording` then holds the final counts
         if server is not None:
             server.stop()
-    print(f"recorded {session.status().frames} frames to {recording.raw_path}", flush=True)
-    return 0
+    line, code = summary(recording)
+    print(line, flush=True, file=sys.stderr if code else sys.stdout)
+    return code

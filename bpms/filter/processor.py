@@ -59,7 +59,7 @@ from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
 from bpms.filter.warmup import PATHS, ensure_kernels
-from bpms.io.calib_file import CalibrationTable, load_calibration
+from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, check_option, load_options
 from bpms.io.recordings import open_recording
@@ -195,9 +195,9 @@ def _default_path() -> Path:
 
 
 def _load_table(calibration: str | Path | CalibrationTable | None) -> CalibrationTable:
-    if isinstance(calibration, CalibrationTable):
-        return calibration
-    return load_calibration(calibration)  # None: the factory table
+    if isinstance(calibration, CalibrationTable):  # checked at the door, whatever its origin
+        return checked(calibration)
+    return load_calibration(calibration)
 
 
 def _load_options(options: str | Path | Options | None) -> Options:

@@ -127,7 +127,7 @@ class SessionRunner:
                 port = self.sim.path
             serial = self.options.serial
             serial.baud = cfg.baud
-            source = SuitFrameSource(port, serial)
+            source = SuitFrameSource(port, serial, simulated=cfg.mode == "sim")
             source.stop_stream()  # connect without streaming; Start Data starts it
             try:
                 source.connect()

@@ -24,6 +24,11 @@ FIELDS: tuple[str, ...] = (
 )
 N_FIELDS = len(FIELDS)
 
+#: Raw counts are int16: a min, max or average beyond this is absurd.
+MAX_COUNTS = 32768.0
+#: Narrowest usable min..max range, counts (a 1-count range scales noise by ~100 or ~256).
+MIN_RANGE_COUNTS = 4.0
+
 
 @dataclass
 class CalibrationTable:
@@ -83,17 +88,52 @@ def _record_problem(values: list[str]) -> tuple[int, str] | None:
             return k, f"'{text.strip()[:20]}' is not a number"
         if not math.isfinite(number):
             return k, f"'{text.strip()}' is not a finite number"
-    return None
+    return check_record(np.array([float(v) for v in values]))
 
 
-def _check_ranges(row: np.ndarray) -> str | None:
-    """A message when a record is numerically unusable (min ≥ max, gravity ≤ 0)."""
-    if row[0] <= 0:
-        return "Gravity must be positive"
+def check_record(row: np.ndarray) -> tuple[int, str] | None:
+    """(field index, message) of the first unusable value of one IMU record, or None. The
+    index is -1 for a min/max pair (the message names both fields).
+
+    The one check every calibration door uses (``Calib.cfg``, JSON, a recording's header,
+    whatever reaches the filter): every value finite; Gravity in (0, 32768] counts per g;
+    every min, max and gyro average within the int16 range; every max at least
+    :data:`MIN_RANGE_COUNTS` above its min (a zero range would divide by zero)."""
+    row = np.asarray(row, dtype=np.float64)
+    for k, value in enumerate(row):
+        if not math.isfinite(value):
+            return k, f"{float(value)!r} is not a finite number"
+    if not 0.0 < row[0] <= MAX_COUNTS:
+        return 0, f"Gravity {row[0]:g} is not in 0 … {MAX_COUNTS:g} counts per g"
+    for k in range(1, N_FIELDS):
+        if abs(row[k]) > MAX_COUNTS:
+            return k, f"{FIELDS[k]} {row[k]:g} is outside the sensor's ±{MAX_COUNTS:g} counts"
     for axis, (lo, hi) in enumerate(row[1:13].reshape(6, 2)):
-        if hi <= lo:
-            return f"{FIELDS[1 + 2 * axis]} ≥ {FIELDS[2 + 2 * axis]} (min must be below max)"
+        lo_name, hi_name = FIELDS[1 + 2 * axis], FIELDS[2 + 2 * axis]
+        if hi <= lo:  # (the message names both fields: no single field index)
+            return -1, f"{lo_name} ≥ {hi_name} (min must be below max: {lo:g} ≥ {hi:g})"
+        if hi - lo < MIN_RANGE_COUNTS:
+            return -1, (f"{lo_name} {lo:g} … {hi_name} {hi:g} is too narrow a range (max must "
+                        f"exceed min by {MIN_RANGE_COUNTS:g} counts or more)")
     return None
+
+
+def checked(table: CalibrationTable, where: str | Path | None = None) -> CalibrationTable:
+    """``table`` itself when every record passes :func:`check_record`; otherwise a copy in
+    which each bad record is that IMU's factory record, with one problem (naming the IMU
+    and the field) per record, logged as a warning."""
+    bad = [(imu, found) for imu in range(N_IMUS)
+           if (found := check_record(table.values[imu])) is not None]
+    if not bad:
+        return table
+    factory = load_factory_calibration()
+    out = table.copy()
+    for imu, (k, message) in bad:
+        out.values[imu] = factory.values[imu]
+        field_name = f" field {k + 1} ({FIELDS[k]})" if k >= 0 else ""
+        report(out.problems, where or table.source, f"IMU {imu}{field_name}",
+               message, f"factory values used for IMU {imu}")  # report() logs it
+    return out
 
 
 def parse_legacy(text: str, path: str | Path = "<text>") -> CalibrationTable:
@@ -119,12 +159,8 @@ def parse_legacy(text: str, path: str | Path = "<text>") -> CalibrationTable:
         fields = chunk.split(",")
         bad = _record_problem(fields)
         if bad is None:
-            row = np.array([float(v) for v in fields])
-            message = _check_ranges(row)
-            if message is None:
-                values[imu] = row
-                continue
-            bad = (-1, message)
+            values[imu] = np.array([float(v) for v in fields])
+            continue
         k, message = bad
         where = f"IMU {imu} (line {line})" + (f" field {k + 1} ({FIELDS[k]})" if k >= 0 else "")
         report(problems, path, where, message, f"factory values used for IMU {imu}")

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from bpms.io.calib_file import CalibrationTable, load_factory_calibration
+from bpms.io.calib_file import FIELDS, CalibrationTable, check_record, load_factory_calibration
 from bpms.io.frames import N_IMUS
 from bpms.io.mag_ellipsoid import MagEllipsoid
 from bpms.io.problems import FileProblem, report
@@ -105,10 +105,11 @@ def _parse_imu(rec: Any) -> tuple[int, np.ndarray, MagEllipsoid | None, dict]:
         raise ValueError("gravity_counts must be a positive number")
     amin, amax = _vector(rec["accel"]["min"]), _vector(rec["accel"]["max"])
     mmin, mmax = _vector(rec["mag"]["min"]), _vector(rec["mag"]["max"])
-    if (amax <= amin).any() or (mmax <= mmin).any():
-        raise ValueError("a min is not below its max")
     row = np.concatenate([[g], np.stack([amin, amax], 1).ravel(),
                           np.stack([mmin, mmax], 1).ravel(), _vector(rec["gyro_avg"])])
+    bad = check_record(row)  # the same door as Calib.cfg and recording headers
+    if bad is not None:
+        raise ValueError(bad[1] if bad[0] < 0 else f"{FIELDS[bad[0]]}: {bad[1]}")
     ell = None
     if "ellipsoid" in rec["mag"]:
         e = rec["mag"]["ellipsoid"]

@@ -34,13 +34,18 @@ class SourceStatus:
     """What a source says about itself (shown in the status line and the GUI)."""
 
     description: str
-    state: str = "streaming"  # connecting, streaming, link lost, paused, ended, closed
+    # suit: connecting, streaming, silent, gone, reopening, stopped, closed
+    # (bpms.io.link_states); UDP: connecting, streaming, silent, closed; replay: paused, ended
+    state: str = "streaming"
     battery_v: float | None = None
     resyncs: int = 0
     discarded_bytes: int = 0
     position: int | None = None  # replay: next frame index
     length: int | None = None  # replay: frames in the file
     counters: dict[str, int] = field(default_factory=dict)  # source-specific (UDP lost, ...)
+    reason: str = ""  # why the source is not streaming (empty while it is)
+    simulated: bool = False  # the simulated suit: every status line must say SIMULATED
+    warning: str = ""  # a condition to show prominently (UDP: another sender on the port)
 
 
 class FrameSource(Protocol):

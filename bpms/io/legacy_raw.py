@@ -18,6 +18,10 @@ restricted unpickler:
 Python 2 strings are loaded with ``encoding="latin1"`` (every byte ↦ one code point) and turned
 back into the original bytes with ``.encode("latin1")``.
 
+Reading is linear in the file size: each record is unpickled from a window of at most
+:data:`MAX_RECORD_BYTES`, and the search for the next record start after damage never scans
+the same bytes twice.
+
 A record whose frame lacks the ``$#``/``#$`` markers or is not 340 bytes is skipped with a
 warning ("File Error" in the original) and counted; a damaged record is skipped by
 re-synchronising on the next record start; a cut-off last record ends the file with a
@@ -45,6 +49,10 @@ log = logging.getLogger(__name__)
 FORMAT_NAME = "legacy pickle"
 #: Bytes read to sniff a file (a protocol-0 record with an escaped frame is < 1,500 bytes).
 SNIFF_BYTES = 4096
+#: Longest record the reader accepts, bytes (Python 3's protocol 0 writes a 340-byte frame
+#: in at most ~2,100). Each attempt to read a record sees only this many bytes, so the time
+#: to read a file is linear in its size whatever a crafted file holds.
+MAX_RECORD_BYTES = 4096
 
 
 class RefusedPickle(pickle.UnpicklingError):
@@ -157,19 +165,28 @@ def read_legacy_raw(path: str | Path) -> RawRecording:
     bad_records: list[tuple[int, str]] = []  # (byte offset, reason)
     damaged: list[tuple[int, int, str]] = []  # (offset, bytes skipped, reason)
     problems: list[str] = []
-    f = io.BufferedReader(io.BytesIO(data))
+    next_start = [-2] * len(starts)  # cached next occurrence of each start pattern
+
+    def find_next(after: int) -> int:
+        """The next record start after ``after`` (-1: none); each pattern is searched
+        forward only, so all searches together scan the file once per pattern."""
+        for k, pattern in enumerate(starts):
+            if next_start[k] != -1 and next_start[k] <= after:
+                next_start[k] = data.find(pattern, after + 1)
+        found = [i for i in next_start if i >= 0]
+        return min(found) if found else -1
+
     pos = 0
     index = 0
     while pos < len(data):
-        f.seek(pos)
+        f = io.BytesIO(data[pos : pos + MAX_RECORD_BYTES])
         try:
             obj = _load_record(f)
         except RefusedPickle as exc:
             raise _refused(path, pos, exc) from None
         except Exception as exc:  # any damage in untrusted bytes
             # Skip to the next place a record can start; none left: the file was cut off.
-            nxt = min((i for i in (data.find(s, pos + 1) for s in starts) if i >= 0),
-                      default=-1)
+            nxt = find_next(pos)
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             if nxt < 0:
                 problems.append(f"{path}: the last record (from byte {pos}) is incomplete or "
@@ -178,7 +195,7 @@ def read_legacy_raw(path: str | Path) -> RawRecording:
             damaged.append((pos, nxt - pos, reason))
             pos = nxt
             continue
-        end = f.tell()
+        end = pos + f.tell()
         fields = _record_fields(obj)
         if isinstance(fields, str):
             bad_records.append((pos, fields))

@@ -8,9 +8,17 @@ Layers, lowest first:
   ``stop`` and :meth:`SuitLink.read_frames`, which returns the whole 340-byte frames parsed so
   far (:class:`bpms.io.parser.FrameParser`; its stats are the resync counters).
 
-Every read waits at most a bounded time. Problems raise :class:`LinkError` with a one-line
-message. The port is opened non-blocking (pyserial ``timeout=0``) and waits use ``select`` on
-its file descriptor, which works for serial devices, pseudo-terminals and sockets alike.
+Every read waits at most a bounded time. Problems raise a typed :class:`LinkError` with a
+one-line message: :class:`LinkTimeoutError` (nothing, or not the awaited reply, came in time),
+:class:`NotASuitError` (bytes came, but neither ``BPMS`` nor frames), :class:`DeviceGoneError` (the
+port cannot be opened, read or written: unplugged, out of range, connection dropped) and
+:class:`LinkClosedError` (the link was closed, possibly from another thread, under a read).
+
+The bytes move through a :class:`Transport`; :class:`SerialTransport` is pyserial's (a device
+path or any URL), opened non-blocking, whose waits use ``select`` on the port's descriptor and
+on a wake-up socket, so that :meth:`SuitLink.close` from any thread wakes a blocked reader at
+once (where the port has no descriptor, e.g. on Windows, the wait polls every 2 ms). Tests
+plug in a scripted transport.
 """
 
 from __future__ import annotations
@@ -20,12 +28,17 @@ import glob
 import logging
 import re
 import select
+import socket
+import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import serial
 import serial.tools.list_ports
 
+from bpms.io.frames import FRAME_SIZE
 from bpms.io.parser import FrameParser
 
 log = logging.getLogger(__name__)
@@ -41,6 +54,99 @@ READ_CHUNK = 65536
 
 class LinkError(Exception):
     """A suit-link problem, with a one-line message for the user."""
+
+
+class LinkTimeoutError(LinkError):
+    """The other end sent nothing (or not the awaited reply or frame) in time."""
+
+
+class NotASuitError(LinkError):
+    """Bytes came back, but neither ``BPMS`` nor suit frames: another device."""
+
+
+class DeviceGoneError(LinkError):
+    """The port cannot be opened, read or written (device removed, connection dropped)."""
+
+
+class LinkClosedError(LinkError):
+    """The link was closed (possibly by another thread) during or before the operation."""
+
+
+class Transport(Protocol):
+    """A byte pipe to the suit. ``read`` waits up to ``wait_s`` for the first bytes and
+    returns b"" when none came; it raises OSError when the device is gone and
+    :class:`LinkClosedError` once closed. ``close`` may be called from any thread: it wakes a
+    blocked ``read``, writes ``goodbye`` (best effort) and releases the port."""
+
+    def read(self, wait_s: float) -> bytes: ...
+
+    def write(self, data: bytes) -> None: ...
+
+    def close(self, goodbye: bytes = b"") -> None: ...
+
+
+class SerialTransport:
+    """A pyserial port (device path or URL) as a :class:`Transport`. Thread-safe close."""
+
+    def __init__(self, port: str, baud: int = DEFAULT_BAUD) -> None:
+        self._ser = serial.serial_for_url(port, baudrate=baud, timeout=0, write_timeout=1.0)
+        self._io = threading.RLock()  # held by a read or write; close waits for it
+        self._closing = False
+        try:
+            self._fd: int | None = self._ser.fileno()
+        except (AttributeError, NotImplementedError, serial.SerialException, OSError):
+            self._fd = None
+        self._wake_r = self._wake_w = None
+        if self._fd is not None:
+            self._wake_r, self._wake_w = socket.socketpair()
+
+    def read(self, wait_s: float) -> bytes:
+        with self._io:
+            if self._closing:
+                raise LinkClosedError("the link is closed")
+            if self._fd is not None:
+                ready, _, _ = select.select([self._fd, self._wake_r], [], [], max(wait_s, 0.0))
+                if self._closing:
+                    raise LinkClosedError("the link was closed during a read")
+                return self._ser.read(READ_CHUNK) if self._fd in ready else b""
+            deadline = time.monotonic() + wait_s
+            while True:
+                data = self._ser.read(READ_CHUNK)
+                if data or time.monotonic() >= deadline:
+                    return data
+                if self._closing:
+                    raise LinkClosedError("the link was closed during a read")
+                time.sleep(0.002)
+
+    def write(self, data: bytes) -> None:
+        with self._io:
+            if self._closing:
+                raise LinkClosedError("the link is closed")
+            self._ser.write(data)
+            self._ser.flush()
+
+    def close(self, goodbye: bytes = b"") -> None:
+        if self._closing:
+            return
+        self._closing = True
+        if self._wake_w is not None:
+            with contextlib.suppress(OSError):
+                self._wake_w.send(b"x")
+        with self._io:  # the reader leaves select at once; then the port can go
+            if goodbye:
+                with contextlib.suppress(serial.SerialException, OSError):
+                    self._ser.write(goodbye)
+                    self._ser.flush()
+            with contextlib.suppress(serial.SerialException, OSError):
+                self._ser.close()
+            for sock in (self._wake_r, self._wake_w):
+                if sock is not None:
+                    sock.close()
+
+
+def open_serial(port: str, baud: int = DEFAULT_BAUD) -> Transport:
+    """The default transport factory: :class:`SerialTransport`."""
+    return SerialTransport(port, baud)
 
 
 def describe_candidate_ports() -> list[tuple[str, str]]:
@@ -92,11 +198,14 @@ class SuitLink:
 
     ``baud`` is nominal over Bluetooth SPP; ``read_timeout_s`` bounds each
     :meth:`read_frames` wait; ``reply_timeout_s`` bounds the wait for a command's reply and
-    for the first frames after :meth:`start`.
+    for the first frames after :meth:`start`. ``transport``: an already open
+    :class:`Transport` (default: :class:`SerialTransport` on ``port``); ``clock``: the
+    monotonic clock in s used for every deadline (tests pass a scripted one).
     """
 
     def __init__(self, port: str, baud: int = DEFAULT_BAUD, read_timeout_s: float = 0.05,
-                 reply_timeout_s: float = 1.0) -> None:
+                 reply_timeout_s: float = 1.0, *, transport: Transport | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.port = port
         self.read_timeout_s = read_timeout_s
         self.reply_timeout_s = reply_timeout_s
@@ -105,40 +214,29 @@ class SuitLink:
         self.streaming = False
         self._pending: list[bytes] = []  # frames parsed while waiting for something else
         self._synced = False  # a reply was seen since opening: the line is quiet
-        try:
-            self._ser = serial.serial_for_url(port, baudrate=baud, timeout=0, write_timeout=1.0)
-        except (serial.SerialException, OSError, ValueError) as exc:
-            raise LinkError(f"cannot open {port}: {_reason(exc)}") from None
+        self._clock = clock
+        if transport is None:
+            try:
+                transport = open_serial(port, baud)
+            except (serial.SerialException, OSError, ValueError) as exc:
+                raise DeviceGoneError(f"cannot open {port}: {_reason(exc)}") from None
+        self._t = transport
 
     # -- low level ------------------------------------------------------------------------
     def _write(self, data: bytes) -> None:
         try:
-            self._ser.write(data)
-            self._ser.flush()
+            self._t.write(data)
         except (serial.SerialException, OSError) as exc:
-            raise LinkError(f"cannot write to {self.port}: {_reason(exc)}") from None
+            self.streaming = False
+            raise DeviceGoneError(f"cannot write to {self.port}: {_reason(exc)}") from None
 
     def _read(self, wait_s: float) -> bytes:
         """The bytes available now, waiting up to ``wait_s`` for the first ones."""
         try:
-            try:
-                fd = self._ser.fileno()
-            except (AttributeError, NotImplementedError, serial.SerialException):
-                fd = None
-            if fd is not None:
-                ready, _, _ = select.select([fd], [], [], max(wait_s, 0.0))
-                if not ready:
-                    return b""
-                return self._ser.read(READ_CHUNK)
-            deadline = time.monotonic() + wait_s
-            while True:
-                data = self._ser.read(READ_CHUNK)
-                if data or time.monotonic() >= deadline:
-                    return data
-                time.sleep(0.002)
+            return self._t.read(wait_s)
         except (serial.SerialException, OSError) as exc:
             self.streaming = False  # the stream is gone with the port
-            raise LinkError(f"cannot read from {self.port}: {_reason(exc)}") from None
+            raise DeviceGoneError(f"cannot read from {self.port}: {_reason(exc)}") from None
 
     def _command(self, cmd: bytes, reply: re.Pattern[bytes], what: str,
                  keep_frames: bool | None = None) -> re.Match[bytes]:
@@ -149,7 +247,7 @@ class SuitLink:
         self.streaming = False
         self._write(cmd)
         buf = bytearray()
-        deadline = time.monotonic() + self.reply_timeout_s
+        deadline = self._clock() + self.reply_timeout_s
         while True:
             match = reply.search(buf)
             if match:
@@ -161,7 +259,7 @@ class SuitLink:
                 self.stats.reply_bytes_skipped += len(buf) - match.end()
                 self._synced = True
                 return match
-            left = deadline - time.monotonic()
+            left = deadline - self._clock()
             if left <= 0:
                 frames = self.parser.feed(bytes(buf)) if keep else []
                 if frames:  # the suit is streaming (it did not hear us): keep its frames
@@ -169,8 +267,10 @@ class SuitLink:
                     self.streaming = True
                 shown = bytes(buf[-24:])
                 got = f"got {len(buf)} bytes ending {shown!r}" if buf else "no answer"
-                raise LinkError(f"{self.port} did not answer {what} within "
-                                f"{self.reply_timeout_s:g} s ({got})")
+                suit_like = bool(frames) or bool(FrameParser().feed(bytes(buf)))
+                kind = NotASuitError if buf and not suit_like else LinkTimeoutError
+                raise kind(f"{self.port} did not answer {what} within "
+                           f"{self.reply_timeout_s:g} s ({got})")
             buf += self._read(min(left, 0.05))
 
     # -- commands -------------------------------------------------------------------------
@@ -179,6 +279,40 @@ class SuitLink:
         that arrive before the reply are kept for read_frames when streaming (or
         ``keep_frames``); if they arrive but the reply does not, the stream is on."""
         self._command(CMD_IDENTIFY, re.compile(re.escape(IDENTITY)), "'BPMS'", keep_frames)
+
+    def probe(self, grace_s: float = 0.1) -> bool:
+        """Ask a silent suit whether it is there (0x02). True: it answered ``BPMS``, so it is
+        idle (switched off and on, or the probe stopped its stream): it needs a start. False:
+        frames came and no ``BPMS`` within ``grace_s`` after them: it streams again (the
+        frames are kept for read_frames). Raises :class:`LinkTimeoutError` when nothing came
+        within ``reply_timeout_s``, :class:`NotASuitError` for other bytes."""
+        self._write(CMD_IDENTIFY)
+        buf = bytearray()
+        deadline = self._clock() + self.reply_timeout_s
+        frames_at: float | None = None
+        while True:
+            at = buf.find(IDENTITY)
+            if at >= 0:
+                self._pending += self.parser.feed(bytes(buf[:at]))
+                self.stats.reply_bytes_skipped += len(buf) - at - len(IDENTITY)
+                self._synced = True
+                self.streaming = False
+                return True
+            now = self._clock()
+            if frames_at is None and len(buf) >= FRAME_SIZE and FrameParser().feed(bytes(buf)):
+                frames_at = now
+            if frames_at is not None and now - frames_at >= grace_s:
+                self._pending += self.parser.feed(bytes(buf))
+                self.streaming = True
+                return False
+            if now >= deadline and frames_at is None:
+                if buf:
+                    raise NotASuitError(f"{self.port} answered the probe with "
+                                        f"{len(buf)} bytes that are neither BPMS nor frames")
+                raise LinkTimeoutError(f"{self.port} did not answer within "
+                                       f"{self.reply_timeout_s:g} s (no answer)")
+            wait = min(deadline - now, 0.02) if frames_at is None else 0.02
+            buf += self._read(max(wait, 0.0))
 
     def battery_volts(self) -> float:
         """Send 0x01 and return the battery voltage, V (reply ``V3.27\\n``)."""
@@ -195,14 +329,14 @@ class SuitLink:
         self._write(CMD_START)
         self.streaming = True
         self.stats.starts += 1
-        deadline = time.monotonic() + self.reply_timeout_s
+        deadline = self._clock() + self.reply_timeout_s
         frames: list[bytes] = []
         while not frames:
-            left = deadline - time.monotonic()
+            left = deadline - self._clock()
             if left <= 0:
                 self.streaming = False
-                raise LinkError(f"{self.port} sent no frame within {self.reply_timeout_s:g} s "
-                                "of the start command")
+                raise LinkTimeoutError(f"{self.port} sent no frame within "
+                                       f"{self.reply_timeout_s:g} s of the start command")
             frames = self.parser.feed(self._read(min(left, 0.05)))
         self.stats.stale_discarded += 1
         self._pending += frames[1:]
@@ -215,7 +349,7 @@ class SuitLink:
                       keep_frames=True)
 
     def send_stop(self) -> None:
-        """Stop the stream without waiting for a reply (for shutting down): one byte, 0x02."""
+        """Stop the stream without waiting for a reply: one byte, 0x02."""
         self.streaming = False
         self._write(CMD_IDENTIFY)
 
@@ -238,10 +372,13 @@ class SuitLink:
         self.stats.frames_read += len(out)
         return out
 
-    def close(self) -> None:
-        """Close the port (does not send anything)."""
+    def close(self, goodbye: bytes = b"") -> None:
+        """Close the port, from any thread: a blocked read returns at once (raising
+        :class:`LinkClosedError`). ``goodbye``: bytes to send first, best effort (``CMD_IDENTIFY``
+        stops a stream)."""
+        self.streaming = False
         with contextlib.suppress(serial.SerialException, OSError):
-            self._ser.close()
+            self._t.close(goodbye)
 
     def __enter__(self) -> SuitLink:
         return self

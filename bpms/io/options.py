@@ -446,9 +446,10 @@ def load_options(path: str | Path | None) -> Options:
         return options
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, RecursionError, MemoryError) as exc:
+        why = str(exc) if isinstance(exc, tomllib.TOMLDecodeError) else "nested too deeply"
         options = Options(source=f"factory ({path} invalid)")
-        report(options.problems, path, "syntax", str(exc), "factory options used")
+        report(options.problems, path, "syntax", why, "factory options used")
         return options
     return options_from_dict(data, path)
 

@@ -5,11 +5,13 @@ marker bytes ``$#`` / ``#$`` by chance. The parser therefore accepts a *candidat
 ``$#`` is followed, exactly 338 bytes later, by ``#$``; anything else is discarded byte range
 by byte range and the parser resynchronises on the next ``$#``.
 
-Two candidates overlapping by two bytes or more cannot both be frames; the later one wins: a
-frame cut short followed by an intact frame makes a false candidate that borrows the intact
-frame's first bytes, while a false candidate *after* an intact frame needs a chance ``$#`` in
-its payload and a chance ``#$`` exactly 338 bytes later (odds about 1 in 65,536). The check
-costs one ``find`` per frame and delays a frame only when its payload holds a ``$#``.
+Two candidates overlapping by two bytes or more cannot both be frames. A candidate followed
+back to back by another whole candidate (the next frame) is an intact frame, whatever marker
+bytes its payload holds: it wins, so that a chance ``$#`` in its payload with a chance ``#$``
+338 bytes later (in the next frame) cannot drop it. Otherwise the later one wins: a frame cut
+short followed by an intact frame makes a false candidate that borrows the intact frame's
+first bytes. The check costs one ``find`` per frame and delays a frame only when its payload
+holds a ``$#`` (when a rival shows up, until the next frame arrives).
 A one-byte overlap is allowed: the final ``$`` of a frame may also be the first byte of the
 next frame when that frame lost its own (or the frame lost its last byte), so both come out.
 
@@ -114,6 +116,12 @@ class FrameParser:
             if rival is None:  # a rival candidate needs more bytes to decide
                 break
             if rival > start:
+                chained = self._chained(buf, start, final)
+                if chained is None:  # the next frame decides: wait for it
+                    break
+                if chained:  # an intact frame whose payload holds markers by chance
+                    rival = start
+            if rival > start:
                 self._discard(rival - start - (1 if shared else 0))
                 pos, shared = rival, False
                 continue
@@ -141,6 +149,21 @@ class FrameParser:
                 return q
             q = buf.find(START, q + 1, limit)
         return start
+
+    @staticmethod
+    def _chained(buf: bytearray, start: int, final: bool) -> bool | None:
+        """True when a whole candidate follows the one at ``start`` back to back (at
+        ``start + 340``, or at ``start + 339`` sharing its final ``$``): then that candidate is
+        an intact frame, whatever marker bytes its payload holds. None: more bytes needed."""
+        n = len(buf)
+        for nxt in (start + FRAME_SIZE, start + FRAME_SIZE - 1):
+            if n < nxt + FRAME_SIZE:
+                if n >= nxt + 2 and buf[nxt : nxt + 2] != START:
+                    continue  # no start marker there: not chained at this offset
+                return False if final else None
+            if buf[nxt : nxt + 2] == START and buf[nxt + END_OFFSET : nxt + FRAME_SIZE] == END:
+                return True
+        return False
 
     @property
     def pending(self) -> int:

@@ -25,8 +25,11 @@ thread may send / read stats / close.
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import errno
+import hashlib
+import hmac
 import ipaddress
 import logging
 import math
@@ -63,6 +66,19 @@ SEQ_MOD = 1 << 32
 #: Reorder window in sequence numbers (~11 min at 50 Hz). See docs/udp.md "Sequence numbers".
 REORDER_WINDOW = 1 << 15
 DEFAULT_PORT = 5005
+#: Header flag: a 32-byte HMAC-SHA256 tag (over header and payload) follows the payload.
+FLAG_HMAC = 0x0001
+TAG_SIZE = 32
+#: Environment variable holding the shared UDP key (text; see docs/udp.md "Shared key").
+KEY_ENV = "BPMS_UDP_KEY"
+#: Receiver's sanity range of header times: suit time, s (≈ 3 years of frames) and send
+#: time, s since the epoch (1970 .. 2286). Outside: a malformed datagram.
+MAX_SUIT_TIME_S = 1e8
+MAX_SEND_TIME_S = 1e10
+#: An active session keeps the receiver until it has been silent this long, s.
+TAKEOVER_AFTER_S = 1.0
+#: "another sender" shows while foreign datagrams came within this time, s.
+FOREIGN_SHOWN_S = 5.0
 
 
 class MessageType(IntEnum):
@@ -251,6 +267,32 @@ def new_session_id() -> int:
     return int.from_bytes(os.urandom(4), "big") or 1
 
 
+def key_from_env() -> bytes | None:
+    """The shared UDP key from :data:`KEY_ENV` (UTF-8), or None when unset or empty."""
+    text = os.environ.get(KEY_ENV, "")
+    return text.encode("utf-8") if text else None
+
+
+def sign_datagram(datagram: bytes, key: bytes) -> bytes:
+    """Set :data:`FLAG_HMAC` in the header and append HMAC-SHA256(key, header + payload)."""
+    flags = struct.unpack_from("!H", datagram, 6)[0] | FLAG_HMAC
+    body = datagram[:6] + struct.pack("!H", flags) + datagram[8:]
+    return body + hmac.new(key, body, hashlib.sha256).digest()
+
+
+def split_tag(data: bytes) -> tuple[bytes, bytes | None]:
+    """(datagram without its tag, tag) when :data:`FLAG_HMAC` is set, else (data, None)."""
+    if len(data) >= HEADER_SIZE + TAG_SIZE and struct.unpack_from("!H", data, 6)[0] & FLAG_HMAC:
+        return data[:-TAG_SIZE], data[-TAG_SIZE:]
+    return data, None
+
+
+def tag_is_valid(body: bytes, tag: bytes | None, key: bytes) -> bool:
+    """True when ``tag`` is HMAC-SHA256(key, body) (constant-time comparison)."""
+    return tag is not None and hmac.compare_digest(
+        tag, hmac.new(key, body, hashlib.sha256).digest())
+
+
 # --------------------------------------------------------------------------- forwarder
 
 
@@ -305,7 +347,8 @@ class UdpForwarder:
 
     def __init__(self, targets: Sequence[str], multicast_ttl: int = 1, *,
                  multicast_loop: bool = True, multicast_interface: str | None = None,
-                 session: int | None = None) -> None:
+                 session: int | None = None, key: bytes | None = None) -> None:
+        self._key = key or None  # shared key: every datagram signed (docs/udp.md)
         if isinstance(targets, str):
             targets = [targets]
         if not targets:
@@ -345,6 +388,8 @@ class UdpForwarder:
             seq = self._seq[mtype]
             self._seq[mtype] = (seq + 1) % SEQ_MOD
             datagram = build(seq)  # type: ignore[operator]
+            if self._key is not None:
+                datagram = sign_datagram(datagram, self._key)
             sent = errors = 0
             last_error = self._stats.last_error
             for target in self._targets:
@@ -425,15 +470,19 @@ class SequenceTracker:
     the wrap 2**32−1 → 0 is seamless. A new session id, or a jump back by more than
     ``window``, starts a new session (a sender restart); gaps left open in the old session
     become final losses. Datagrams of a replaced session are STALE and dropped.
+
+    Gaps are kept as ranges of unwrapped sequence numbers, so the cost of one datagram is
+    O(log gaps) whatever the jump (a jump of 40,000 costs what a jump of 2 does).
     """
 
     def __init__(self, window: int = REORDER_WINDOW) -> None:
         self.window = window
         self.session: int | None = None
-        self.first = 0
-        self.highest = 0
-        self._missing: deque[int] = deque()  # increasing (mod 2**32), may hold filled ones
-        self._missing_set: set[int] = set()
+        self._first = 0  # unwrapped
+        self._highest = 0  # unwrapped
+        self._starts: list[int] = []  # open gaps [start, end), sorted, disjoint
+        self._ends: list[int] = []
+        self._open = 0  # sequence numbers inside the open gaps
         self._retired: deque[int] = deque(maxlen=8)
         self.unique = 0
         self.duplicated = 0
@@ -443,28 +492,78 @@ class SequenceTracker:
         self.lost_final = 0
 
     @property
+    def first(self) -> int:
+        return self._first % SEQ_MOD
+
+    @property
+    def highest(self) -> int:
+        return self._highest % SEQ_MOD
+
+    @property
     def lost(self) -> int:
         """Sequence numbers not received: final losses plus gaps still open in the window."""
-        return self.lost_final + len(self._missing_set)
+        return self.lost_final + self._open
 
     @property
     def pending(self) -> int:
         """Gaps still inside the reorder window (a late datagram may still fill them)."""
-        return len(self._missing_set)
+        return self._open
+
+    def is_retired(self, session: int) -> bool:
+        return session in self._retired
 
     def _start(self, session: int, seq: int) -> None:
-        self.lost_final += len(self._missing_set)
-        self._missing.clear()
-        self._missing_set.clear()
+        self.lost_final += self._open
+        self._starts.clear()
+        self._ends.clear()
+        self._open = 0
         self.session = session
-        self.first = self.highest = seq
+        self._first = self._highest = seq
+
+    def _add_gap(self, start: int, end: int) -> None:
+        """Open the gap [start, end) (unwrapped), kept to the window below the highest."""
+        floor = self._highest - self.window
+        if start < floor:
+            self.lost_final += min(end, floor) - start
+            start = floor
+        if start >= end:
+            return
+        k = bisect.bisect_left(self._starts, start)
+        self._starts.insert(k, start)
+        self._ends.insert(k, end)
+        self._open += end - start
 
     def _prune(self) -> None:
-        while self._missing and _signed(self.highest - self._missing[0]) > self.window:
-            s = self._missing.popleft()
-            if s in self._missing_set:
-                self._missing_set.discard(s)
-                self.lost_final += 1
+        """Gaps that left the window (more than ``window`` below the highest) are final."""
+        floor = self._highest - self.window
+        while self._starts and self._starts[0] < floor:
+            start, end = self._starts[0], self._ends[0]
+            cut = min(end, floor)
+            self.lost_final += cut - start
+            self._open -= cut - start
+            if cut == end:
+                del self._starts[0], self._ends[0]
+            else:
+                self._starts[0] = cut
+
+    def _fill(self, u: int) -> bool:
+        """Remove ``u`` from the open gaps; False when it was not missing."""
+        k = bisect.bisect_right(self._starts, u) - 1
+        if k < 0 or u >= self._ends[k]:
+            return False
+        start, end = self._starts[k], self._ends[k]
+        self._open -= 1
+        if start == u and end == u + 1:
+            del self._starts[k], self._ends[k]
+        elif start == u:
+            self._starts[k] = u + 1
+        elif end == u + 1:
+            self._ends[k] = u
+        else:
+            self._ends[k] = u
+            self._starts.insert(k + 1, u + 1)
+            self._ends.insert(k + 1, end)
+        return True
 
     def observe(self, session: int, seq: int) -> Verdict:
         """Account for one well-formed datagram; tell the caller what it was."""
@@ -481,17 +580,13 @@ class SequenceTracker:
             self._start(session, seq)
             self.unique += 1
             return Verdict.NEW
-        d = _signed(seq - self.highest)
+        d = _signed(seq - self._highest)
+        u = self._highest + d
         if d > 0:
-            gap = d - 1
-            remembered = min(gap, self.window)
-            self.lost_final += gap - remembered
-            for k in range(remembered, 0, -1):
-                s = (seq - k) % SEQ_MOD
-                self._missing.append(s)
-                self._missing_set.add(s)
-            self.highest = seq
+            old = self._highest
+            self._highest = u
             self._prune()
+            self._add_gap(old + 1, u)
             self.unique += 1
             return Verdict.NEW
         if d == 0:
@@ -503,19 +598,14 @@ class SequenceTracker:
             self._start(session, seq)
             self.unique += 1
             return Verdict.NEW
-        before_first = _signed(seq - self.first)
-        if before_first < 0:
+        if u < self._first:
             # Earlier than anything seen so far in this session: extends the session backwards.
-            for k in range(1, -before_first):
-                s = (self.first - k) % SEQ_MOD
-                self._missing.appendleft(s)
-                self._missing_set.add(s)
-            self.first = seq
+            self._add_gap(u + 1, self._first)
+            self._first = u
             self.reordered += 1
             self.unique += 1
             return Verdict.REORDERED
-        if seq in self._missing_set:
-            self._missing_set.discard(seq)
+        if self._fill(u):
             self.reordered += 1
             self.unique += 1
             return Verdict.REORDERED
@@ -530,7 +620,7 @@ class SequenceTracker:
 class SourceStats:
     """Counters of a :class:`UdpSource` (semantics in docs/udp.md).
 
-    ``datagrams = received + malformed + ignored + stale``;
+    ``datagrams = received + malformed + ignored + stale + foreign + unauthenticated``;
     ``received = delivered + duplicated`` (RAW_FRAME datagrams of the current sessions);
     ``reordered`` ⊂ ``delivered``; ``lost`` = sequence numbers never received between the
     first and the highest of each session (``pending`` of them may still arrive late).
@@ -549,6 +639,9 @@ class SourceStats:
     restarts: int = 0
     socket_errors: int = 0
     last_malformed: str = ""
+    foreign: int = 0  # datagrams of another session while the active one streams: dropped
+    unauthenticated: int = 0  # refused: no valid HMAC tag while a key is set
+    another_sender: str = ""  # "host:port" of a foreign sender seen in the last few seconds
 
 
 @dataclass(frozen=True)
@@ -572,20 +665,36 @@ class UdpSource:
     ``read(timeout)`` returns the next frame, or None after ``timeout`` s or once closed;
     iterating yields frames until :meth:`close`, which any thread may call and which wakes a
     blocked reader at once. Duplicates and datagrams of a replaced session are dropped;
-    reordered frames are delivered (flagged) in arrival order. Malformed datagrams are counted
-    and logged at most once per second with the reason. Nothing a peer sends can raise here.
+    reordered frames are delivered (flagged) in arrival order. Malformed datagrams (including
+    times outside the sanity range) are counted and logged at most once per second with the
+    reason. Nothing a peer sends can raise here.
+
+    One sender at a time: while the active session streams, datagrams of another session are
+    dropped and counted (``stats.foreign``, ``stats.another_sender``); a new session takes
+    over once the active one has been silent for ``takeover_after_s`` (a restarted sender
+    thus loses at most that long). ``key``: the shared key; datagrams without a valid
+    HMAC-SHA256 tag are then refused and counted (``stats.unauthenticated``).
     """
 
     def __init__(self, listen: str = f"0.0.0.0:{DEFAULT_PORT}",
                  multicast_group: str | None = None, *, multicast_interface: str = "0.0.0.0",
                  rcvbuf: int | None = 1 << 22, poll_s: float = 0.5,
-                 window: int = REORDER_WINDOW) -> None:
+                 window: int = REORDER_WINDOW, takeover_after_s: float = TAKEOVER_AFTER_S,
+                 key: bytes | None = None) -> None:
         host, port = parse_address(listen)
         self.poll_s = poll_s
+        self.takeover_after_s = takeover_after_s
+        self.key = key or None
+        self._last_active = -math.inf  # monotonic time of the active session's last datagram
+        self._last_foreign = -math.inf
+        self._foreign_sender = ""
+        self._foreign_log = _RateLimitedLog(5.0)
+        self._auth_log = _RateLimitedLog(5.0)
         self._lock = threading.Lock()
         self._read_lock = threading.Lock()
         self._tracker = SequenceTracker(window)
-        self._counts = {"datagrams": 0, "malformed": 0, "ignored": 0, "socket_errors": 0}
+        self._counts = {"datagrams": 0, "malformed": 0, "ignored": 0, "socket_errors": 0,
+                        "foreign": 0, "unauthenticated": 0}
         self._last_malformed = ""
         self._malformed_log = _RateLimitedLog()
         self._error_log = _RateLimitedLog()
@@ -639,28 +748,75 @@ class UdpSource:
                 lost=t.lost, pending=t.pending, duplicated=t.duplicated, reordered=t.reordered,
                 malformed=c["malformed"], ignored=c["ignored"], stale=t.stale,
                 restarts=t.restarts, socket_errors=c["socket_errors"],
-                last_malformed=self._last_malformed)
+                last_malformed=self._last_malformed, foreign=c["foreign"],
+                unauthenticated=c["unauthenticated"], another_sender=self._another_sender())
+
+    def _another_sender(self) -> str:
+        fresh = time.monotonic() - self._last_foreign < FOREIGN_SHOWN_S
+        return self._foreign_sender if fresh else ""
+
+    @property
+    def listening(self) -> str:
+        """Where it listens, in words, with the exposure (docs/udp.md "Exposure")."""
+        host, port = self.address
+        if host == "0.0.0.0":
+            where = f"all interfaces, port {port} (any host that can reach this one may send)"
+        elif host.startswith("127."):
+            where = f"{host}:{port} (this computer only)"
+        else:
+            where = f"{host}:{port} (hosts that reach this address may send)"
+        group = f", group {self.multicast_group}" if self.multicast_group else ""
+        return where + group + (", shared key required" if self.key else "")
 
     @property
     def closed(self) -> bool:
         return self._closed
 
+    def _malformed(self, sender: tuple[str, int], why: object) -> None:
+        self._counts["malformed"] += 1
+        self._last_malformed = f"{sender[0]}:{sender[1]}: {why}"
+        self._malformed_log.warn("malformed UDP datagram from %s:%s ignored: %s",
+                                 sender[0], sender[1], why)
+
     def _handle(self, data: bytes, sender: tuple[str, int]) -> ReceivedFrame | None:
         recv_time = time.time()
+        now = time.monotonic()
         with self._lock:
             self._counts["datagrams"] += 1
+            body, tag = split_tag(data)
+            if self.key is not None and not tag_is_valid(body, tag, self.key):
+                self._counts["unauthenticated"] += 1
+                self._auth_log.warn("UDP datagram from %s:%s refused: %s", sender[0],
+                                    sender[1], "no shared-key tag" if tag is None
+                                    else "wrong shared-key tag")
+                return None
             try:
-                dg = decode_datagram(data)
+                dg = decode_datagram(body)
             except DatagramError as exc:
-                self._counts["malformed"] += 1
-                self._last_malformed = f"{sender[0]}:{sender[1]}: {exc}"
-                self._malformed_log.warn("malformed UDP datagram from %s:%s ignored: %s",
-                                         sender[0], sender[1], exc)
+                self._malformed(sender, exc)
+                return None
+            if not (0.0 <= dg.suit_time <= MAX_SUIT_TIME_S
+                    and 0.0 <= dg.send_time <= MAX_SEND_TIME_S):
+                self._malformed(sender, f"times out of range (suit {dg.suit_time:.6g} s, "
+                                        f"send {dg.send_time:.6g} s)")
                 return None
             if dg.type != MessageType.RAW_FRAME:
                 self._counts["ignored"] += 1
                 return None
-            verdict = self._tracker.observe(dg.session, dg.seq)
+            t = self._tracker
+            if (t.session is not None and dg.session != t.session
+                    and not t.is_retired(dg.session)
+                    and now - self._last_active < self.takeover_after_s):
+                self._counts["foreign"] += 1
+                self._foreign_sender = f"{sender[0]}:{sender[1]}"
+                self._last_foreign = now
+                self._foreign_log.warn("UDP datagrams of another sender (%s:%s, session %08x) "
+                                       "ignored while session %08x streams", sender[0],
+                                       sender[1], dg.session, t.session)
+                return None
+            verdict = t.observe(dg.session, dg.seq)
+            if verdict != Verdict.STALE:
+                self._last_active = now
         if verdict in (Verdict.DUPLICATE, Verdict.STALE):
             return None
         assert dg.frame is not None

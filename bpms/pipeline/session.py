@@ -35,10 +35,12 @@ from bpms.io.filtered_file import FilteredWriter
 from bpms.io.frames import FRAME_PERIOD_S, decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
-from bpms.io.rawfile import RawWriter, RecordingError, new_header
-from bpms.io.udp import UdpForwarder
+from bpms.io.rawfile import RawWriter, new_header
+from bpms.io.udp import UdpForwarder, key_from_env
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.rate import RateMeter
+from bpms.pipeline.raw_logger import STOP as RAW_STOP
+from bpms.pipeline.raw_logger import RawLogger
 from bpms.pipeline.settings_queue import SettingsQueue
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
@@ -81,10 +83,13 @@ class PoseSample:
 class RecordingStatus:
     raw_path: Path | None = None
     filtered_path: Path | None = None
-    raw_records: int = 0
+    raw_records: int = 0  # handed to the file
     raw_bytes: int = 0
+    raw_received: int = 0  # frames given to the raw logger
+    raw_on_disk: int = 0  # records known to be on the disk (at the end: what a reader finds)
+    raw_lost: int = 0  # at the end: received but not on the disk
     filtered_rows: int = 0
-    error: str | None = None
+    error: str | None = None  # a write error: shown (in red) until logging stops
 
 
 @dataclass
@@ -106,37 +111,6 @@ class LiveStatus:
     latency_p99_ms: float = 0.0
     events: list[str] = field(default_factory=list)  # recent notable events, newest last
     reinit_count: int = 0  # filter re-initialisations by the state guard (all IMUs)
-
-
-class _RawLogger(threading.Thread):
-    """Writes raw records from an unbounded queue; stops (with a message) on a write error."""
-
-    def __init__(self, writer: RawWriter, status: RecordingStatus,
-                 on_error: Callable[[str], None]) -> None:
-        super().__init__(name="bpms-raw-logger", daemon=True)
-        self.writer = writer
-        self.status = status
-        self.on_error = on_error
-        self.queue: queue.SimpleQueue[FrameEvent | object] = queue.SimpleQueue()
-
-    def run(self) -> None:
-        try:
-            while True:
-                item = self.queue.get()
-                if item is _STOP:
-                    break
-                assert isinstance(item, FrameEvent)
-                self.writer.write(item.host_time, item.frame)
-                self.status.raw_records = self.writer.records
-                self.status.raw_bytes = self.writer.size_bytes
-        except RecordingError as exc:
-            self.status.error = str(exc)
-            self.on_error(f"raw recording stopped: {exc}")
-        finally:
-            try:
-                self.writer.close()
-            except OSError as exc:
-                self.on_error(f"closing {self.writer.path} failed: {exc}")
 
 
 class LiveSession:
@@ -183,7 +157,7 @@ class LiveSession:
         self._overflow = 0
         self._latencies: list[float] = []
         self._events: list[str] = []
-        self._raw_logger: _RawLogger | None = None
+        self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
         self._recording: RecordingStatus | None = None
@@ -274,7 +248,7 @@ class LiveSession:
                                 options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description)
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
-            logger = _RawLogger(writer, status, self.note)
+            logger = RawLogger(writer, status, self.note)
             logger.start()
             status.raw_path = raw_path
             self._raw_logger = logger
@@ -294,7 +268,7 @@ class LiveSession:
         status, self._recording = self._recording, None
         logger, self._raw_logger = self._raw_logger, None
         if logger is not None:
-            logger.queue.put(_STOP)
+            logger.queue.put(RAW_STOP)
             logger.join(10.0)
         done = threading.Event()
 
@@ -315,7 +289,7 @@ class LiveSession:
         """Send every raw frame and pose to ``targets`` (default: the options' list)."""
         self.stop_forwarding()
         self._forwarder = UdpForwarder(targets or self.options.udp.forward_to,
-                                       self.options.udp.multicast_ttl)
+                                       self.options.udp.multicast_ttl, key=key_from_env())
         return self._forwarder
 
     def stop_forwarding(self) -> None:

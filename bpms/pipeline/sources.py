@@ -5,14 +5,28 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import threading
 import time
+from collections.abc import Callable
 
 from bpms.io.events import FrameEvent, SourceStatus
-from bpms.io.link import LinkError, SuitLink, discover_suit
+from bpms.io.link import (
+    CMD_IDENTIFY,
+    DeviceGoneError,
+    LinkClosedError,
+    LinkError,
+    SuitLink,
+    Transport,
+    discover_suit,
+)
+from bpms.io.link_states import LOST_STATES, LinkEvent, LinkState, next_state
 from bpms.io.options import SerialOptions
-from bpms.io.udp import UdpSource
+from bpms.io.udp import UdpSource, key_from_env
 
 log = logging.getLogger(__name__)
+
+#: Frames this long after Stop Data mean the suit did not hear it: it is told again, s.
+STOP_REPEAT_S = 0.5
 
 
 class UdpFrameSource:
@@ -20,12 +34,18 @@ class UdpFrameSource:
 
     Frame indices come from the sender's suit time, so filtered files written here line up with
     the sender's. A new sender session (restart) is a discontinuity: the filters re-initialise.
+    ``key``: the shared UDP key (default: the ``BPMS_UDP_KEY`` environment variable). While
+    datagrams of another sender arrive (and are ignored), the status' ``warning`` says so.
     """
 
-    def __init__(self, listen: str, multicast_group: str | None = None) -> None:
-        self.udp = UdpSource(listen, multicast_group)
+    def __init__(self, listen: str, multicast_group: str | None = None, *,
+                 key: bytes | None = None, silent_after_s: float = 1.0) -> None:
+        self.udp = UdpSource(listen, multicast_group,
+                             key=key if key is not None else key_from_env())
+        self.silent_after_s = silent_after_s
         self._session: int | None = None
         self._state = "connecting"
+        self._last_frame = time.monotonic()
 
     def read(self, timeout: float = 0.1) -> list[FrameEvent]:
         out: list[FrameEvent] = []
@@ -33,119 +53,215 @@ class UdpFrameSource:
         while received is not None:
             new_session = received.session != self._session
             self._session = received.session
+            # the receiver keeps suit times within 0..1e8 s, so this is a sane integer
             index = round(received.suit_time / 0.02)
             out.append(FrameEvent(received.recv_time, received.frame, index, new_session))
             self._state = "streaming"
             if len(out) >= 256:
                 break
             received = self.udp.read(0.0)
+        now = time.monotonic()
+        if out:
+            self._last_frame = now
+        elif self._state == "streaming" and now - self._last_frame > self.silent_after_s:
+            self._state = "silent"
         return out
 
     def status(self) -> SourceStatus:
         s = self.udp.stats
-        host, port = self.udp.address
+        warning = (f"another sender ({s.another_sender}) on this port: ignored"
+                   if s.another_sender else "")
         return SourceStatus(
-            f"UDP {host}:{port}" + (f" group {self.udp.multicast_group}"
-                                    if self.udp.multicast_group else ""),
+            f"UDP on {self.udp.listening}",
             "closed" if self.udp.closed else self._state,
             counters={"lost": s.lost, "duplicated": s.duplicated, "reordered": s.reordered,
-                      "malformed": s.malformed, "restarts": s.restarts})
+                      "malformed": s.malformed, "restarts": s.restarts, "foreign": s.foreign,
+                      "unauthenticated": s.unauthenticated},
+            warning=warning)
 
     def close(self) -> None:
         self.udp.close()
 
 
 class SuitFrameSource:
-    """The suit over serial/Bluetooth (docs/suit.md) as a pipeline source, with a watchdog.
+    """The suit over serial/Bluetooth (docs/suit.md) as a pipeline source, driven by the link state
+    machine of :mod:`bpms.io.link_states` (states, events and the one transition function).
 
     Connecting: discover the suit when no port is given, read the battery, start the stream
     (``SuitLink.start`` drops the stale first frame). The first frame after every (re)start
     carries ``discontinuity``, so the filters re-initialise while Reset Zero stays in force.
 
-    Watchdog: a Bluetooth link that leaves range often raises nothing — reads just time out.
-    After ``serial.link_lost_after_s`` without a byte the state becomes "link lost" and the
-    port is kept listening, so a suit that comes back streaming is picked up at once; every
-    ``retry_s`` of further silence the stream is restarted (identify + start), which brings
-    back a suit that was switched off and on. A read error (the device vanished) closes the
-    port and reopens it every ``retry_s``. Everything already recorded stays recorded.
+    Watchdog: a Bluetooth link that leaves range often raises nothing: reads just time out.
+    After ``serial.link_lost_after_s`` without a byte the state becomes *silent* and the port
+    keeps listening, so a suit that comes back streaming is taken at once; every ``retry_s``
+    of further silence the suit is probed and, when it answers ``BPMS`` (it was switched off
+    and on), the stream is restarted. A read or write error (device removed, TCP connection
+    dropped) makes it *gone*: the port is closed and reopened every ``retry_s``. Everything
+    already received stays received.
+
+    ``simulated``: the source is the simulated suit (status says SIMULATED). ``opener``
+    (port, baud) → :class:`Transport` and ``clock`` / ``sleep`` replace the real port and
+    time in tests. :meth:`read` runs on one (acquisition) thread; :meth:`close`,
+    :meth:`stop_stream`, :meth:`start_stream` and :meth:`status` are safe from any thread.
     """
 
     def __init__(self, port: str | None = None, serial: SerialOptions | None = None, *,
-                 retry_s: float = 1.0) -> None:
+                 retry_s: float = 1.0, simulated: bool = False,
+                 opener: Callable[[str, int], Transport] | None = None,
+                 clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], object] | None = None) -> None:
         self.port = port
         self.serial = serial or SerialOptions()
         self.retry_s = retry_s
+        self.simulated = simulated
+        self._opener = opener
+        self._clock = clock
+        self._wake = threading.Event()
+        self._sleep = sleep or self._wake.wait
+        self._lock = threading.RLock()  # guards state and link changes
         self._link: SuitLink | None = None
-        self._state = "connecting"
+        self._state = LinkState.CONNECTING
         self._reason = ""
         self._battery: float | None = None
         self._count = 0
         self._discontinuity = True
-        self._last_data = time.monotonic()
+        self._last_data = clock()
         self._next_attempt = 0.0
         self._old_resyncs = 0
         self._old_discarded = 0
         self.connections = 0
         self.links_lost = 0
-        self._closed = False
+        self.restarts = 0  # streams restarted after a power-cycle or a reopened port
+        # the last 64 transitions (frames while streaming left out)
+        self.history: list[tuple[LinkState, LinkEvent, LinkState]] = []
         self._want_stream = True  # Start/Stop Data; applied by read() (the acquisition thread)
+        self._stop_sent = 0.0
+
+    # -- the one place where the state changes ----------------------------------------------
+    def _event(self, event: LinkEvent, reason: str = "") -> LinkState:
+        """Apply ``event``: the new state comes from :func:`next_state`; entering a state
+        does its bookkeeping here and nowhere else."""
+        with self._lock:
+            old = self._state
+            if old is LinkState.CLOSED:  # closed by another thread meanwhile: nothing to do
+                return old
+            new = next_state(old, event)
+            self._state = new
+            if new is not old or event is not LinkEvent.FRAMES:
+                self.history = [*self.history, (old, event, new)][-64:]
+            now = self._clock()
+            if new is LinkState.STREAMING:
+                self._reason = ""
+                self._last_data = now
+                if old is not LinkState.STREAMING:
+                    self._discontinuity = True
+                    if old in LOST_STATES:
+                        log.warning("suit link %s: streaming again (%s)",
+                                    self.connected_port or self.port, event.value)
+            elif new in LOST_STATES or new is LinkState.CONNECTING:
+                self._reason = reason or self._reason
+                if old not in LOST_STATES and new is not LinkState.CONNECTING:
+                    self.links_lost += 1
+                    log.warning("suit link lost (%s): %s", new.value, reason)
+                if new is LinkState.SILENT and old is not LinkState.SILENT:
+                    self._next_attempt = now + self.retry_s
+                if new in (LinkState.GONE, LinkState.CONNECTING):
+                    self._next_attempt = now + self.retry_s
+                    if new is LinkState.GONE:
+                        self._close_link()
+            elif new is LinkState.STOPPED:
+                self._reason = ""
+            elif new is LinkState.CLOSED:
+                self._wake.set()
+            return new
+
+    @property
+    def state(self) -> LinkState:
+        return self._state
 
     @property
     def connected_port(self) -> str | None:
-        return self._link.port if self._link is not None else None
+        link = self._link
+        return link.port if link is not None else None
 
     @property
     def reason(self) -> str:
         """Why the link is not streaming (empty while it is)."""
         return self._reason
 
-    def connect(self) -> None:
-        """Open the port (discovering it when none was given) and start the stream.
-        Raises LinkError with a one-line reason."""
+    # -- opening --------------------------------------------------------------------------
+    def _open(self) -> SuitLink:
+        """Open the port (discovering it when none was given), identify the suit, read the
+        battery and start the stream when wanted. Raises LinkError."""
         timeout = self.serial.discovery_timeout_s
         port = self.port or discover_suit(None, timeout, self.serial.baud)
         if port is None:
             raise LinkError("no suit answered on any serial port (is it paired, switched on, "
                             "charged?)")
-        link = SuitLink(port, self.serial.baud, self.serial.read_timeout_s, timeout)
+        transport = None
+        if self._opener is not None:
+            try:
+                transport = self._opener(port, self.serial.baud)
+            except OSError as exc:
+                raise DeviceGoneError(f"cannot open {port}: {exc.strerror or exc}") from None
+        link = SuitLink(port, self.serial.baud, self.serial.read_timeout_s, timeout,
+                        transport=transport, clock=self._clock)
         try:
             link.identify()
             try:
                 self._battery = link.battery_volts()
             except LinkError as exc:
+                if isinstance(exc, DeviceGoneError):
+                    raise
                 log.info("battery not read: %s", exc)
             if self._want_stream:
                 link.start()
         except LinkError:
             link.close()
             raise
-        self._link = link
-        self.connections += 1
-        self._streaming_again("suit link on " + port)
+        return link
 
-    def _streaming_again(self, message: str) -> None:
-        if self._state == "link lost":
-            log.warning("%s: streaming again", message)
-        self._state = "streaming" if self._want_stream else "stopped"
-        self._reason = ""
-        self._discontinuity = True
-        self._last_data = time.monotonic()
+    def _attach(self, link: SuitLink) -> None:
+        with self._lock:
+            if self._state is LinkState.CLOSED:
+                link.close(CMD_IDENTIFY if link.streaming else b"")
+                return
+            self._link = link
+            self.connections += 1
+            if self.connections > 1:
+                self.restarts += 1
+            self._event(LinkEvent.OPENED if link.streaming else LinkEvent.OPENED_IDLE)
 
-    def _lost(self, reason: str) -> None:
-        if self._state != "link lost":
-            self.links_lost += 1
-            log.warning("suit link lost: %s", reason)
-        self._state = "link lost"
-        self._reason = reason
-        self._next_attempt = time.monotonic() + self.retry_s
+    def connect(self) -> None:
+        """Open the port (discovering it when none was given) and start the stream.
+        Raises LinkError with a one-line reason (the source stays *connecting*)."""
+        try:
+            link = self._open()
+        except LinkError as exc:
+            if self._state is LinkState.CONNECTING:
+                self._event(LinkEvent.OPEN_FAILED, str(exc))
+            raise
+        self._attach(link)
+
+    def _reopen(self) -> None:
+        self._event(LinkEvent.RETRY)
+        try:
+            link = self._open()
+        except LinkError as exc:
+            if self._state is LinkState.REOPENING:
+                self._event(LinkEvent.OPEN_FAILED, str(exc))
+            return
+        self._attach(link)
 
     def _close_link(self) -> None:
-        link, self._link = self._link, None
+        with self._lock:
+            link, self._link = self._link, None
         if link is not None:
             self._old_resyncs += link.parser.stats.resyncs
             self._old_discarded += link.parser.stats.discarded_bytes
             link.close()
 
+    # -- Start / Stop Data ----------------------------------------------------------------
     def stop_stream(self) -> None:
         """Stop Data: the suit stops streaming (frames already sent still arrive); the link
         stays open and the watchdog rests. Safe from any thread."""
@@ -156,64 +272,108 @@ class SuitFrameSource:
         self._want_stream = True
 
     def _apply_stream_request(self, link: SuitLink) -> None:
-        if self._want_stream and not link.streaming and self._state != "link lost":
-            link.start()
-            self._streaming_again("Start Data")
-        elif not self._want_stream and link.streaming:
-            link.send_stop()
-            self._state = "stopped"
-
-    def read(self, timeout: float = 0.1) -> list[FrameEvent]:
-        if self._closed:
-            return []
-        now = time.monotonic()
-        if self._link is None:
-            if now < self._next_attempt or not self._want_stream:
-                time.sleep(max(0.0, min(timeout, self._next_attempt - now)) or timeout)
-                return []
+        state = self._state
+        if self._want_stream and state is LinkState.STOPPED:
             try:
-                self.connect()
+                link.start()
+            except DeviceGoneError:
+                raise
             except LinkError as exc:
-                self._reason = str(exc)
-                self._next_attempt = time.monotonic() + self.retry_s
-                return []
+                self._event(LinkEvent.START_FAILED, str(exc))
+                return
+            self._event(LinkEvent.START)
+        elif not self._want_stream and state in (LinkState.STREAMING, LinkState.SILENT):
+            link.send_stop()
+            self._stop_sent = self._clock()
+            self._event(LinkEvent.STOP)
+
+    # -- the acquisition loop -------------------------------------------------------------
+    def read(self, timeout: float = 0.1) -> list[FrameEvent]:
+        state = self._state
+        if state is LinkState.CLOSED:
+            return []
         link = self._link
-        assert link is not None
+        if link is None:  # connecting or gone: (re)open when it is time
+            now = self._clock()
+            wait = self._next_attempt - now
+            if wait > 0 or (not self._want_stream and state is LinkState.GONE):
+                self._sleep(min(timeout, wait) if wait > 0 else timeout)
+                return []
+            if state is LinkState.GONE:
+                self._reopen()
+            else:
+                with contextlib.suppress(LinkError):  # the reason is kept in the status
+                    self.connect()
+            return []
         try:
             self._apply_stream_request(link)
             frames = link.read_frames(timeout)
-            now = time.monotonic()
-            if not frames and self._want_stream:
-                silent = now - self._last_data
-                if self._state != "link lost" and silent > self.serial.link_lost_after_s:
-                    self._lost(f"no data for {silent:.1f} s")
-                elif self._state == "link lost" and now >= self._next_attempt:
-                    self._next_attempt = now + self.retry_s
-                    link.identify(keep_frames=True)  # LinkError while the suit is away
-                    link.start()
-                    self._streaming_again(f"suit on {link.port} answered")
-        except LinkError as exc:
-            if self._closed:  # closing the port under a read is not a lost link
-                return []
-            away = "did not answer" in str(exc) or "no frame" in str(exc)
-            if self._state == "link lost" and away:
-                self._reason = str(exc)  # still away (or back and streaming): keep listening
-                return []
-            self._lost(str(exc))
-            self._close_link()
+            if not frames:
+                self._watchdog(link)
+                frames = link.read_frames(0.0) if link.streaming else []
+        except LinkClosedError:
+            return []
+        except DeviceGoneError as exc:
+            if self._state is not LinkState.CLOSED:
+                self._event(LinkEvent.DEVICE_GONE, str(exc))
             return []
         if not frames:
             return []
-        if self._state == "link lost":
-            self._streaming_again(f"suit on {link.port} is back")
-        self._last_data = now
-        host_time = time.time()
-        events = []
-        for frame in frames:
-            events.append(FrameEvent(host_time, frame, self._count, self._discontinuity))
-            self._discontinuity = False
-            self._count += 1
+        if self._state is LinkState.STOPPED and self._clock() - self._stop_sent > STOP_REPEAT_S:
+            # Frames long after Stop Data: the suit did not hear it (it was out of range)
+            try:
+                link.send_stop()
+            except LinkError as exc:
+                log.info("Stop Data repeated: %s", exc)
+            self._stop_sent = self._clock()
+        with self._lock:
+            if self._state is LinkState.CLOSED:
+                return []
+            self._event(LinkEvent.FRAMES)
+            self._last_data = self._clock()
+            host_time = time.time()
+            events = []
+            for frame in frames:
+                events.append(FrameEvent(host_time, frame, self._count, self._discontinuity))
+                self._discontinuity = False
+                self._count += 1
         return events
+
+    def _watchdog(self, link: SuitLink) -> None:
+        """No frame in this read: maybe the link went quiet, maybe it is time to probe."""
+        state = self._state
+        if not self._want_stream:
+            return
+        now = self._clock()
+        if state is LinkState.STREAMING:
+            silent = now - self._last_data
+            if silent > self.serial.link_lost_after_s:
+                self._event(LinkEvent.QUIET, f"no data for {silent:.1f} s")
+        elif state is LinkState.SILENT and now >= self._next_attempt:
+            self._next_attempt = now + self.retry_s
+            try:
+                answered = link.probe()
+            except (DeviceGoneError, LinkClosedError):
+                raise
+            except LinkError as exc:  # still away
+                self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
+                return
+            if not answered:  # frames came: it streams again (read() delivers them)
+                return
+            # It answered BPMS: power-cycled (idle), or our probe stopped its stream. Start
+            # anew; frames of a stream the probe just stopped stay pending, in order.
+            try:
+                link.start()
+            except (DeviceGoneError, LinkClosedError):
+                raise
+            except LinkError as exc:
+                self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
+                return
+            self.restarts += 1
+            self._event(LinkEvent.RESTARTED)
+
+    def _reason_base(self) -> str:
+        return self._reason.split(";")[0] or "silent"
 
     def status(self) -> SourceStatus:
         link = self._link
@@ -222,16 +382,21 @@ class SuitFrameSource:
             resyncs += link.parser.stats.resyncs
             discarded += link.parser.stats.discarded_bytes
         where = link.port if link is not None else (self.port or "discovery")
-        return SourceStatus(f"suit {where}", "closed" if self._closed else self._state,
+        prefix = "SIMULATED suit" if self.simulated else "suit"
+        return SourceStatus(f"{prefix} {where}", self._state.value,
                             battery_v=self._battery, resyncs=resyncs, discarded_bytes=discarded,
                             counters={"connections": self.connections,
-                                      "links_lost": self.links_lost})
+                                      "links_lost": self.links_lost,
+                                      "restarts": self.restarts},
+                            reason=self._reason, simulated=self.simulated)
 
     def close(self) -> None:
-        """Stop the stream (best effort) and close the port."""
-        self._closed = True
-        link, self._link = self._link, None
+        """Stop the stream (best effort) and close the port. Safe from any thread: a read
+        blocked on the port returns at once."""
+        with self._lock:
+            if self._state is LinkState.CLOSED:
+                return
+            self._event(LinkEvent.CLOSE)
+            link, self._link = self._link, None
         if link is not None:
-            with contextlib.suppress(LinkError):
-                link.send_stop()
-            link.close()
+            link.close(CMD_IDENTIFY)
