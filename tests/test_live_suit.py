@@ -72,7 +72,7 @@ def test_link_loss_is_reported_and_the_stream_comes_back(motion, tmp_path):
 
         # Conditions with deadlines, not a fixed run time: lost (≈ 3 s in), back (≈ 7 s in),
         # then a second of frames after the return.
-        assert wait_until(lambda: state_is("link lost"), 30), states[-5:]
+        assert wait_until(lambda: state_is("silent"), 30), states[-5:]
         assert wait_until(lambda: state_is("streaming"), 30), states[-5:]
         back = session.status().processed
         assert wait_until(lambda: session.status().processed >= back + 50, 30)
