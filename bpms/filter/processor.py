@@ -75,13 +75,14 @@ class Result:
     held_count: np.ndarray = field(default_factory=lambda: np.zeros((N_IMUS, 3), np.int64))
     zeros: list[Zero] = field(default_factory=list, repr=False)
     problems: list[str] = field(default_factory=list)
+    convention: str = "isb"  # joint-angle signs, bpms.filter.joints.CONVENTIONS
 
     def __len__(self) -> int:
         return len(self.t)
 
     @cached_property
     def _body(self) -> tuple[np.ndarray, np.ndarray]:
-        return body_outputs(self.C, self.body)
+        return body_outputs(self.C, self.body, self.convention)
 
     @property
     def joint_angles(self) -> np.ndarray:
@@ -213,7 +214,8 @@ class BodyPoseProcessor:
         t = (self.frames + np.arange(n)) * self.options.filter.dt
         self.frames += n
         return Result(t=t, R=R, euler=euler, C=C, body=self.options.body,
-                      held_count=self.bank.held_count, zeros=self.pose.captures[captures_before:])
+                      held_count=self.bank.held_count, zeros=self.pose.captures[captures_before:],
+                      convention=self.options.joints.convention)
 
     def process(self, raw: np.ndarray, errors: np.ndarray | None = None,
                 zero_at: list[int] | tuple[int, ...] = ()) -> Result:

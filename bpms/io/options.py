@@ -139,6 +139,22 @@ class TrackOptions:
 
 
 @dataclass
+class JointOptions:  # i16: joint-angle sign convention (docs/joint-angles.md)
+    convention: str = _opt("isb", "joint-angle signs: 'isb' (flexion, abduction, external "
+                           "rotation positive on both sides) or 'original' (raw Euler, "
+                           "left/right mirrored); docs/joint-angles.md",
+                           choices=("isb", "original"))
+
+
+@dataclass
+class LslOptions:  # i16: Lab Streaming Layer outlets (docs/lsl.md)
+    enabled: bool = _opt(False, "send segment orientations, joint angles, sensor data and "
+                         "events as LSL streams; docs/lsl.md")
+    link_delay_s: float = _opt(0.0, "suit → computer delay subtracted from LSL time stamps, s",
+                               min=0.0, max=5.0)
+
+
+@dataclass
 class Options:
     filter: FilterOptions = field(default_factory=FilterOptions)
     sensors: SensorOptions = field(default_factory=SensorOptions)
@@ -149,6 +165,8 @@ class Options:
     pose: PoseOptions = field(default_factory=PoseOptions)
     body: BodyOptions = field(default_factory=BodyOptions)
     track: TrackOptions = field(default_factory=TrackOptions)
+    joints: JointOptions = field(default_factory=JointOptions)
+    lsl: LslOptions = field(default_factory=LslOptions)
     source: str = field(default="factory", compare=False, repr=False)
     problems: list[FileProblem] = field(default_factory=list, compare=False, repr=False)
 
