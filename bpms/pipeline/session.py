@@ -66,6 +66,7 @@ class PoseSample:
     joint_angles: np.ndarray
     joint_positions: np.ndarray
     latency_s: float
+    arrival: float = 0.0  # time.perf_counter() when the host took the frame in
 
 
 @dataclass
@@ -163,6 +164,8 @@ class LiveSession:
         self._filtered_flushed = 0.0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
+        # Session markers (text, source frame index or -1) for LSL/other consumers (i16).
+        self.markers: Fanout[tuple[str, int]] = Fanout()
 
     # -- life cycle ---------------------------------------------------------------------
     def start(self) -> None:
@@ -252,11 +255,14 @@ class LiveSession:
                 status.filtered_path = filtered_path
                 self._commands.put(lambda: setattr(self, "_filtered", writer))
         self._recording = status
+        self.markers.publish(("logging start", -1))
         return status
 
     def stop_logging(self) -> RecordingStatus | None:
         """Stop recording; files are flushed and closed. Returns the final status."""
         status, self._recording = self._recording, None
+        if status is not None:
+            self.markers.publish(("logging stop", -1))
         logger, self._raw_logger = self._raw_logger, None
         if logger is not None:
             logger.queue.put(_STOP)
@@ -402,6 +408,7 @@ class LiveSession:
                 proc.restart()
             else:
                 proc.reset_filter()
+            self.markers.publish(("filter re-initialised", head.index))
         decoded = decode_frames(b"".join(e.frame for e in events))
         if len(events) == 1:
             result = proc.step(decoded.raw[0], decoded.errors[0])
@@ -412,8 +419,11 @@ class LiveSession:
         done = time.perf_counter()
         samples = [PoseSample(e.index, e.host_time, e.frame, decoded.raw[k], decoded.errors[k],
                               result.euler[k], result.R[k], result.C[k], angles[k],
-                              positions[k], done - e.arrival)
+                              positions[k], done - e.arrival, e.arrival)
                    for k, e in enumerate(events)]
+        first = proc.frames - len(events)  # stream frame number of events[0]
+        for z in result.zeros:
+            self.markers.publish(("reset zero", head.index + z.frame - first))
         self._processed += len(events)
         self._error_bits += int(decoded.errors.sum())
         self._log_filtered(events, result.euler, angles)
