@@ -11,6 +11,7 @@ import sys
 import time
 
 import pylsl
+import pylsl.util
 
 NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Events")
 
@@ -22,6 +23,14 @@ def channel_labels(info) -> list[str]:
         out.append(ch.child_value("label"))
         ch = ch.next_sibling()
     return out
+
+
+def pull(inlet, timeout):
+    """(samples, stamps); nothing once the outlet has gone (the replay ended)."""
+    try:
+        return inlet.pull_chunk(timeout=timeout)
+    except pylsl.util.LostError:
+        return [], []
 
 
 def main() -> None:
@@ -46,7 +55,7 @@ def main() -> None:
                                                    .child("channel").child_value("unit")]})}
     while time.monotonic() < deadline:
         for name, inlet in inlets.items():
-            samples, stamps = inlet.pull_chunk(timeout=0.05)
+            samples, stamps = pull(inlet, 0.05)
             data[name]["stamps"] += stamps
             if name == "BPMS Events":
                 data[name]["values"] += [s[0] for s in samples]
@@ -57,7 +66,7 @@ def main() -> None:
     # a short grace period for the last events
     end = time.monotonic() + 1.0
     while time.monotonic() < end and "BPMS Events" in inlets:
-        samples, stamps = inlets["BPMS Events"].pull_chunk(timeout=0.1)
+        samples, stamps = pull(inlets["BPMS Events"], 0.1)
         data["BPMS Events"]["stamps"] += stamps
         data["BPMS Events"]["values"] += [s[0] for s in samples]
     print(json.dumps({"info": full, "data": data}))
