@@ -23,6 +23,7 @@ from bpms.io.link import LinkError
 from bpms.io.options import load_options
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
+from bpms.pipeline.streams import add_stream_arguments, start_streams, stop_streams
 
 if TYPE_CHECKING:  # the pipeline (numba, the filter bank) loads when recording starts, so
     from bpms.pipeline.session import LiveStatus  # `bpms --help` and the GUI start quickly
@@ -41,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
                    help="also forward the live stream over UDP (repeatable)")
     p.add_argument("--filtered", action="store_true", help="also record the filtered file")
+    add_stream_arguments(p)  # --lsl, --mvn (i16)
     p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--options", default=None, metavar="FILE", help="options file (TOML)")
     p.add_argument("--sim", action="store_true", help="record the simulated suit")
@@ -91,13 +93,15 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, signal.default_int_handler)
     recording = None
+    bridges: list = []
     try:
         try:
+            bridges = start_streams(session, args.lsl, args.mvn)
             recording = session.start_logging(raw=True, filtered=args.filtered,
                                               name=args.name)
             if args.udp:
                 session.start_forwarding(args.udp)
-        except (RecordingError, UdpConfigError, OSError) as exc:
+        except (RecordingError, UdpConfigError, OSError, ValueError) as exc:
             raise CliError(str(exc)) from None
         session.start()
         print(f"recording to {recording.raw_path}"
@@ -116,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         print("stopping", file=sys.stderr, flush=True)
     finally:
         session.stop()
+        stop_streams(bridges)
         if server is not None:
             server.stop()
     print(f"recorded {session.status().frames} frames to {recording.raw_path}", flush=True)

@@ -12,10 +12,6 @@ import argparse
 import logging
 import threading
 
-import numpy as np
-
-from bpms.io.frames import FRAME_PERIOD_S
-
 log = logging.getLogger(__name__)
 
 
@@ -44,8 +40,11 @@ class MvnBridge:
         self.sender.close()
 
     def _run(self) -> None:
+        import numpy as np
+
         from bpms.filter.joints import convert
         from bpms.filter.rotations import dcm_to_quaternion
+        from bpms.io.frames import FRAME_PERIOD_S
 
         while True:
             stopping = self._stop.is_set()
