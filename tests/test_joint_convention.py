@@ -30,7 +30,7 @@ def motion():
 
 def held(motion, phase_name):
     """Index of the last sample of a named move (held at its target)."""
-    for t0, t1, name in motion.phases:
+    for _t0, t1, name in motion.phases:
         if name == phase_name:
             return int(np.searchsorted(motion.t, t1) - 2)
     raise KeyError(phase_name)

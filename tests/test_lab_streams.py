@@ -15,8 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bpms.filter.body_model import POINT_NAMES
 from bpms.firmware.sim.session import simulate
 from bpms.io.frames import IMU_NAMES
+from bpms.io.udp import (
+    decode_datagram,
+    encode_header,
+    encode_pose_extensions,
+    encode_pose_payload,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SECONDS = 6.0
@@ -68,6 +75,28 @@ def test_replay_sends_raw_frames_and_poses(recording):
     assert kinds.count(1) == FRAMES  # RAW_FRAME, every frame
     # POSE once the segment orientations exist (the provisional Reset Zero at the first frame)
     assert kinds.count(2) >= FRAMES - 5
+    last = [g for g in grams if g[5] == 2][-1]
+    assert last[4] == 2  # POSE is format version 2: with joint positions
+    pose = decode_datagram(last)
+    pts = pose.pose.positions
+    assert pts.shape == (21, 3) and pose.pose.convention == "isb"
+    # NED, lowest foot on the ground: the head's top is about the subject's height up
+    head_top = pts[POINT_NAMES.index("head_top")]
+    assert -1.8 < head_top[2] < -1.5 and abs(pts[:, 2].max()) < 1e-3
+
+
+def test_pose_version_2_readers_skip_unknown_extension_blocks():
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (18, 1))
+    base = encode_pose_payload(q, np.zeros(28))
+    unknown = struct.pack("!HH", 99, 5) + b"later"
+    positions = np.arange(63, dtype=float).reshape(21, 3)
+    payload = base + unknown + encode_pose_extensions(positions, "original")
+    data = encode_header(2, 1, 0, 0.0, 0.0, version=2) + payload
+    pose = decode_datagram(data).pose
+    np.testing.assert_allclose(pose.positions, positions)
+    assert pose.convention == "original"
+    # a version-1 POSE is still read as before
+    assert decode_datagram(encode_header(2, 1, 0, 0.0, 0.0) + base).pose.positions is None
 
 
 # -- MVN: a decoder from the public "MVN real-time network streaming protocol" ---------------
@@ -75,7 +104,7 @@ def test_replay_sends_raw_frames_and_poses(recording):
 def decode_mvn(data: bytes) -> dict:
     """Header: 6 s ID string, I sample counter, B datagram counter, B items, I time code,
     B character id, B segments, B props, B finger segments, 2 reserved, H payload size."""
-    ident, sample, dcount, items, timecode, char, nseg, nprop, nfing, _, size = struct.unpack(
+    ident, sample, dcount, items, timecode, _char, nseg, _nprop, _nfing, _, size = struct.unpack(
         ">6sIBBIBBBB2sH", data[:24])
     body = data[24:]
     assert len(body) == size
@@ -154,8 +183,8 @@ def test_every_lsl_stream_reaches_an_inlet_in_another_process(recording, lsl_env
     sender = subprocess.Popen([sys.executable, "-m", "bpms", "replay", str(path), "--lsl",
                                "--lsl-wait", "60", "--speed", "4"], cwd=ROOT,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=lsl_env)
-    out, err = inlet.communicate(timeout=120)
-    sender_out, sender_err = sender.communicate(timeout=60)
+    out, _err = inlet.communicate(timeout=120)
+    _sender_out, sender_err = sender.communicate(timeout=60)
     assert sender.returncode == 0, sender_err.decode()
     result = json.loads(out)
     info, data = result["info"], result["data"]

@@ -53,9 +53,7 @@ class FrameClock:
         if self._last_index is not None and (discontinuity or index <= self._last_index):
             self._reanchor()
         residual = arrival - index * self.period
-        if math.isnan(self._offset):
-            self._offset = residual
-        elif residual < self._offset:
+        if math.isnan(self._offset) or residual < self._offset:
             self._offset = residual
         self._block_min = min(self._block_min, residual)
         self._block_count += 1

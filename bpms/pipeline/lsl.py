@@ -24,6 +24,7 @@ pylsl is imported when the outlets are created, never at module import.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import socket
 import threading
@@ -255,7 +256,7 @@ class LslBridge:
         # runs split where the source index does not continue (a seek or reconnection)
         idx = [s.index for s in batch]
         starts = [0] + [k for k in range(1, len(idx)) if idx[k] != idx[k - 1] + 1] + [len(idx)]
-        for lo, hi in zip(starts[:-1], starts[1:], strict=True):
+        for lo, hi in itertools.pairwise(starts):
             jump = self._last_index is not None and idx[lo] != self._last_index + 1
             self.outlets.push_frames(idx[lo:hi], [s.arrival for s in batch[lo:hi]], q[lo:hi],
                                      np.stack([s.joint_angles for s in batch[lo:hi]]),

@@ -430,11 +430,13 @@ class LiveSession:
         forwarder = self._forwarder
         if forwarder is not None:
             quats = result.segment_quaternions.astype(np.float32)
-            finite = np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
+            finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
+                      & np.isfinite(positions).all(axis=(1, 2)))
             for k, e in enumerate(events):
                 if finite[k]:
                     forwarder.send_pose(quats[k], angles[k].astype(np.float32),
-                                        max(e.index, 0) * FRAME_PERIOD_S)
+                                        max(e.index, 0) * FRAME_PERIOD_S, positions[k],
+                                        result.convention)
         with self._lock:
             self._latencies.extend(s.latency_s for s in samples)
             if len(self._latencies) > 5000:
