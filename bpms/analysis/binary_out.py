@@ -156,7 +156,11 @@ class ParquetWriter:
         fields += [pa.field(n, pa.float32()) for n in names[2:]]
         schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
         self._schema = schema
-        self._writer = pq.ParquetWriter(self.path, schema, compression=compression)
+        # Dictionary encoding of float columns costs 5× the write time and gains nothing on
+        # continuous signals; statistics only where queries filter (time).
+        self._writer = pq.ParquetWriter(self.path, schema, compression=compression,
+                                        use_dictionary=False,
+                                        write_statistics=["t_s", "utc"])
 
     def write(self, result) -> None:
         pa = self._pa
