@@ -67,7 +67,8 @@ def main_bench() -> None:
         proc = BodyPoseProcessor(rec.calibration)
         results = []
         for lo in range(0, n, CHUNK_FRAMES):
-            r = proc.process(decoded.raw[lo:lo + CHUNK_FRAMES], decoded.errors[lo:lo + CHUNK_FRAMES])
+            hi = lo + CHUNK_FRAMES
+            r = proc.process(decoded.raw[lo:hi], decoded.errors[lo:hi])
             r.segment_quaternions, r.joint_angles, r.joint_positions  # noqa: B018 (computed here)
             results.append(r)
         meta = ExportMeta(1.7e9)
