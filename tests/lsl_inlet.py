@@ -25,11 +25,15 @@ def channel_labels(info) -> list[str]:
     return out
 
 
+LOST: set = set()
+
+
 def pull(inlet, timeout):
-    """(samples, stamps); nothing once the outlet has gone (the replay ended)."""
+    """(samples, stamps); nothing once the outlet has gone (the sender ended)."""
     try:
         return inlet.pull_chunk(timeout=timeout)
     except pylsl.util.LostError:
+        LOST.add(id(inlet))
         return [], []
 
 
@@ -62,6 +66,8 @@ def main() -> None:
             elif samples:
                 data[name]["values"] = samples[-1][:8]  # the last sample's first channels
         if all(len(data[n]["stamps"]) >= frames for n in NAMES[:3] if n in data):
+            break
+        if len(LOST) == len(inlets):
             break
     # a short grace period for the last events
     end = time.monotonic() + 1.0

@@ -205,3 +205,30 @@ def test_every_lsl_stream_reaches_an_inlet_in_another_process(recording, lsl_env
     events = data["BPMS Events"]["values"]
     assert "filter re-initialised" in events and "reset zero" in events, events
     assert np.all(np.diff(data["BPMS Events"]["stamps"]) >= 0)
+
+
+def test_live_recording_streams_link_events_over_lsl(tmp_path, lsl_env):
+    """`bpms record --sim --lsl` with the simulated suit falling silent for 3 s: the inlet in
+    another process sees the link lost and recovered, the filter re-initialised, and
+    increasing time stamps on every data stream."""
+    inlet = subprocess.Popen([sys.executable, str(ROOT / "tests" / "lsl_inlet.py"),
+                              "100000", "60"], cwd=ROOT, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, env=lsl_env)
+    recorder = subprocess.Popen([sys.executable, "-m", "bpms", "record", "--sim", "--lsl",
+                                 "--silent-after", "8", "--silent-for", "3", "--seconds", "16",
+                                 "-o", str(tmp_path)], cwd=ROOT, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, env=lsl_env)
+    rec_out, rec_err = recorder.communicate(timeout=120)
+    out, _ = inlet.communicate(timeout=120)
+    assert recorder.returncode == 0, rec_err.decode()
+    data = json.loads(out)["data"]
+    events = data["BPMS Events"]["values"]
+    assert "link lost" in events and "link recovered" in events, events
+    assert events.index("link lost") < events.index("link recovered")
+    assert "filter re-initialised" in events[events.index("link lost"):], events
+    for name in ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors"):
+        stamps = np.array(data[name]["stamps"])
+        assert len(stamps) > 300, name  # ≥ 6 s of 50 Hz reached the inlet
+        assert np.all(np.diff(stamps) > 0), name
+        # the de-jittered clock: steps of 20 ms except across the silence
+        assert np.median(np.diff(stamps)) == pytest.approx(0.02, abs=0.002), name

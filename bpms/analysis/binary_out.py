@@ -180,10 +180,26 @@ class ParquetWriter:
         self._writer.close()
 
 
+class MissingPackageError(RuntimeError):
+    """The package a format needs is not installed (one-line message)."""
+
+
+_PACKAGES = {"mat": "scipy", "parquet": "pyarrow"}
+
+
+def check_available(kind: str) -> None:
+    """Raise :class:`MissingPackageError` when ``kind``'s package is not installed."""
+    import importlib.util
+
+    package = _PACKAGES[kind]
+    if importlib.util.find_spec(package) is None:
+        raise MissingPackageError(f"{kind} export needs the {package} package "
+                                  "(pip install 'bpms[lab]')")
+
+
 def open_writer(kind: str, path: str | Path, meta: ExportMeta) -> ChunkWriter:
     """A chunk-wise writer of ``kind`` (:data:`KINDS`)."""
-    if kind == "mat":
-        return MatWriter(path, meta)
-    if kind == "parquet":
-        return ParquetWriter(path, meta)
-    raise ValueError(f"unknown export kind {kind!r} (one of {', '.join(KINDS)})")
+    if kind not in KINDS:
+        raise ValueError(f"unknown export kind {kind!r} (one of {', '.join(KINDS)})")
+    check_available(kind)
+    return MatWriter(path, meta) if kind == "mat" else ParquetWriter(path, meta)

@@ -55,6 +55,14 @@ def run(args: argparse.Namespace) -> int:
     if unknown or not outputs:
         raise CliError(f"--outputs: unknown {', '.join(unknown) or '(empty)'}; "
                        f"choose from {', '.join(OUTPUTS)}")
+    from bpms.analysis.binary_out import MissingPackageError, check_available
+
+    try:
+        for kind in ("mat", "parquet"):
+            if kind in outputs:
+                check_available(kind)
+    except MissingPackageError as exc:
+        raise CliError(str(exc)) from None
     out = Path(args.output) if args.output else folder / "batch"
     jobs = [j for j in find_recordings(folder) if out.resolve() not in Path(j.path).resolve()
             .parents]

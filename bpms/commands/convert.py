@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.binary_out import SUFFIX
+    from bpms.analysis.binary_out import SUFFIX, MissingPackageError, check_available
     from bpms.analysis.source import stderr_progress
     from bpms.analysis.stream_export import export_recording
     from bpms.io.rawfile import RawFileError
@@ -46,6 +46,11 @@ def run(args: argparse.Namespace) -> int:
     raw = Path(args.raw_file)
     stem = Path(args.output) if args.output else raw.with_suffix("")
     kinds = list(dict.fromkeys(args.format or ["mat", "parquet"]))
+    try:
+        for kind in kinds:
+            check_available(kind)
+    except MissingPackageError as exc:
+        raise CliError(str(exc)) from None
     outputs = {k: stem.with_name(stem.name + SUFFIX[k]) for k in kinds}
     for target in outputs.values():
         if target.exists() and not args.force:

@@ -82,7 +82,12 @@ def start_streams(session, lsl: bool = False, mvn: list[str] | None = None,
     if lsl or session.options.lsl.enabled:
         from bpms.pipeline.lsl import LslBridge
 
-        bridges.append(LslBridge(session, period=period).start())
+        try:
+            bridges.append(LslBridge(session, period=period).start())
+        except ImportError:
+            stop_streams(bridges)
+            raise ValueError("LSL streaming needs the pylsl package "
+                             "(pip install 'bpms[lab]')") from None
     return bridges
 
 
