@@ -218,7 +218,7 @@ def test_live_recording_streams_link_events_over_lsl(tmp_path, lsl_env):
                                  "--silent-after", "8", "--silent-for", "3", "--seconds", "16",
                                  "-o", str(tmp_path)], cwd=ROOT, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, env=lsl_env)
-    rec_out, rec_err = recorder.communicate(timeout=120)
+    _, rec_err = recorder.communicate(timeout=120)
     out, _ = inlet.communicate(timeout=120)
     assert recorder.returncode == 0, rec_err.decode()
     data = json.loads(out)["data"]
