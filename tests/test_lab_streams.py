@@ -113,7 +113,7 @@ def decode_mvn(data: bytes) -> dict:
     if ident == b"MXTP02":
         recs = [struct.unpack(">i7f", body[k * 32:(k + 1) * 32]) for k in range(items)]
         out["ids"] = [r[0] for r in recs]
-        out["pos_cm"] = np.array([r[1:4] for r in recs])
+        out["pos_m"] = np.array([r[1:4] for r in recs])
         out["quat"] = np.array([r[4:8] for r in recs])
     elif ident == b"MXTP20":
         recs = [struct.unpack(">II3f", body[k * 20:(k + 1) * 20]) for k in range(items)]
@@ -137,9 +137,9 @@ def test_mvn_stream_decodes_from_the_public_layout(recording):
     assert p["ids"] == list(range(1, 24)) and p["last"] and p["segments"] == 23
     assert p["time_ms"] == p["sample"] * 20
     np.testing.assert_allclose(np.linalg.norm(p["quat"], axis=1), 1.0, atol=1e-5)
-    # Z up, centimetres: standing still, the head is ~1.5 m above the toes, the pelvis ~1 m
-    head, pelvis, toe = p["pos_cm"][6], p["pos_cm"][0], p["pos_cm"][18]
-    assert 140 < head[2] - toe[2] < 175 and 80 < pelvis[2] - toe[2] < 110
+    # Z up, metres: standing, the head is ~1.5 m above the toes, the pelvis ~1 m
+    head, pelvis, toe = p["pos_m"][6], p["pos_m"][0], p["pos_m"][18]
+    assert 1.40 < head[2] - toe[2] < 1.75 and 0.80 < pelvis[2] - toe[2] < 1.10
     # the pelvis stands upright: its z axis is the world's up
     R_pelvis = _quat_to_dcm(p["quat"][0])
     assert R_pelvis[2, 2] > 0.99

@@ -4,7 +4,8 @@ Avatar plugins (Unity, Unreal, MotionBuilder) and research tools read this strea
 two datagram types per frame (docs/mvn.md has the mapping and the frames):
 
 - ``MXTP02`` quaternion pose: 24-byte header, then per segment an int32 segment id (1-based,
-  MVN's order) and 7 float32: position x, y, z (cm) and orientation quaternion w, x, y, z;
+  MVN's order) and 7 float32: position x, y, z (m, as MVN's manual states for this datagram) and
+  orientation quaternion w, x, y, z;
   23 segments → 760 bytes.
 - ``MXTP20`` joint angles: 24-byte header, then per joint a uint32 parent connection id and a
   uint32 child connection id (``256 * segment id + point id``) and 3 float32 rotations about
@@ -117,14 +118,14 @@ def _slerp(qa: np.ndarray, qb: np.ndarray, f: float) -> np.ndarray:
 
 def mvn_pose(quaternions: np.ndarray, positions: np.ndarray,
              ) -> tuple[np.ndarray, np.ndarray]:
-    """(positions ``[23, 3]`` cm, quaternions ``[23, 4]`` w, x, y, z) in MVN's Z-up frame from
+    """(positions ``[23, 3]`` m, quaternions ``[23, 4]`` w, x, y, z) in MVN's Z-up frame from
     BPMS segment quaternions ``[18, 4]`` (segment → NED) and joint positions ``[21, 3]`` m
     (NED, order ``POINT_NAMES``)."""
     pos = np.empty((len(SEGMENT_SOURCES), 3))
     quat = np.empty((len(SEGMENT_SOURCES), 4))
     for k, s in enumerate(SEGMENT_SOURCES):
         p, q = positions[POINT_INDEX[s.p]], positions[POINT_INDEX[s.q]]
-        pos[k] = (p + s.g * (q - p)) * _NED_TO_MVN * 100.0
+        pos[k] = (p + s.g * (q - p)) * _NED_TO_MVN
         qq = _slerp(np.asarray(quaternions[s.a], float), np.asarray(quaternions[s.b], float), s.f)
         quat[k] = qq[0], qq[1], -qq[2], -qq[3]
     return pos, quat
