@@ -83,6 +83,7 @@ class SessionRunner:
         self.sim: SimulatedSuit | None = None
         self._data_on = False
         self._udp_stopped = False
+        self._lsl = None  # i16: LslBridge while LSL streaming is on (set_lsl)
 
     @property
     def mode(self) -> str:
@@ -95,9 +96,33 @@ class SessionRunner:
 
     def _new_session(self, source) -> LiveSession:
         processor = BodyPoseProcessor(calibration=self.calibration, options=self.options)
-        return LiveSession(source, self.options, processor,
-                           recording_dir=self.config.recording_dir,
-                           notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
+        session = LiveSession(source, self.options, processor,
+                              recording_dir=self.config.recording_dir,
+                              notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
+        if self._lsl is not None or self.options.lsl.enabled:  # i16: LSL follows the session
+            self.set_lsl(False)
+            self.session = session
+            self.set_lsl(True)
+        return session
+
+    def set_lsl(self, on: bool) -> str | None:
+        """The GUI's LSL switch (docs/lsl.md): stream the session as LSL outlets, or stop.
+        Returns None, or a one-line reason it could not start (pylsl missing)."""
+        from bpms.pipeline.streams import start_streams, stop_streams
+
+        if self._lsl is not None:
+            stop_streams([self._lsl])
+            self._lsl = None
+        if on and self.session is not None:
+            try:
+                self._lsl = start_streams(self.session, lsl=True)[0]
+            except (ValueError, OSError) as exc:
+                return str(exc)
+        return None
+
+    @property
+    def lsl_on(self) -> bool:
+        return self._lsl is not None
 
     def prepare(self) -> LiveSession:
         """Open the source (blocking: run it off the GUI thread). Raises ModeError."""
@@ -178,6 +203,7 @@ class SessionRunner:
         """Stop everything (threads joined, files closed, the simulated suit shut down)."""
         if self.session is not None:
             self.session.stop()
+            self.set_lsl(False)
         elif self.suit is not None:
             self.suit.close()
         if self.sim is not None:
