@@ -84,6 +84,7 @@ class SessionRunner:
         self._data_on = False
         self._udp_stopped = False
         self._lsl = None  # i16: LslBridge while LSL streaming is on (set_lsl)
+        self._mvn: list = []  # i16: MvnBridges to the options' mvn.targets
 
     @property
     def mode(self) -> str:
@@ -103,19 +104,29 @@ class SessionRunner:
             self.set_lsl(False)
             self.session = session
             self.set_lsl(True)
+        if self.options.mvn.targets:  # i16: the MVN-compatible stream (docs/mvn.md)
+            from bpms.pipeline.streams import MvnBridge, stop_streams
+
+            stop_streams(self._mvn)
+            try:
+                self._mvn = [MvnBridge(session, self.options.mvn.targets).start()]
+            except (ValueError, OSError) as exc:
+                session.note(f"MVN stream not started: {exc}")
         return session
 
     def set_lsl(self, on: bool) -> str | None:
         """The GUI's LSL switch (docs/lsl.md): stream the session as LSL outlets, or stop.
         Returns None, or a one-line reason it could not start (pylsl missing)."""
-        from bpms.pipeline.streams import start_streams, stop_streams
-
         if self._lsl is not None:
-            stop_streams([self._lsl])
+            self._lsl.stop()
             self._lsl = None
         if on and self.session is not None:
             try:
-                self._lsl = start_streams(self.session, lsl=True)[0]
+                from bpms.pipeline.lsl import LslBridge
+
+                self._lsl = LslBridge(self.session).start()
+            except ImportError:
+                return "LSL streaming needs the pylsl package (pip install 'bpms[lab]')"
             except (ValueError, OSError) as exc:
                 return str(exc)
         return None
@@ -204,6 +215,9 @@ class SessionRunner:
         if self.session is not None:
             self.session.stop()
             self.set_lsl(False)
+            for bridge in self._mvn:
+                bridge.stop()
+            self._mvn = []
         elif self.suit is not None:
             self.suit.close()
         if self.sim is not None:

@@ -155,6 +155,12 @@ class LslOptions:  # i16: Lab Streaming Layer outlets (docs/lsl.md)
 
 
 @dataclass
+class MvnOptions:  # i16: MVN-compatible UDP stream (docs/mvn.md)
+    targets: list[str] = _opt([], "send the MVN-compatible stream to these host:port targets "
+                              "(docs/mvn.md)", hostports=True)
+
+
+@dataclass
 class Options:
     filter: FilterOptions = field(default_factory=FilterOptions)
     sensors: SensorOptions = field(default_factory=SensorOptions)
@@ -167,6 +173,7 @@ class Options:
     track: TrackOptions = field(default_factory=TrackOptions)
     joints: JointOptions = field(default_factory=JointOptions)
     lsl: LslOptions = field(default_factory=LslOptions)
+    mvn: MvnOptions = field(default_factory=MvnOptions)
     source: str = field(default="factory", compare=False, repr=False)
     problems: list[FileProblem] = field(default_factory=list, compare=False, repr=False)
 

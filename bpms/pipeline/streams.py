@@ -74,11 +74,12 @@ def add_stream_arguments(p: argparse.ArgumentParser) -> None:
 
 def start_streams(session, lsl: bool = False, mvn: list[str] | None = None,
                   period: float | None = None) -> list:
-    """Attach the requested outputs; ``lsl`` also when the options enable it. Raises
-    ValueError for a bad MVN target."""
+    """Attach the requested outputs; LSL also when the options enable it (``lsl.enabled``),
+    MVN also to the options' ``mvn.targets``. Raises ValueError for a bad MVN target."""
     bridges: list = []
-    if mvn:
-        bridges.append(MvnBridge(session, mvn).start())
+    targets = list(dict.fromkeys([*(mvn or []), *session.options.mvn.targets]))
+    if targets:
+        bridges.append(MvnBridge(session, targets).start())
     if lsl or session.options.lsl.enabled:
         from bpms.pipeline.lsl import LslBridge
 
