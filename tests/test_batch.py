@@ -69,3 +69,16 @@ def test_batch_without_recordings_is_a_clear_error(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert out.returncode != 0 and "no raw recording found" in out.stderr
     assert "Traceback" not in out.stderr
+
+
+def test_batch_runs_under_spawn_as_on_windows(study, tmp_path):
+    """The worker function and its arguments survive the "spawn" start method (Windows)."""
+    from bpms.analysis.batch import run_batch
+
+    folder, truth = study
+    jobs = [j for j in find_recordings(folder) if j.subject == "S01"]
+    outcomes = run_batch(jobs, tmp_path, ("rom",), workers=2, start_method="spawn")
+    assert [o.error for o in outcomes] == [None, None]
+    for o in outcomes:
+        flexion = dict((name, hi) for name, _, hi in o.rows)["shoulder_r.flexion"]
+        assert flexion == pytest.approx(truth[(o.job.subject, o.job.trial)], abs=5.0)

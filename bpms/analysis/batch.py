@@ -7,7 +7,8 @@ parent collects one tidy table (one row per recording × joint angle) and a Mark
 page with figures. An unreadable recording is skipped and reported, never fatal.
 
 The worker function is a module-level function with plain arguments, so it runs under the
-"spawn" start method (Windows, macOS) as under "fork".
+"spawn" start method (Windows, macOS: each worker loads the filter kernels itself, a few
+seconds) as under "fork" (Linux: the workers inherit the kernels loaded once in the parent).
 """
 
 from __future__ import annotations
@@ -137,9 +138,11 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
 
 def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = ("rom",),
               workers: int = 1, options: str | None = None,
-              progress: Callable[[int, int, Outcome], None] | None = None) -> list[Outcome]:
+              progress: Callable[[int, int, Outcome], None] | None = None,
+              start_method: str | None = None) -> list[Outcome]:
     """Process ``jobs`` with ``workers`` processes (1 = in this process); outcomes in job
-    order. ``progress(done, total, outcome)`` after each recording."""
+    order. ``progress(done, total, outcome)`` after each recording. ``start_method``: the
+    multiprocessing start method (default: the platform's)."""
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     results: dict[int, Outcome] = {}
     if workers <= 1:
@@ -150,7 +153,9 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
     else:
         import multiprocessing
 
-        ctx = multiprocessing.get_context("spawn")  # the same on every platform
+        ctx = multiprocessing.get_context(start_method)  # default: spawn on Windows/macOS
+        if ctx.get_start_method() == "fork":
+            _warm_up()  # forked workers inherit the loaded filter kernels
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
             futures = {pool.submit(process_one, job, str(out_dir), outputs, options): k
                        for k, job in enumerate(jobs)}
@@ -163,6 +168,15 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
                 if progress:
                     progress(len(results), len(jobs), results[k])
     return [results[k] for k in range(len(jobs))]
+
+
+def _warm_up() -> None:
+    """Load the compiled filter kernels in this process (a few frames through a processor)."""
+    import numpy as np
+
+    from bpms.filter.processor import BodyPoseProcessor
+
+    BodyPoseProcessor().process(np.zeros((4, 18, 9), dtype=np.int16)).joint_angles  # noqa: B018
 
 
 def write_table(path: str | Path, outcomes: list[Outcome]) -> int:
