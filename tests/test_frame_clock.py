@@ -77,3 +77,18 @@ def test_lost_frames_and_reconnection_reanchor():
     s2 = run(clock2, arrival[600:1500], np.arange(900), discontinuities={0})
     assert s2[0] > s1[-1] and clock2.reanchors == 1
     assert np.abs(s2 - true[600:1500])[100:].max() < 0.003
+
+
+def test_a_silent_link_with_a_continuing_count_is_caught_within_a_few_frames():
+    """The live index counts accepted frames: after 3 s of silence the count goes on while
+    the sampling time jumped. Stamps must follow within ``late_frames`` frames, not wait for a
+    block."""
+    rng = np.random.default_rng(5)
+    true, arrival = bluetooth_arrivals(1500, rng)
+    keep = np.r_[0:500, 650:1500]  # 150 frames (3 s) never arrive
+    stamps = run(FrameClock(T), arrival[keep], np.arange(len(keep)))
+    err = np.abs(stamps - true[keep])
+    first_after = 500
+    assert np.all(np.diff(stamps) > 0)
+    assert err[first_after + 5:first_after + 100].max() < 0.35  # within Bluetooth jitter
+    assert err[first_after + 150:].max() < 0.003

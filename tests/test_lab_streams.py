@@ -230,5 +230,7 @@ def test_live_recording_streams_link_events_over_lsl(tmp_path, lsl_env):
         stamps = np.array(data[name]["stamps"])
         assert len(stamps) > 300, name  # ≥ 6 s of 50 Hz reached the inlet
         assert np.all(np.diff(stamps) > 0), name
-        # the de-jittered clock: steps of 20 ms except across the silence
+        # the de-jittered clock: steps of 20 ms except across the silence, which shows as
+        # a gap of about its length (the suit sampled nothing then)
         assert np.median(np.diff(stamps)) == pytest.approx(0.02, abs=0.002), name
+        assert 2.0 < np.diff(stamps).max() < 4.5, name

@@ -8,7 +8,10 @@ clock offset plus a non-negative delay: its lower envelope is the offset. The cl
   frame (slewed so that stamps stay strictly increasing), and
 - a block minimum over the last ``block`` frames: when every frame of a block arrived later
   than the envelope (frames lost on the link, the suit's crystal slower than nominal), the
-  envelope moves up to that block's minimum.
+  envelope moves up to that block's minimum;
+- a gap: when ``late_frames`` frames in a row arrive more than ``late_s`` after the envelope
+  (longer than any Bluetooth delay: the link was silent and the count of accepted frames went
+  on), the envelope jumps to the smallest of them at once.
 
 ``stamp(k) = offset + k * period - link_delay``: the estimated sampling time of frame ``k`` on
 the receive clock (seconds, whatever clock the arrival times are on, e.g. LSL's
@@ -30,13 +33,15 @@ class FrameClock:
     """
 
     def __init__(self, period: float = 0.02, link_delay: float = 0.0, block: int = 100,
-                 min_step: float = 0.5) -> None:
+                 min_step: float = 0.5, late_s: float = 0.5, late_frames: int = 5) -> None:
         if period <= 0:
             raise ValueError("period must be positive")
         self.period = float(period)
         self.link_delay = float(link_delay)
         self.block = max(1, int(block))
         self.min_step = float(min_step)
+        self.late_s = float(late_s)
+        self.late_frames = max(1, int(late_frames))
         self.reset()
 
     def reset(self) -> None:
@@ -46,6 +51,7 @@ class FrameClock:
         self._block_count = 0
         self._last_index: int | None = None
         self._last_stamp = -math.inf
+        self._late: list[float] = []
         self.reanchors = 0
 
     def stamp(self, index: int, arrival: float, discontinuity: bool = False) -> float:
@@ -55,6 +61,14 @@ class FrameClock:
         residual = arrival - index * self.period
         if math.isnan(self._offset) or residual < self._offset:
             self._offset = residual
+        if residual - self._offset > self.late_s:
+            self._late.append(residual)
+            if len(self._late) >= self.late_frames:  # a gap, not jitter: move up now
+                self._offset = min(self._late)
+                self._late.clear()
+                self._block_min, self._block_count = math.inf, 0
+        else:
+            self._late.clear()
         self._block_min = min(self._block_min, residual)
         self._block_count += 1
         if self._block_count >= self.block:
