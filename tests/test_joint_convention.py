@@ -124,3 +124,25 @@ def test_convert_round_trip_and_every_coordinate_has_a_column():
     assert all(col in J for col, _ in OPENSIM_COORDINATES.values())
     with pytest.raises(ValueError, match="isb, original"):
         joint_angles(np.tile(np.eye(3), (18, 1, 1)), "clinical")
+
+
+def test_the_option_reaches_the_processor_outputs():
+    """``joints.convention = "original"`` in the options: the processor's joint angles are
+    the raw Euler ones, and the result says so."""
+    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.firmware.sim.session import simulate
+    from bpms.io.options import Options
+
+    rec = simulate(4.0, seed=7)
+    options = Options()
+    options.joints.convention = "original"
+    isb = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors)
+    orig = BodyPoseProcessor(rec.calibration, options).process(rec.raw, rec.errors)
+    assert isb.convention == "isb" and orig.convention == "original"
+    ok = np.isfinite(isb.joint_angles).all(axis=1)
+    assert ok.sum() > 100
+    np.testing.assert_allclose(orig.joint_angles[ok], joint_angles(isb.C[ok], "original"))
+    # right-side abduction flips sign, left-side does not
+    k_r, k_l = J["shoulder_r.abduction"], J["shoulder_l.abduction"]
+    np.testing.assert_allclose(orig.joint_angles[ok, k_r], -isb.joint_angles[ok, k_r])
+    np.testing.assert_allclose(orig.joint_angles[ok, k_l], isb.joint_angles[ok, k_l])
