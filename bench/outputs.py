@@ -71,7 +71,7 @@ def main_bench() -> None:
             r = proc.process(decoded.raw[lo:hi], decoded.errors[lo:hi])
             r.segment_quaternions, r.joint_angles, r.joint_positions  # noqa: B018 (computed here)
             results.append(r)
-        meta = ExportMeta(1.7e9)
+        meta = ExportMeta(1.7e9, n_frames=n)  # .mat written chunk by chunk
         t0 = time.perf_counter()
         arrays = {"t": np.concatenate([r.t for r in results]),
                   "q": np.concatenate([r.segment_quaternions for r in results]).astype(np.float32),

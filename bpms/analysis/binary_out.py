@@ -7,8 +7,9 @@ Both hold, per frame: time (s since the first frame), segment orientations after
 convention named in the file) and the 21 joint positions (m, NED, lowest foot on the ground).
 Both state the recording's UTC start time (the receive time of its first frame) and the units.
 
-- ``.mat``: the whole arrays are assembled at ``close`` (MATLAB v5 keeps each variable in one
-  piece): ``t`` [N×1] s, ``quaternions`` [N×18×4], ``joint_angles`` [N×28] deg,
+- ``.mat``: written chunk by chunk when the frame count is known in advance (it is for a
+  recording; :mod:`bpms.analysis.mat5_stream`), else assembled at ``close``: ``t`` [N×1] s,
+  ``quaternions`` [N×18×4], ``joint_angles`` [N×28] deg,
   ``joint_positions`` [N×21×3] m, ``segment_names``, ``joint_names``, ``point_names`` (cell
   arrays), ``units`` (struct), ``utc_start`` (ISO 8601 text), ``utc_start_posix`` (s since
   1970), ``joint_angle_convention``, ``rate_hz``, ``source``.
@@ -55,6 +56,7 @@ class ExportMeta:
     rate_hz: float = 50.0
     source: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    n_frames: int | None = None  # known in advance: the .mat file is written chunk by chunk
 
     @property
     def utc_iso(self) -> str:
@@ -90,34 +92,31 @@ def _arrays(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 class MatWriter:
-    """MATLAB v5 ``.mat`` (``scipy.io.savemat``); arrays are kept until :meth:`close`."""
+    """MATLAB v5 ``.mat``. With ``meta.n_frames`` the arrays are written chunk by chunk into
+    space reserved for them (constant memory, :mod:`bpms.analysis.mat5_stream`); without it they
+    are kept until :meth:`close` and written by ``scipy.io.savemat``."""
 
     def __init__(self, path: str | Path, meta: ExportMeta) -> None:
         self.path = Path(path)
         self.meta = meta
         self.rows = 0
         self._parts: list[tuple[np.ndarray, ...]] = []
-        with open(self.path, "wb"):  # fail early (folder missing, no permission)
-            pass
+        self._stream = None
+        if meta.n_frames is not None:
+            from bpms.analysis.mat5_stream import Mat5Stream
 
-    def write(self, result) -> None:
-        self._parts.append(_arrays(result))
-        self.rows += len(result.t)
+            n = int(meta.n_frames)
+            self._stream = Mat5Stream(self.path, self._small(), {
+                "t": ((n, 1), np.float64), "quaternions": ((n, 18, 4), np.float32),
+                "joint_angles": ((n, 28), np.float32),
+                "joint_positions": ((n, 21, 3), np.float32)})
+        else:
+            with open(self.path, "wb"):  # fail early (folder missing, no permission)
+                pass
 
-    def close(self) -> None:
-        from scipy.io import savemat
-
-        def cat(k: int, shape: tuple[int, ...], dtype) -> np.ndarray:
-            if not self._parts:
-                return np.zeros((0, *shape), dtype)
-            return np.concatenate([p[k] for p in self._parts])
-
+    def _small(self) -> dict:
         meta = self.meta.as_dict()
-        data = {
-            "t": cat(0, (), np.float64)[:, None],
-            "quaternions": cat(1, (18, 4), np.float32),
-            "joint_angles": cat(2, (28,), np.float32),
-            "joint_positions": cat(3, (21, 3), np.float32),
+        return {
             "segment_names": np.array(SEGMENT_SLUGS, dtype=object),
             "joint_names": np.array(JOINT_ANGLE_NAMES, dtype=object),
             "point_names": np.array(POINT_NAMES, dtype=object),
@@ -127,6 +126,36 @@ class MatWriter:
             "joint_angle_convention": meta["joint_angle_convention"],
             "rate_hz": self.meta.rate_hz,
             "source": self.meta.source,
+        }
+
+    def write(self, result) -> None:
+        arrays = _arrays(result)
+        if self._stream is not None:
+            lo = self.rows
+            for name, rows in zip(("t", "quaternions", "joint_angles", "joint_positions"),
+                                  (arrays[0][:, None], *arrays[1:]), strict=True):
+                self._stream.write_rows(name, lo, rows)
+        else:
+            self._parts.append(arrays)
+        self.rows += len(result.t)
+
+    def close(self) -> None:
+        if self._stream is not None:
+            self._stream.close()
+            return
+        from scipy.io import savemat
+
+        def cat(k: int, shape: tuple[int, ...], dtype) -> np.ndarray:
+            if not self._parts:
+                return np.zeros((0, *shape), dtype)
+            return np.concatenate([p[k] for p in self._parts])
+
+        data = {
+            "t": cat(0, (), np.float64)[:, None],
+            "quaternions": cat(1, (18, 4), np.float32),
+            "joint_angles": cat(2, (28,), np.float32),
+            "joint_positions": cat(3, (21, 3), np.float32),
+            **self._small(),
         }
         self._parts.clear()
         savemat(self.path, data, format="5", do_compression=False, oned_as="column")

@@ -67,7 +67,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | None = None,
         opts = load_options(options) if options else (header_options(recording) or Options())
     proc = BodyPoseProcessor(table, opts)
     meta = ExportMeta(recording_utc_start(recording), proc.options.joints.convention,
-                      1.0 / proc.options.filter.dt, str(path))
+                      1.0 / proc.options.filter.dt, str(path), n_frames=len(decoded.raw))
     return Opened(recording, decoded, proc, meta)
 
 
