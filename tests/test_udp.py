@@ -154,7 +154,7 @@ def _bad_datagrams() -> dict[str, bytes]:
         "short": good[:10],
         "header only": good[:HEADER_SIZE],
         "magic": b"XPMS" + good[4:],
-        "version": good[:4] + b"\x02" + good[5:],
+        "version": good[:4] + b"\x09" + good[5:],  # unknown (2 = POSE with extensions)
         "type": good[:5] + b"\x07" + good[6:],
         "long frame": good + b"\0",
         "short frame": good[:-1],

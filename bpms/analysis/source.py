@@ -95,7 +95,7 @@ def load_filtered(path: str | Path, options: str | Path | Options | None = None,
     dt = proc.options.filter.dt
     C = proc.pose.apply(R, [round(t / dt) for t in zero_at_s])
     result = Result(t=data.t, R=R, euler=data.euler, C=C, body=proc.options.body,
-                    zeros=list(proc.pose.captures))
+                    zeros=list(proc.pose.captures), convention=proc.options.joints.convention)
     result.problems.extend(data.problems)
     return Processed(None, proc, result, None, None)
 
@@ -149,6 +149,7 @@ def process_recording(path: str | Path, calibration: str | Path | None = None,
                         euler=np.concatenate([p.euler for p in parts]),
                         C=np.concatenate([p.C for p in parts]), body=proc.options.body,
                         held_count=parts[-1].held_count,
-                        zeros=[z for p in parts for z in p.zeros])
+                        zeros=[z for p in parts for z in p.zeros],
+                        convention=proc.options.joints.convention)
     result.problems.extend([*proc.problems, *recording.problems])
     return Processed(recording, proc, result, decoded.raw, decoded.errors)

@@ -79,12 +79,12 @@ def run(args: argparse.Namespace) -> int:
                         f"{calib} ({rows_c} rows, {lo * dt:.2f}–{hi * dt:.2f} s)"]
         elif args.format == "bvh":
             from bpms.analysis.bvh import write_bvh
-            from bpms.filter.body_model import POINT_INDEX
 
             path = _target(out if out.suffix == ".bvh" else out.with_name(out.name + ".bvh"),
                            args.force)
-            n = write_bvh(path, res.C, res.joint_positions[:, POINT_INDEX["pelvis"]],
-                          p.processor.options.body, dt)
+            from bpms.analysis.root_path import walked_root  # i16: the walked path
+
+            n = write_bvh(path, res.C, walked_root(p), p.processor.options.body, dt)
             written.append(f"{path} ({n} frames, cm, y up)")
         else:
             from bpms.analysis.matlab import write_matlab_csv

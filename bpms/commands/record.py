@@ -25,6 +25,7 @@ from bpms.firmware.sim.server import local_server
 from bpms.io.link import LinkError
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp import UdpConfigError
+from bpms.pipeline.streams import add_stream_arguments, start_streams, stop_streams
 
 if TYPE_CHECKING:  # the pipeline (numba, the filter bank) loads when recording starts, so
     from bpms.pipeline.session import (  # `bpms --help` and the GUI start quickly
@@ -47,6 +48,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
                    help="also forward the live stream over UDP (repeatable)")
     p.add_argument("--filtered", action="store_true", help="also record the filtered file")
+    add_stream_arguments(p)  # --lsl, --mvn (i16)
     p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--options", default=None, metavar="FILE", help="options file (TOML)")
     p.add_argument("--sim", action="store_true", help="record the simulated suit")
@@ -125,13 +127,15 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, signal.default_int_handler)
     recording = None
+    bridges: list = []
     try:
         try:
+            bridges = start_streams(session, args.lsl, args.mvn)
             recording = session.start_logging(raw=True, filtered=args.filtered,
                                               name=args.name)
             if args.udp:
                 session.start_forwarding(args.udp)
-        except (RecordingError, UdpConfigError, OSError) as exc:
+        except (RecordingError, UdpConfigError, OSError, ValueError) as exc:
             raise CliError(str(exc)) from None
         session.start()
         print(f"recording to {recording.raw_path}"
@@ -150,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
         print("stopping", file=sys.stderr, flush=True)
     finally:
         session.stop()  # closes the raw file: `recording` then holds the final counts
+        stop_streams(bridges)
         if server is not None:
             server.stop()
     line, code = summary(recording)

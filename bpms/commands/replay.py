@@ -1,5 +1,11 @@
-"""``bpms replay RAW_FILE --udp HOST:PORT [--speed S]``: stream a recording to the network as
-if it were live (the same datagrams as the live UDP server)."""
+"""``bpms replay RAW_FILE [--udp HOST:PORT] [--lsl] [--mvn HOST:PORT] [--speed S]``: stream a
+recording as if it were live.
+
+The recording runs through the same pipeline as a live suit (filters, Reset Zero, joint
+angles, body model), so every output the live path has is sent: UDP raw frames and poses
+(docs/udp.md), LSL streams (docs/lsl.md) and the MVN-compatible stream (docs/mvn.md). The
+calibration and options stored in the recording are used unless ``--options`` is given.
+"""
 
 from __future__ import annotations
 
@@ -11,21 +17,28 @@ from bpms.commands import CliError
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import RawFileError, RawRecording
 from bpms.io.recordings import open_recording
-from bpms.io.replay import ReplaySource
-from bpms.io.udp import UdpConfigError, UdpForwarder
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("replay", help="stream a raw recording over UDP as if it were live",
-                       description=__doc__)
+    from bpms.pipeline.streams import add_stream_arguments
+
+    p = sub.add_parser("replay", help="stream a raw recording (UDP, LSL, MVN) as if it were live",
+                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("raw_file", help="raw recording (.bpmsraw, or a legacy pickled .txt)")
-    p.add_argument("--udp", action="append", required=True, metavar="HOST:PORT",
-                   help="destination (repeat for several; multicast groups allowed)")
+    p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
+                   help="UDP destination of raw frames and poses (repeatable; multicast "
+                        "groups allowed)")
+    add_stream_arguments(p)
+    p.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+                   help="with --lsl: wait up to this long for a consumer (e.g. LabRecorder) "
+                        "on every LSL stream before playing")
     p.add_argument("--speed", type=float, default=1.0,
                    help="playback speed, × real time (0 = as fast as possible; default 1)")
     p.add_argument("--from", dest="start_s", type=float, default=0.0, metavar="SECONDS",
                    help="start this many seconds into the recording")
     p.add_argument("--loop", action="store_true", help="start again at the end")
+    p.add_argument("--options", default=None, metavar="FILE",
+                   help="options file (default: the options stored in the recording)")
     p.set_defaults(run=run)
     return p
 
@@ -38,41 +51,84 @@ def load_recording(path: str) -> RawRecording:
         raise CliError(str(exc)) from None
 
 
+def _processor(recording: RawRecording, options_path: str | None):
+    from bpms.analysis.source import header_calibration, header_options
+    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.io.options import Options, load_options
+
+    # one door: build the processor through the recording's single entry point once it exists
+    options = load_options(options_path) if options_path else (header_options(recording)
+                                                                or Options())
+    return BodyPoseProcessor(header_calibration(recording), options), options
+
+
+def _wait_for_lsl(bridges: list, seconds: float) -> None:
+    from bpms.pipeline.lsl import LslBridge
+
+    deadline = time.monotonic() + seconds
+    for bridge in bridges:
+        if isinstance(bridge, LslBridge):
+            for outlet in bridge.outlets.outlets.values():
+                outlet.wait_for_consumers(max(0.0, deadline - time.monotonic()))
+
+
 def run(args: argparse.Namespace) -> int:
+    from bpms.io.replay import ReplaySource
+    from bpms.io.udp import UdpConfigError
+    from bpms.pipeline.session import LiveSession
+    from bpms.pipeline.streams import start_streams, stop_streams
+
     if args.speed < 0:
         raise CliError("--speed must be ≥ 0 (0 = as fast as possible)")
+    if not (args.udp or args.lsl or args.mvn):
+        raise CliError("nothing to send: give --udp HOST:PORT, --lsl and/or --mvn HOST:PORT")
     recording = load_recording(args.raw_file)
     for problem in recording.problems:
         print(f"warning: {problem}", file=sys.stderr)
     if len(recording) == 0:
         raise CliError(f"{args.raw_file}: the recording holds no frames")
-    try:
-        forwarder = UdpForwarder(args.udp)
-    except UdpConfigError as exc:
-        raise CliError(str(exc)) from None
-    source = ReplaySource(recording, speed=args.speed or None)
+    processor, options = _processor(recording, args.options)
+    source = ReplaySource(recording, speed=args.speed or None, autoplay=False)
     source.seek(seconds=args.start_s)
+    session = LiveSession(source, options, processor)
+    bridges: list = []
+    try:
+        if args.udp:
+            session.start_forwarding(args.udp)
+        period = FRAME_PERIOD_S / args.speed if args.speed else FRAME_PERIOD_S
+        bridges = start_streams(session, args.lsl, args.mvn, period)
+    except (UdpConfigError, ValueError, OSError) as exc:
+        stop_streams(bridges)
+        session.stop()
+        raise CliError(str(exc)) from None
+    targets = [*args.udp, *(["LSL"] if args.lsl else []), *(f"MVN {m}" for m in args.mvn)]
+    if args.lsl and args.lsl_wait > 0:
+        print(f"waiting up to {args.lsl_wait:g} s for LSL consumers", flush=True)
+        _wait_for_lsl(bridges, args.lsl_wait)
     print(f"replaying {len(recording)} frames ({len(recording) * FRAME_PERIOD_S:.1f} s) "
-          f"to {', '.join(args.udp)} at {'full speed' if not args.speed else f'{args.speed}×'}",
+          f"to {', '.join(targets)} at {'full speed' if not args.speed else f'{args.speed}×'}",
           flush=True)
+    session.start()
+    source.play()
     last = time.monotonic()
     try:
         while True:
-            for event in source.read(0.2):
-                forwarder.send_frame(event.frame, event.index * FRAME_PERIOD_S)
+            time.sleep(0.05)
+            status = session.status()
+            done = source.ended and status.processed >= status.frames
             now = time.monotonic()
-            if now - last >= 1.0 or source.ended:
-                st = forwarder.stats
-                print(f"t {source.position_s:7.1f} s  frames sent {st.frames:7d}  "
-                      f"send errors {st.errors}", flush=True)
+            if now - last >= 1.0 or done:
+                print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
+                      f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
+                      f"send errors {status.forward_errors}", flush=True)
                 last = now
-            if source.ended:
+            if done:
                 if not args.loop:
                     break
                 source.seek(0)
     except KeyboardInterrupt:
         print("stopped", file=sys.stderr)
     finally:
-        forwarder.close()
-        source.close()
+        session.stop()  # every processed frame is published before the bridges drain
+        stop_streams(bridges)
     return 0

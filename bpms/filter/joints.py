@@ -1,10 +1,20 @@
-"""Joint angles (docs/body-model.md, dissertation chapter 3.1).
+"""Joint angles (dissertation chapter 3.1; docs/joint-angles.md has the table).
 
 - Elbow and knee flexion: the angle between the two segments' long axes (eq. 3.8), radians,
   0 in the calibration pose.
 - Multi-DOF joints: ``R = C_static^T C_dynamic`` of the two calibrated segment orientations,
-  then roll/pitch/yaw as docs/filter.md step 5, named as Table 3.1: roll = adduction/abduction,
-  pitch = flexion/extension, yaw = lateral/medial rotation.
+  then roll (about the static segment's forward X), pitch (about its right Y) and yaw (about its
+  downward Z) with ``R = Rz(yaw) Ry(pitch) Rx(roll)``, named as Table 3.1: roll =
+  adduction/abduction, pitch = flexion/extension, yaw = rotation.
+
+Conventions (:data:`CONVENTIONS`, option ``joints.convention``):
+
+- ``"isb"`` (default): the clinical/ISB sense, the same on both sides: flexion, abduction and
+  external rotation positive; for the midline joints (torso, head) forward flexion, lateral
+  bending to the right and axial rotation to the left positive (the right-hand rule about the
+  upward axis, as ISB's and OpenSim's ``lumbar_rotation``).
+- ``"original"``: the raw roll/pitch/yaw of the original software, which mirror between left and
+  right (a sideways raise reads −80° abduction on the right, +80° on the left).
 """
 
 from __future__ import annotations
@@ -64,9 +74,59 @@ _BALL_STATIC = np.array([j.static for j in BALL_JOINTS])
 _BALL_DYNAMIC = np.array([j.dynamic for j in BALL_JOINTS])
 
 
-def joint_angles(C: np.ndarray) -> np.ndarray:
+CONVENTIONS = ("isb", "original")
+DEFAULT_CONVENTION = "isb"
+#: Human-readable one-liners, written into every output's header/metadata.
+CONVENTION_TEXT = {
+    "isb": "isb (flexion, abduction, external rotation positive on both sides; "
+           "docs/joint-angles.md)",
+    "original": "original (raw roll/pitch/yaw of R_static^T R_dynamic; left/right mirrored; "
+                "docs/joint-angles.md)",
+}
+
+
+def _isb_signs() -> np.ndarray:
+    """Per-column factor from the original's raw angles to the ISB convention."""
+    signs = {
+        # (abduction, flexion, rotation) factors applied to (roll, pitch, yaw)
+        "r": (-1.0, 1.0, 1.0),   # right: abduction = -roll, external rotation = +yaw
+        "l": (1.0, 1.0, -1.0),   # left: abduction = +roll, external rotation = -yaw
+        # midline: the segment points up, so forward flexion = -pitch; bending right = +roll;
+        # rotation to the left = -yaw (right-hand rule about the upward axis)
+        "m": (1.0, -1.0, -1.0),
+    }
+    out = [1.0] * len(HINGE_JOINTS)
+    for j in BALL_JOINTS:
+        side = j.name[-1] if j.name[-2:] in ("_r", "_l") else "m"
+        out.extend(signs[side])
+    return np.array(out)
+
+
+#: ISB value = ``ISB_SIGNS * original value``, column by column (the conversion is a pure sign
+#: change because both read the same Euler decomposition).
+ISB_SIGNS = _isb_signs()
+
+
+def check_convention(convention: str) -> str:
+    """``convention`` if known, else ValueError naming the choices."""
+    if convention not in CONVENTIONS:
+        raise ValueError(f"joint-angle convention must be one of {', '.join(CONVENTIONS)}, "
+                         f"not {convention!r}")
+    return convention
+
+
+def convert(angles: np.ndarray, source: str, target: str) -> np.ndarray:
+    """Joint angles ``[..., 28]`` in convention ``source`` → ``target`` (a sign change)."""
+    check_convention(source)
+    check_convention(target)
+    angles = np.asarray(angles, dtype=np.float64)
+    return angles if source == target else angles * ISB_SIGNS
+
+
+def joint_angles(C: np.ndarray, convention: str = DEFAULT_CONVENTION) -> np.ndarray:
     """Joint angles ``[..., 28]`` in radians, order :data:`JOINT_ANGLE_NAMES`, from calibrated
-    segment orientations ``C[..., 18, 3, 3]``."""
+    segment orientations ``C[..., 18, 3, 3]``, in ``convention`` (:data:`CONVENTIONS`)."""
+    check_convention(convention)
     C = np.asarray(C, dtype=np.float64)
     u = np.einsum("...jab,jb->...ja", C[..., _HINGE_PROXIMAL, :, :], _HINGE_AXIS_P)
     v = np.einsum("...jab,jb->...ja", C[..., _HINGE_DISTAL, :, :], _HINGE_AXIS_D)
@@ -74,4 +134,35 @@ def joint_angles(C: np.ndarray) -> np.ndarray:
     flexion = np.arccos(np.clip(cos, -1.0, 1.0))
     rel = np.swapaxes(C[..., _BALL_STATIC, :, :], -1, -2) @ C[..., _BALL_DYNAMIC, :, :]
     ball = dcm_to_euler(rel).reshape(*C.shape[:-3], 3 * len(BALL_JOINTS))
-    return np.concatenate([flexion, ball], axis=-1)
+    out = np.concatenate([flexion, ball], axis=-1)
+    return out * ISB_SIGNS if convention == "isb" else out
+
+
+#: OpenSim coordinate (Rajagopal 2016 / gait2392 / Hamner names) → (BPMS ISB column, factor):
+#: ``coordinate = factor * column``. Approximate where OpenSim's joint uses another Euler
+#: sequence (the shoulder) — the signs are what this table states exactly.
+OPENSIM_COORDINATES: dict[str, tuple[str, float]] = {
+    **{name: item for side in "rl" for name, item in {
+        f"hip_flexion_{side}": (f"hip_{side}.flexion", 1.0),
+        f"hip_adduction_{side}": (f"hip_{side}.abduction", -1.0),
+        f"hip_rotation_{side}": (f"hip_{side}.rotation", -1.0),  # internal rotation positive
+        f"knee_angle_{side}": (f"knee_{side}.flexion", 1.0),  # Rajagopal; gait2392: -1
+        f"ankle_angle_{side}": (f"ankle_{side}.flexion", 1.0),  # dorsiflexion positive
+        f"arm_flex_{side}": (f"shoulder_{side}.flexion", 1.0),
+        f"arm_add_{side}": (f"shoulder_{side}.abduction", -1.0),
+        f"arm_rot_{side}": (f"shoulder_{side}.rotation", -1.0),  # internal rotation positive
+        f"elbow_flex_{side}": (f"elbow_{side}.flexion", 1.0),
+    }.items()},
+    "lumbar_extension": ("torso.flexion", -1.0),
+    "lumbar_bending": ("torso.abduction", 1.0),
+    "lumbar_rotation": ("torso.rotation", 1.0),
+}
+
+
+def opensim_coordinates(angles: np.ndarray, convention: str = DEFAULT_CONVENTION,
+                        ) -> dict[str, np.ndarray]:
+    """OpenSim coordinate values (rad) from joint angles ``[..., 28]`` in ``convention``."""
+    isb = convert(angles, convention, "isb")
+    index = {name: k for k, name in enumerate(JOINT_ANGLE_NAMES)}
+    return {coord: factor * isb[..., index[col]]
+            for coord, (col, factor) in OPENSIM_COORDINATES.items()}

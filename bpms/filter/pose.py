@@ -118,11 +118,11 @@ def segment_orientations(R: np.ndarray, zero: Zero | None) -> np.ndarray:
     return out
 
 
-def body_outputs(C: np.ndarray, body: BodyOptions | None = None,
+def body_outputs(C: np.ndarray, body: BodyOptions | None = None, convention: str = "isb",
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """(joint angles ``[..., 28]`` rad, joint positions ``[..., 21, 3]`` m, lowest foot on the
-    ground) from segment orientations ``C``."""
-    return joint_angles(C), joint_positions(C, body, on_ground=True)
+    """(joint angles ``[..., 28]`` rad in ``convention`` (docs/joint-angles.md), joint positions
+    ``[..., 21, 3]`` m, lowest foot on the ground) from segment orientations ``C``."""
+    return joint_angles(C, convention), joint_positions(C, body, on_ground=True)
 
 
 class PoseCalibrator:

@@ -111,6 +111,7 @@ class Result:
             self.reinitialised = np.zeros((n, N_IMUS), dtype=np.bool_)
         if self.corrected is None:
             self.corrected = np.zeros(n, dtype=np.bool_)
+    convention: str = "isb"  # joint-angle signs, bpms.filter.joints.CONVENTIONS
 
     def __len__(self) -> int:
         return len(self.t)
@@ -135,7 +136,8 @@ class Result:
                       problems=[x for p in parts for x in p.problems],
                       gyro_bias=join("gyro_bias"), body_acc=join("body_acc"),
                       disturbance=dist, reinitialised=join("reinitialised"),
-                      reinit_count=last.reinit_count, corrected=join("corrected"))
+                      reinit_count=last.reinit_count, corrected=join("corrected"),
+                      convention=last.convention)
 
     @property
     def euler_sensor(self) -> np.ndarray:
@@ -157,7 +159,7 @@ class Result:
 
     @cached_property
     def _body(self) -> tuple[np.ndarray, np.ndarray]:
-        return body_outputs(self.C, self.body)
+        return body_outputs(self.C, self.body, self.convention)
 
     @property
     def joint_angles(self) -> np.ndarray:
@@ -352,7 +354,7 @@ class BodyPoseProcessor:
                       gyro_bias=bias, body_acc=out.body_acc,
                       disturbance=self.disturbance.update(acc, mag, gyr, out.R, errors),
                       reinitialised=reinitialised, reinit_count=self.guard.count.copy(),
-                      corrected=corrected)
+                      corrected=corrected, convention=self.options.joints.convention)
 
     def process(self, raw: np.ndarray, errors: np.ndarray | None = None,
                 zero_at: list[int] | tuple[int, ...] = ()) -> Result:

@@ -85,6 +85,8 @@ class SessionRunner:
         self.sim: SimulatedSuit | None = None
         self._data_on = False
         self._udp_stopped = False
+        self._lsl = None  # i16: LslBridge while LSL streaming is on (set_lsl)
+        self._mvn: list = []  # i16: MvnBridges to the options' mvn.targets
 
     @property
     def mode(self) -> str:
@@ -100,9 +102,43 @@ class SessionRunner:
         from bpms.pipeline.session import LiveSession
 
         processor = BodyPoseProcessor(calibration=self.calibration, options=self.options)
-        return LiveSession(source, self.options, processor,
-                           recording_dir=self.config.recording_dir,
-                           notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
+        session = LiveSession(source, self.options, processor,
+                              recording_dir=self.config.recording_dir,
+                              notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
+        if self._lsl is not None or self.options.lsl.enabled:  # i16: LSL follows the session
+            self.set_lsl(False)
+            self.session = session
+            self.set_lsl(True)
+        if self.options.mvn.targets:  # i16: the MVN-compatible stream (docs/mvn.md)
+            from bpms.pipeline.streams import MvnBridge, stop_streams
+
+            stop_streams(self._mvn)
+            try:
+                self._mvn = [MvnBridge(session, self.options.mvn.targets).start()]
+            except (ValueError, OSError) as exc:
+                session.note(f"MVN stream not started: {exc}")
+        return session
+
+    def set_lsl(self, on: bool) -> str | None:
+        """The GUI's LSL switch (docs/lsl.md): stream the session as LSL outlets, or stop.
+        Returns None, or a one-line reason it could not start (pylsl missing)."""
+        if self._lsl is not None:
+            self._lsl.stop()
+            self._lsl = None
+        if on and self.session is not None:
+            try:
+                from bpms.pipeline.lsl import LslBridge
+
+                self._lsl = LslBridge(self.session).start()
+            except ImportError:
+                return "LSL streaming needs the pylsl package (pip install 'bpms[lab]')"
+            except (ValueError, OSError) as exc:
+                return str(exc)
+        return None
+
+    @property
+    def lsl_on(self) -> bool:
+        return self._lsl is not None
 
     def prepare(self) -> LiveSession:
         """Open the source (blocking: run it off the GUI thread). Raises ModeError."""
@@ -183,6 +219,10 @@ class SessionRunner:
         """Stop everything (threads joined, files closed, the simulated suit shut down)."""
         if self.session is not None:
             self.session.stop()
+            self.set_lsl(False)
+            for bridge in self._mvn:
+                bridge.stop()
+            self._mvn = []
         elif self.suit is not None:
             self.suit.close()
         if self.sim is not None:

@@ -109,6 +109,9 @@ VALID_RANGES: dict[str, dict[str, Range]] = {
         "min_step_interval_s": Range(0.0),
         "declination_deg": Range(-180.0, 180.0),
     },
+    "joints": {"convention": Range(choices=("isb", "original"))},
+    "lsl": {"link_delay_s": Range(0.0, 5.0, why="Bluetooth delays are tens of ms; 5 s is "
+                                               "far beyond any real link")},
 }
 
 #: Which [filter] settings belong to which attitude filter (the GUI shows the selected one's).
@@ -288,6 +291,32 @@ class TrackOptions:
 
 
 @dataclass
+class JointOptions:
+    """Joint-angle sign convention (docs/joint-angles.md)."""
+
+    convention: str = _opt("isb", "joint-angle signs: 'isb' (flexion, abduction, external "
+                           "rotation positive on both sides) or 'original' (raw Euler, "
+                           "left/right mirrored); docs/joint-angles.md")
+
+
+@dataclass
+class LslOptions:
+    """Lab Streaming Layer outlets (docs/lsl.md)."""
+
+    enabled: bool = _opt(False, "send segment orientations, joint angles, sensor data and "
+                         "events as LSL streams; docs/lsl.md")
+    link_delay_s: float = _opt(0.0, "suit → computer delay subtracted from LSL time stamps, s")
+
+
+@dataclass
+class MvnOptions:
+    """The MVN-compatible UDP stream (docs/mvn.md)."""
+
+    targets: list[str] = _opt([], "send the MVN-compatible stream to these host:port targets "
+                              "(docs/mvn.md)", hostports=True)
+
+
+@dataclass
 class Options:
     filter: FilterOptions = field(default_factory=FilterOptions)
     sensors: SensorOptions = field(default_factory=SensorOptions)
@@ -298,6 +327,9 @@ class Options:
     pose: PoseOptions = field(default_factory=PoseOptions)
     body: BodyOptions = field(default_factory=BodyOptions)
     track: TrackOptions = field(default_factory=TrackOptions)
+    joints: JointOptions = field(default_factory=JointOptions)
+    lsl: LslOptions = field(default_factory=LslOptions)
+    mvn: MvnOptions = field(default_factory=MvnOptions)
     source: str = field(default="factory", compare=False, repr=False)
     problems: list[FileProblem] = field(default_factory=list, compare=False, repr=False)
 

@@ -17,7 +17,10 @@ byte order, like the suit's frame)::
 
 RAW_FRAME payload: the 340-byte suit frame exactly as received. POSE payload: uint16 segment
 count S, uint16 angle count A, S quaternions (w, x, y, z float32, body→NED, IMU order), then A
-joint angles (float32 rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`).
+joint angles (float32 rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`). POSE version 2
+appends extension blocks (uint16 tag, uint16 length, data; readers skip unknown tags): tag 1
+joint positions (uint16 P, P × 3 float32 m NED, order ``POINT_NAMES``), tag 2 the joint-angle
+convention name (ASCII).
 
 Nothing here imports Qt. :class:`UdpForwarder` and :class:`UdpSource` are thread-safe: any
 thread may send / read stats / close.
@@ -52,6 +55,11 @@ log = logging.getLogger(__name__)
 
 MAGIC = b"BPMS"
 VERSION = 1
+POSE_VERSION = 2  # POSE with extension blocks (joint positions, convention); docs/udp.md
+READ_VERSIONS = (1, 2)
+EXT_BLOCK = struct.Struct("!HH")
+EXT_JOINT_POSITIONS = 1
+EXT_CONVENTION = 2
 HEADER = struct.Struct("!4sBBHIIdd")
 HEADER_SIZE = HEADER.size
 assert HEADER_SIZE == 32
@@ -102,6 +110,8 @@ class Pose:
 
     quaternions: np.ndarray
     angles: np.ndarray
+    positions: np.ndarray | None = None  # [P, 3] m NED (POSE version 2)
+    convention: str | None = None  # joint-angle convention (POSE version 2)
 
 
 @dataclass(frozen=True)
@@ -122,9 +132,9 @@ class Datagram:
 
 
 def encode_header(mtype: int, session: int, seq: int, suit_time: float, send_time: float,
-                  flags: int = 0) -> bytes:
+                  flags: int = 0, version: int = VERSION) -> bytes:
     """The 32-byte header. ``seq`` is reduced modulo 2**32."""
-    return HEADER.pack(MAGIC, VERSION, int(mtype), flags, session, seq % SEQ_MOD,
+    return HEADER.pack(MAGIC, version, int(mtype), flags, session, seq % SEQ_MOD,
                        float(suit_time), float(send_time))
 
 
@@ -155,6 +165,49 @@ def encode_pose_payload(quaternions: np.ndarray, angles: np.ndarray) -> bytes:
             + a.astype(">f4").tobytes())
 
 
+def encode_pose_extensions(positions: np.ndarray | None = None,
+                           convention: str | None = None) -> bytes:
+    """POSE version 2 extension blocks: joint positions ``[P, 3]`` m (NED) and/or the
+    joint-angle convention name. Raises ValueError on non-finite positions."""
+    out = b""
+    if positions is not None:
+        p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        if not np.isfinite(p).all():
+            raise ValueError("joint positions contain NaN or infinite values")
+        data = POSE_COUNTS.pack(len(p), 0)[:2] + p.astype(">f4").tobytes()
+        out += EXT_BLOCK.pack(EXT_JOINT_POSITIONS, len(data)) + data
+    if convention:
+        data = convention.encode("ascii")
+        out += EXT_BLOCK.pack(EXT_CONVENTION, len(data)) + data
+    return out
+
+
+def _decode_extensions(data: bytes) -> dict:
+    out: dict = {}
+    pos = 0
+    while pos < len(data):
+        if len(data) - pos < EXT_BLOCK.size:
+            raise DatagramError("POSE extension block header is truncated")
+        tag, length = EXT_BLOCK.unpack_from(data, pos)
+        pos += EXT_BLOCK.size
+        block = data[pos:pos + length]
+        if len(block) != length:
+            raise DatagramError(f"POSE extension block {tag} is truncated")
+        pos += length
+        if tag == EXT_JOINT_POSITIONS:
+            n = struct.unpack_from("!H", block)[0] if length >= 2 else -1
+            if length != 2 + 12 * n:
+                raise DatagramError("POSE joint-position block has the wrong length")
+            p = np.frombuffer(block, ">f4", 3 * n, 2).reshape(n, 3)
+            if not np.isfinite(p).all():
+                raise DatagramError("POSE joint positions hold NaN or infinite values")
+            out["positions"] = p.astype(np.float32)
+        elif tag == EXT_CONVENTION:
+            out["convention"] = block.decode("ascii", "replace")
+        # other tags: skipped (later extensions)
+    return out
+
+
 def encode_pose(quaternions: np.ndarray, angles: np.ndarray, *, session: int, seq: int,
                 suit_time: float, send_time: float, flags: int = 0) -> bytes:
     """A POSE datagram (see :func:`encode_pose_payload`)."""
@@ -162,11 +215,15 @@ def encode_pose(quaternions: np.ndarray, angles: np.ndarray, *, session: int, se
                          flags) + encode_pose_payload(quaternions, angles)
 
 
-def _decode_pose(payload: bytes) -> Pose:
+def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
     if len(payload) < POSE_COUNTS.size:
         raise DatagramError(f"POSE payload is {len(payload)} bytes, shorter than its counts")
     n_seg, n_ang = POSE_COUNTS.unpack_from(payload)
     expected = POSE_COUNTS.size + 16 * n_seg + 4 * n_ang
+    extensions = {}
+    if version >= 2 and len(payload) >= expected:  # i16: extension blocks after the angles
+        extensions = _decode_extensions(payload[expected:])
+        payload = payload[:expected]
     if len(payload) != expected:
         raise DatagramError(f"POSE payload is {len(payload)} bytes, its counts "
                             f"({n_seg} segments, {n_ang} angles) need {expected}")
@@ -180,7 +237,7 @@ def _decode_pose(payload: bytes) -> Pose:
     if bad.size:
         raise DatagramError(f"POSE quaternion {bad[0]} is not a unit quaternion "
                             f"(norm {norms[bad[0]]:.4g})")
-    return Pose(q.astype(np.float32), a.astype(np.float32))
+    return Pose(q.astype(np.float32), a.astype(np.float32), **extensions)
 
 
 def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:
@@ -193,8 +250,9 @@ def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:
     magic, version, mtype, flags, session, seq, suit_time, send_time = HEADER.unpack_from(data)
     if magic != MAGIC:
         raise DatagramError(f"wrong magic {magic!r} (expected {MAGIC!r})")
-    if version != VERSION:
-        raise DatagramError(f"unknown format version {version} (this software reads {VERSION})")
+    if version not in READ_VERSIONS:
+        raise DatagramError(f"unknown format version {version} (this software reads "
+                            f"{', '.join(map(str, READ_VERSIONS))})")
     if not (math.isfinite(suit_time) and math.isfinite(send_time)):
         raise DatagramError("suit time or send time is not a finite number")
     payload = data[HEADER_SIZE:]
@@ -207,7 +265,7 @@ def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:
                         frame=payload)
     if mtype == MessageType.POSE:
         return Datagram(MessageType.POSE, flags, session, seq, suit_time, send_time,
-                        pose=_decode_pose(payload))
+                        pose=_decode_pose(payload, version))
     raise DatagramError(f"unknown message type {mtype}")
 
 
@@ -422,14 +480,20 @@ class UdpForwarder:
 
         return self._send(MessageType.RAW_FRAME, build)
 
-    def send_pose(self, quaternions: np.ndarray, angles: np.ndarray, suit_time: float) -> int:
+    def send_pose(self, quaternions: np.ndarray, angles: np.ndarray, suit_time: float,
+                  positions: np.ndarray | None = None, convention: str | None = None) -> int:
         """Forward one filtered pose: ``quaternions[18, 4]`` (w, x, y, z, body→NED) and
-        ``angles[28]`` rad. Raises ValueError on bad shapes or non-finite values."""
+        ``angles[28]`` rad; with ``positions[21, 3]`` (m, NED) and/or ``convention`` a
+        version-2 POSE carrying them. Raises ValueError on bad shapes or non-finite values."""
         payload = encode_pose_payload(quaternions, angles)
+        version = VERSION
+        if positions is not None or convention:
+            payload += encode_pose_extensions(positions, convention)
+            version = POSE_VERSION
 
         def build(seq: int) -> bytes:
             return encode_header(MessageType.POSE, self.session, seq, suit_time,
-                                 time.time()) + payload
+                                 time.time(), version=version) + payload
 
         return self._send(MessageType.POSE, build)
 

@@ -77,6 +77,7 @@ class PoseSample:
     euler_output: np.ndarray | None = None
     #: ``[18]`` bool: the state guard re-initialised that IMU in this frame
     reinitialised: np.ndarray | None = None
+    arrival: float = 0.0  # time.perf_counter() when the host took the frame in
 
 
 @dataclass
@@ -162,6 +163,8 @@ class LiveSession:
         self._filtered_flushed = 0.0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
+        # Session markers (text, source frame index or -1) for LSL/other consumers (i16).
+        self.markers: Fanout[tuple[str, int]] = Fanout()
 
     # -- life cycle ---------------------------------------------------------------------
     def start(self) -> None:
@@ -261,11 +264,14 @@ class LiveSession:
                 status.filtered_path = filtered_path
                 self._commands.put(lambda: setattr(self, "_filtered", writer))
         self._recording = status
+        self.markers.publish(("logging start", -1))
         return status
 
     def stop_logging(self) -> RecordingStatus | None:
         """Stop recording; files are flushed and closed. Returns the final status."""
         status, self._recording = self._recording, None
+        if status is not None:
+            self.markers.publish(("logging stop", -1))
         logger, self._raw_logger = self._raw_logger, None
         if logger is not None:
             logger.queue.put(RAW_STOP)
@@ -412,6 +418,7 @@ class LiveSession:
                 proc.restart()
             else:
                 proc.reset_filter()
+            self.markers.publish(("filter re-initialised", head.index))
         decoded = decode_frames(b"".join(e.frame for e in events))
         if len(events) == 1:
             result = proc.step(decoded.raw[0], decoded.errors[0])
@@ -424,20 +431,25 @@ class LiveSession:
         samples = [PoseSample(e.index, e.host_time, e.frame, decoded.raw[k], decoded.errors[k],
                               result.euler[k], result.R[k], result.C[k], angles[k],
                               positions[k], done - e.arrival, output[k],
-                              result.reinitialised[k])
+                              result.reinitialised[k], e.arrival)
                    for k, e in enumerate(events)]
         self._note_reinit(result)
+        first = proc.frames - len(events)  # stream frame number of events[0]
+        for z in result.zeros:
+            self.markers.publish(("reset zero", head.index + z.frame - first))
         self._processed += len(events)
         self._error_bits += int(decoded.errors.sum())
         self._log_filtered(events, result.euler, angles)
         forwarder = self._forwarder
         if forwarder is not None:
             quats = result.segment_quaternions.astype(np.float32)
-            finite = np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
+            finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
+                      & np.isfinite(positions).all(axis=(1, 2)))
             for k, e in enumerate(events):
                 if finite[k]:
                     forwarder.send_pose(quats[k], angles[k].astype(np.float32),
-                                        max(e.index, 0) * FRAME_PERIOD_S)
+                                        max(e.index, 0) * FRAME_PERIOD_S, positions[k],
+                                        result.convention)
         with self._lock:
             self._latencies.extend(s.latency_s for s in samples)
             if len(self._latencies) > 5000:

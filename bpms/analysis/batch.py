@@ -1,0 +1,252 @@
+"""Study batches: every recording under a folder, processed in parallel worker processes.
+
+Each worker filters one recording in one chunk-by-chunk pass and, on the way, writes the
+requested per-recording outputs (the filtered file, ``.mat``, Parquet) and reduces the range
+of motion (min/max of each joint angle over every frame with segment orientations). The
+parent collects one tidy table (one row per recording × joint angle) and a Markdown summary
+page with figures. An unreadable recording is skipped and reported, never fatal.
+
+The worker function is a module-level function with plain arguments, so it runs under the
+"spawn" start method (Windows, macOS: each worker loads the filter kernels itself, a few
+seconds) as under "fork" (Linux: the workers inherit the kernels loaded once in the parent).
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+OUTPUTS = ("filter", "rom", "mat", "parquet")
+RAW_SUFFIXES = (".bpmsraw",)
+LEGACY_SUFFIXES = (".txt",)
+TABLE_NAME = "batch_rom.csv"
+SUMMARY_NAME = "batch_summary.md"
+
+
+@dataclass
+class Job:
+    path: str
+    subject: str
+    trial: str
+
+
+@dataclass
+class Outcome:
+    """One recording's result. ``rows``: (joint, min deg, max deg) per joint angle;
+    ``error``: why it was skipped (None when it was processed)."""
+
+    job: Job
+    frames: int = 0
+    seconds: float = 0.0
+    convention: str = ""
+    utc_start: str = ""
+    rows: list[tuple[str, float, float]] = field(default_factory=list)
+    written: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+def find_recordings(folder: str | Path) -> list[Job]:
+    """Every raw recording under ``folder`` (native ``.bpmsraw`` files, and legacy ``.txt``
+    raw files recognised by their content), sorted. Subject = the first folder level under
+    ``folder`` (``-`` for files directly in it), trial = the file's stem."""
+    from bpms.analysis.source import is_raw_recording
+
+    root = Path(folder)
+    jobs = []
+    for path in sorted(root.rglob("*")):
+        if not path.is_file():
+            continue
+        suffix = path.suffix.lower()
+        if suffix in RAW_SUFFIXES or (suffix in LEGACY_SUFFIXES and is_raw_recording(path)):
+            rel = path.relative_to(root)
+            subject = rel.parts[0] if len(rel.parts) > 1 else "-"
+            jobs.append(Job(str(path), subject, path.stem))
+    return jobs
+
+
+def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
+                options: str | None = None) -> Outcome:
+    """Worker: filter ``job``'s recording once, write ``outputs`` into ``out_dir`` (per
+    subject), reduce the range of motion. Never raises: failures become ``Outcome.error``."""
+    import numpy as np
+
+    from bpms.analysis.binary_out import SUFFIX, open_writer
+    from bpms.analysis.stream_export import open_for_processing
+    from bpms.filter.joints import JOINT_ANGLE_NAMES
+
+    t0 = time.perf_counter()
+    outcome = Outcome(job)
+    writers: list = []
+    try:
+        opened = open_for_processing(job.path, None, options)
+        if len(opened) == 0:
+            raise ValueError("the recording holds no frames")
+        target = Path(out_dir) / job.subject
+        target.mkdir(parents=True, exist_ok=True)
+        stem = target / job.trial
+        filtered = None
+        if "filter" in outputs:
+            from bpms.io.filtered_file import FilteredWriter
+
+            path = stem.with_name(f"{job.trial}_filtered.csv")
+            path.unlink(missing_ok=True)
+            filtered = FilteredWriter(path, degrees=True, joints=True)
+            writers.append(filtered)
+            outcome.written.append(str(path))
+        for kind in ("mat", "parquet"):
+            if kind in outputs:
+                path = stem.with_name(job.trial + SUFFIX[kind])
+                writers.append(open_writer(kind, path, opened.meta))
+                outcome.written.append(str(path))
+        lo = np.full(len(JOINT_ANGLE_NAMES), np.inf)
+        hi = np.full(len(JOINT_ANGLE_NAMES), -np.inf)
+        for result in opened.chunks():
+            angles = result.joint_angles
+            if filtered is not None:
+                filtered.write_block(result.t, result.euler, angles)
+            for w in writers:
+                if w is not filtered:
+                    w.write(result)
+            ok = np.isfinite(angles).all(axis=1)  # the ROM rule of bpms rom
+            if ok.any():
+                deg = np.degrees(angles[ok])
+                lo = np.minimum(lo, deg.min(axis=0))
+                hi = np.maximum(hi, deg.max(axis=0))
+            outcome.frames += len(result)
+        if "rom" in outputs:
+            if not np.isfinite(lo).all():
+                raise ValueError("no frame with segment orientations (no Reset Zero)")
+            outcome.rows = [(name, float(a), float(b))
+                            for name, a, b in zip(JOINT_ANGLE_NAMES, lo, hi, strict=True)]
+        outcome.convention = opened.meta.convention
+        outcome.utc_start = opened.meta.utc_iso
+    except Exception as exc:  # one bad file must not stop a study
+        outcome.error = f"{type(exc).__name__}: {exc}".splitlines()[0]
+    finally:
+        for w in writers:
+            try:
+                w.close()
+            except Exception as exc:
+                outcome.error = outcome.error or f"closing an output failed: {exc}"
+    outcome.seconds = time.perf_counter() - t0
+    return outcome
+
+
+def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = ("rom",),
+              workers: int = 1, options: str | None = None,
+              progress: Callable[[int, int, Outcome], None] | None = None,
+              start_method: str | None = None) -> list[Outcome]:
+    """Process ``jobs`` with ``workers`` processes (1 = in this process); outcomes in job
+    order. ``progress(done, total, outcome)`` after each recording. ``start_method``: the
+    multiprocessing start method (default: the platform's)."""
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    results: dict[int, Outcome] = {}
+    if workers <= 1:
+        for k, job in enumerate(jobs):
+            results[k] = process_one(job, str(out_dir), outputs, options)
+            if progress:
+                progress(len(results), len(jobs), results[k])
+    else:
+        import multiprocessing
+
+        ctx = multiprocessing.get_context(start_method)  # default: spawn on Windows/macOS
+        if ctx.get_start_method() == "fork":
+            _warm_up()  # forked workers inherit the loaded filter kernels
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            futures = {pool.submit(process_one, job, str(out_dir), outputs, options): k
+                       for k, job in enumerate(jobs)}
+            for future in as_completed(futures):
+                k = futures[future]
+                try:
+                    results[k] = future.result()
+                except Exception as exc:  # the worker process itself died
+                    results[k] = Outcome(jobs[k], error=f"worker failed: {exc}")
+                if progress:
+                    progress(len(results), len(jobs), results[k])
+    return [results[k] for k in range(len(jobs))]
+
+
+def _warm_up() -> None:
+    """Load the compiled filter kernels in this process (a few frames through a processor)."""
+    import numpy as np
+
+    from bpms.filter.processor import BodyPoseProcessor
+
+    BodyPoseProcessor().process(np.zeros((4, 18, 9), dtype=np.int16)).joint_angles  # noqa: B018
+
+
+def write_table(path: str | Path, outcomes: list[Outcome]) -> int:
+    """The tidy table: one row per recording × joint angle. Returns the number of rows."""
+    rows = 0
+    with open(path, "w", encoding="utf-8", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["subject", "trial", "joint", "min_deg", "max_deg", "range_deg", "frames",
+                    "utc_start", "convention", "file"])
+        for o in outcomes:
+            for joint, lo, hi in o.rows:
+                w.writerow([o.job.subject, o.job.trial, joint, f"{lo:.3f}", f"{hi:.3f}",
+                            f"{hi - lo:.3f}", o.frames, o.utc_start, o.convention, o.job.path])
+                rows += 1
+    return rows
+
+
+def write_summary(folder: str | Path, outcomes: list[Outcome], source: str | Path,
+                  elapsed_s: float, workers: int) -> Path:
+    """``batch_summary.md`` with counts, skipped files, per-joint ranges and a figure."""
+    import numpy as np
+
+    folder = Path(folder)
+    ok = [o for o in outcomes if o.error is None]
+    bad = [o for o in outcomes if o.error is not None]
+    lines = [f"# Batch summary: {source}", "",
+             f"- recordings found: {len(outcomes)}; processed: {len(ok)}; skipped: {len(bad)}",
+             f"- frames processed: {sum(o.frames for o in ok)} "
+             f"({sum(o.frames for o in ok) / 50 / 60:.1f} min of recording)",
+             f"- {elapsed_s:.1f} s with {workers} worker process(es)",
+             f"- joint-angle convention: {', '.join(sorted({o.convention for o in ok})) or '-'}",
+             f"- tidy table: `{TABLE_NAME}` (one row per recording × joint angle)", ""]
+    if bad:
+        lines += ["## Skipped", "", "| file | reason |", "|---|---|"]
+        lines += [f"| {o.job.path} | {o.error} |" for o in bad]
+        lines.append("")
+    with_rom = [o for o in ok if o.rows]
+    if with_rom:
+        names = [r[0] for r in with_rom[0].rows]
+        ranges = np.array([[hi - lo for _, lo, hi in o.rows] for o in with_rom])
+        lines += ["## Range of motion across recordings (deg)", "",
+                  "| joint | mean range | min range | max range | recordings |",
+                  "|---|---:|---:|---:|---:|"]
+        for k, name in enumerate(names):
+            col = ranges[:, k]
+            lines.append(f"| {name} | {col.mean():.1f} | {col.min():.1f} | {col.max():.1f} "
+                         f"| {len(col)} |")
+        lines.append("")
+        figure = _figure(folder / "batch_rom.png", names, ranges)
+        if figure:
+            lines += ["![Range of motion per joint angle](batch_rom.png)", ""]
+    path = folder / SUMMARY_NAME
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path
+
+
+def _figure(path: Path, names: list[str], ranges) -> bool:
+    """Box plot of the range per joint angle across recordings (matplotlib, loaded here)."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, ax = plt.subplots(figsize=(10, 7))
+    ax.boxplot(ranges, vert=False, tick_labels=names)
+    ax.set_xlabel("range of motion per recording, deg")
+    ax.invert_yaxis()
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return True

@@ -1,0 +1,234 @@
+"""Binary exports: a MATLAB ``.mat`` file (v5, scipy) and a Parquet table (pyarrow).
+
+Both are chunk-wise writers with one interface: ``open_writer(kind, path, meta)``, then
+``write(result)`` for each chunk's :class:`bpms.filter.processor.Result`, then ``close()``.
+Both hold, per frame: time (s since the first frame), segment orientations after Reset Zero
+(quaternions w, x, y, z; segment axes → world NED), the 28 joint angles (degrees, in the
+convention named in the file) and the 21 joint positions (m, NED, lowest foot on the ground).
+Both state the recording's UTC start time (the receive time of its first frame) and the units.
+
+- ``.mat``: written chunk by chunk when the frame count is known in advance (it is for a
+  recording; :mod:`bpms.analysis.mat5_stream`), else assembled at ``close``: ``t`` [N×1] s,
+  ``quaternions`` [N×18×4], ``joint_angles`` [N×28] deg,
+  ``joint_positions`` [N×21×3] m, ``segment_names``, ``joint_names``, ``point_names`` (cell
+  arrays), ``units`` (struct), ``utc_start`` (ISO 8601 text), ``utc_start_posix`` (s since
+  1970), ``joint_angle_convention``, ``rate_hz``, ``source``.
+- Parquet: one row per frame, written one row group per chunk (constant memory): column
+  ``t_s``, ``utc`` (timestamp, µs, UTC), ``SEGMENT_qw`` …, ``JOINT_deg`` …, ``POINT_x_m`` …;
+  the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, ...).
+  docs/analysis.md says why Parquet.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from bpms.filter.body_model import POINT_NAMES
+from bpms.filter.joints import CONVENTION_TEXT, JOINT_ANGLE_NAMES
+from bpms.io.frames import IMU_NAMES
+
+KINDS = ("mat", "parquet")
+SUFFIX = {"mat": ".mat", "parquet": ".parquet"}
+UNITS = {"t": "s", "quaternions": "1 (unit quaternion w, x, y, z; segment -> world NED)",
+         "joint_angles": "deg", "joint_positions": "m (NED, lowest foot at z = 0)"}
+
+
+def _slug(text: str) -> str:
+    return text.lower().replace(" ", "_").replace(".", "_")
+
+
+SEGMENT_SLUGS = tuple(_slug(n) for n in IMU_NAMES)
+
+
+@dataclass
+class ExportMeta:
+    """What every export states. utc_start: s since 1970 (UTC) of frame 0; convention: the
+    joint-angle convention of the angles written; source: the recording's path."""
+
+    utc_start: float
+    convention: str = "isb"
+    rate_hz: float = 50.0
+    source: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+    n_frames: int | None = None  # known in advance: the .mat file is written chunk by chunk
+
+    @property
+    def utc_iso(self) -> str:
+        return utc_iso(self.utc_start)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"utc_start": self.utc_iso, "utc_start_posix": self.utc_start,
+                "joint_angle_convention": CONVENTION_TEXT.get(self.convention, self.convention),
+                "rate_hz": self.rate_hz, "source": self.source, "units": UNITS, **self.extra}
+
+
+def utc_iso(posix: float) -> str:
+    """``2026-11-30T08:12:41.250Z`` (milliseconds, UTC)."""
+    t = dt.datetime.fromtimestamp(posix, tz=dt.UTC)
+    return t.strftime("%Y-%m-%dT%H:%M:%S.") + f"{t.microsecond // 1000:03d}Z"
+
+
+class ChunkWriter(Protocol):
+    path: Path
+    rows: int
+
+    def write(self, result) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def _arrays(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t [N], quaternions [N, 18, 4], joint angles deg [N, 28], positions [N, 21, 3])."""
+    return (np.asarray(result.t, dtype=np.float64),
+            np.asarray(result.segment_quaternions, dtype=np.float32),
+            np.degrees(result.joint_angles).astype(np.float32),
+            np.asarray(result.joint_positions, dtype=np.float32))
+
+
+class MatWriter:
+    """MATLAB v5 ``.mat``. With ``meta.n_frames`` the arrays are written chunk by chunk into
+    space reserved for them (constant memory, :mod:`bpms.analysis.mat5_stream`); without it they
+    are kept until :meth:`close` and written by ``scipy.io.savemat``."""
+
+    def __init__(self, path: str | Path, meta: ExportMeta) -> None:
+        self.path = Path(path)
+        self.meta = meta
+        self.rows = 0
+        self._parts: list[tuple[np.ndarray, ...]] = []
+        self._stream = None
+        if meta.n_frames is not None:
+            from bpms.analysis.mat5_stream import Mat5Stream
+
+            n = int(meta.n_frames)
+            self._stream = Mat5Stream(self.path, self._small(), {
+                "t": ((n, 1), np.float64), "quaternions": ((n, 18, 4), np.float32),
+                "joint_angles": ((n, 28), np.float32),
+                "joint_positions": ((n, 21, 3), np.float32)})
+        else:
+            with open(self.path, "wb"):  # fail early (folder missing, no permission)
+                pass
+
+    def _small(self) -> dict:
+        meta = self.meta.as_dict()
+        return {
+            "segment_names": np.array(SEGMENT_SLUGS, dtype=object),
+            "joint_names": np.array(JOINT_ANGLE_NAMES, dtype=object),
+            "point_names": np.array(POINT_NAMES, dtype=object),
+            "units": UNITS,
+            "utc_start": meta["utc_start"],
+            "utc_start_posix": meta["utc_start_posix"],
+            "joint_angle_convention": meta["joint_angle_convention"],
+            "rate_hz": self.meta.rate_hz,
+            "source": self.meta.source,
+        }
+
+    def write(self, result) -> None:
+        arrays = _arrays(result)
+        if self._stream is not None:
+            lo = self.rows
+            for name, rows in zip(("t", "quaternions", "joint_angles", "joint_positions"),
+                                  (arrays[0][:, None], *arrays[1:]), strict=True):
+                self._stream.write_rows(name, lo, rows)
+        else:
+            self._parts.append(arrays)
+        self.rows += len(result.t)
+
+    def close(self) -> None:
+        if self._stream is not None:
+            self._stream.close()
+            return
+        from scipy.io import savemat
+
+        def cat(k: int, shape: tuple[int, ...], dtype) -> np.ndarray:
+            if not self._parts:
+                return np.zeros((0, *shape), dtype)
+            return np.concatenate([p[k] for p in self._parts])
+
+        data = {
+            "t": cat(0, (), np.float64)[:, None],
+            "quaternions": cat(1, (18, 4), np.float32),
+            "joint_angles": cat(2, (28,), np.float32),
+            "joint_positions": cat(3, (21, 3), np.float32),
+            **self._small(),
+        }
+        self._parts.clear()
+        savemat(self.path, data, format="5", do_compression=False, oned_as="column")
+
+
+def parquet_columns() -> list[str]:
+    """Column names of the Parquet table, in order."""
+    return ["t_s", "utc",
+            *(f"{s}_q{c}" for s in SEGMENT_SLUGS for c in "wxyz"),
+            *(f"{_slug(j)}_deg" for j in JOINT_ANGLE_NAMES),
+            *(f"{p}_{a}_m" for p in POINT_NAMES for a in "xyz")]
+
+
+class ParquetWriter:
+    """One Parquet row group per chunk (pyarrow), float32 data, the metadata in the footer."""
+
+    def __init__(self, path: str | Path, meta: ExportMeta, compression: str = "snappy") -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self._pa = pa
+        self.path = Path(path)
+        self.meta = meta
+        self.rows = 0
+        names = parquet_columns()
+        fields = [pa.field("t_s", pa.float64()), pa.field("utc", pa.timestamp("us", tz="UTC"))]
+        fields += [pa.field(n, pa.float32()) for n in names[2:]]
+        schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
+        self._schema = schema
+        # Dictionary encoding of float columns costs 5× the write time and gains nothing on
+        # continuous signals; statistics only where queries filter (time).
+        self._writer = pq.ParquetWriter(self.path, schema, compression=compression,
+                                        use_dictionary=False,
+                                        write_statistics=["t_s", "utc"])
+
+    def write(self, result) -> None:
+        pa = self._pa
+        t, q, a, p = _arrays(result)
+        n = len(t)
+        if n == 0:
+            return
+        utc = np.round((self.meta.utc_start + t) * 1e6).astype("int64")
+        block = np.concatenate([q.reshape(n, -1), a, p.reshape(n, -1)], axis=1)
+        block = np.asfortranarray(block)  # contiguous columns: no copy per column
+        cols = [pa.array(t), pa.array(utc, type=pa.timestamp("us", tz="UTC"))]
+        cols += [pa.array(block[:, k]) for k in range(block.shape[1])]
+        self._writer.write_table(pa.Table.from_arrays(cols, schema=self._schema))
+        self.rows += n
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+class MissingPackageError(RuntimeError):
+    """The package a format needs is not installed (one-line message)."""
+
+
+_PACKAGES = {"mat": "scipy", "parquet": "pyarrow"}
+
+
+def check_available(kind: str) -> None:
+    """Raise :class:`MissingPackageError` when ``kind``'s package is not installed."""
+    import importlib.util
+
+    package = _PACKAGES[kind]
+    if importlib.util.find_spec(package) is None:
+        raise MissingPackageError(f"{kind} export needs the {package} package "
+                                  "(pip install 'bpms[lab]')")
+
+
+def open_writer(kind: str, path: str | Path, meta: ExportMeta) -> ChunkWriter:
+    """A chunk-wise writer of ``kind`` (:data:`KINDS`)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown export kind {kind!r} (one of {', '.join(KINDS)})")
+    check_available(kind)
+    return MatWriter(path, meta) if kind == "mat" else ParquetWriter(path, meta)

@@ -1,0 +1,43 @@
+"""The figure's root (pelvis) trajectory for animation exports: the body model's pelvis height
+plus the walked path (heel-strike dead reckoning, :func:`bpms.analysis.track.walked_path`)
+when the recording holds the foot accelerometers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bpms.analysis.track import FOOT_IMUS, walked_path
+from bpms.filter.body_model import POINT_INDEX
+
+
+def root_trajectory(t: np.ndarray, pelvis: np.ndarray, step_times: np.ndarray,
+                    step_positions: np.ndarray) -> np.ndarray:
+    """``[N, 3]`` m NED: ``pelvis[N, 3]`` (the body model's, over the origin) plus the walked
+    position, moved linearly from one heel strike (``step_times[K]`` s, running positions
+    ``step_positions[K, 3]``) to the next (0 before the first)."""
+    out = np.where(np.isfinite(pelvis), pelvis, 0.0).astype(np.float64)
+    if len(step_times) == 0:
+        return out
+    times = np.concatenate([[step_times[0] - 0.5], step_times])
+    pos = np.concatenate([np.zeros((1, 3)), step_positions])
+    for axis in (0, 1):  # horizontal only: the height comes from the body model
+        out[:, axis] += np.interp(t, times, pos[:, axis])
+    return out
+
+
+def walked_root(processed) -> np.ndarray:
+    """Root trajectory of a :class:`bpms.analysis.source.Processed` recording (pelvis only for
+    a filtered file, which has no accelerometers)."""
+    res = processed.result
+    pelvis = res.joint_positions[:, POINT_INDEX["pelvis"]]
+    if processed.raw is None:
+        return np.where(np.isfinite(pelvis), pelvis, 0.0)
+    proc = processed.processor
+    acc, _, _ = proc.calibrate(processed.raw)
+    gravity = proc.sensor_calibration.gravity
+    accel_g = {side: np.linalg.norm(acc[:, i], axis=-1) / gravity[i]
+               for side, i in FOOT_IMUS.items()}
+    opts = proc.options.track
+    track = walked_path(res.t, accel_g, res.joint_positions, opts.heel_strike_g,
+                        opts.min_step_interval_s, opts.declination_deg)
+    return root_trajectory(res.t, pelvis, track.times, track.positions)

@@ -1,0 +1,278 @@
+"""Lab Streaming Layer outlets: the live (or replayed) session as four LSL streams.
+
+Streams (docs/lsl.md lists every channel):
+
+- ``BPMS Segments`` (type ``MoCap``, 72 float32 channels, 50 Hz): each of the 18 segment
+  orientations after Reset Zero as a unit quaternion w, x, y, z (segment axes → world
+  north-east-down);
+- ``BPMS Joint Angles`` (type ``MoCap``, 28 float32 channels, degrees, the joint-angle
+  convention in force, docs/joint-angles.md);
+- ``BPMS Sensors`` (type ``IMU``, 162 float32 channels): calibrated accelerometer m/s²,
+  magnetometer gauss, gyroscope rad/s per IMU in signed board axes (the numbers of the GUI's
+  table and ``bpms extract``);
+- ``BPMS Events`` (type ``Markers``, one string channel, irregular): ``reset zero``,
+  ``logging start``, ``logging stop``, ``link lost``, ``link recovered``,
+  ``filter re-initialised``.
+
+Time stamps are on LSL's clock (``pylsl.local_clock``): each frame's sampling time from the
+de-jittered frame clock (:mod:`bpms.pipeline.frame_clock`), minus the configured link delay
+(option ``lsl.link_delay_s``). Samples before the first Reset Zero (NaN orientations) are sent
+as NaN, so every stream has one sample per processed frame.
+
+pylsl is imported when the outlets are created, never at module import.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpms.filter.joints import CONVENTION_TEXT, JOINT_ANGLE_NAMES
+from bpms.io.frames import FRAME_PERIOD_S, IMU_NAMES
+from bpms.pipeline.frame_clock import FrameClock
+
+log = logging.getLogger(__name__)
+
+STREAM_NAMES = {"segments": "BPMS Segments", "joints": "BPMS Joint Angles",
+                "sensors": "BPMS Sensors", "events": "BPMS Events"}
+MARKERS = ("reset zero", "logging start", "logging stop", "link lost", "link recovered",
+           "filter re-initialised")
+_QUAT = ("W", "X", "Y", "Z")
+_SENSOR_AXES = (("Acceleration", "accel", "m/s^2"), ("MagneticField", "mag", "gauss"),
+                ("AngularVelocity", "gyro", "rad/s"))
+
+
+def _slug(text: str) -> str:
+    return text.lower().replace(" ", "_")
+
+
+@dataclass(frozen=True)
+class Channel:
+    label: str
+    type: str
+    unit: str
+    marker: str = ""  # the body segment (XDF MoCap meta-data "marker")
+
+
+def segment_channels() -> list[Channel]:
+    """72 channels: per IMU/segment the quaternion w, x, y, z (XDF types OrientationA..D)."""
+    return [Channel(f"{_slug(name)}_q{c.lower()}", f"Orientation{'ABCD'[k]}", "normalized",
+                    _slug(name))
+            for name in IMU_NAMES for k, c in enumerate(_QUAT)]
+
+
+def joint_channels() -> list[Channel]:
+    """28 channels in :data:`bpms.filter.joints.JOINT_ANGLE_NAMES` order, degrees."""
+    return [Channel(name, "JointAngle", "degrees", name.split(".")[0])
+            for name in JOINT_ANGLE_NAMES]
+
+
+def sensor_channels() -> list[Channel]:
+    """162 channels: per IMU accel x, y, z, mag x, y, z, gyro x, y, z."""
+    return [Channel(f"{_slug(name)}_{short}_{axis}", f"{kind}{axis.upper()}", unit, _slug(name))
+            for name in IMU_NAMES for kind, short, unit in _SENSOR_AXES for axis in "xyz"]
+
+
+def _describe(info, channels: Sequence[Channel], extra: dict[str, str]) -> None:
+    desc = info.desc()
+    acq = desc.append_child("acquisition")
+    acq.append_child_value("manufacturer", "BPMS Suite")
+    acq.append_child_value("model", "BPMS 18-IMU inertial suit")
+    for key, value in extra.items():
+        desc.append_child_value(key, value)
+    chans = desc.append_child("channels")
+    for ch in channels:
+        node = chans.append_child("channel")
+        node.append_child_value("label", ch.label)
+        node.append_child_value("type", ch.type)
+        node.append_child_value("unit", ch.unit)
+        if ch.marker:
+            node.append_child_value("marker", ch.marker)
+
+
+class LslOutlets:
+    """The four outlets. ``convention``: joint-angle convention name; ``period``: the frame
+    period of the stream being sent (s; replay at speed ``s``: ``0.02 / s``); ``link_delay``:
+    s subtracted from every stamp."""
+
+    def __init__(self, convention: str = "isb", period: float = FRAME_PERIOD_S,
+                 link_delay: float = 0.0, source_id: str | None = None) -> None:
+        import pylsl
+
+        self._lsl = pylsl
+        self.clock = FrameClock(period, link_delay)
+        self.link_delay = link_delay
+        # perf_counter (frame arrival) → LSL's clock; both are monotonic seconds
+        self._to_lsl = pylsl.local_clock() - time.perf_counter()
+        base = source_id or f"bpms@{socket.gethostname()}"
+        rate = 1.0 / FRAME_PERIOD_S
+        sync = {"reference_frame": "segment axes (x forward, y right, z down in the calibration "
+                                   "pose) -> world north-east-down",
+                "time_stamps": "de-jittered 50 Hz frame clock anchored to receive times, "
+                               f"link delay {link_delay:g} s subtracted",
+                "docs": "docs/lsl.md"}
+        self.outlets = {}
+        for key, channels, stype, extra in (
+                ("segments", segment_channels(), "MoCap", {"quaternion_order": "w x y z"}),
+                ("joints", joint_channels(), "MoCap",
+                 {"convention": CONVENTION_TEXT.get(convention, convention)}),
+                ("sensors", sensor_channels(), "IMU", {"axes": "signed board axes"})):
+            info = pylsl.StreamInfo(STREAM_NAMES[key], stype, len(channels), rate,
+                                    pylsl.cf_float32, f"{base}:{key}")
+            _describe(info, channels, {**extra, **sync})
+            self.outlets[key] = pylsl.StreamOutlet(info, chunk_size=1, max_buffered=360)
+        info = pylsl.StreamInfo(STREAM_NAMES["events"], "Markers", 1, pylsl.IRREGULAR_RATE,
+                                pylsl.cf_string, f"{base}:events")
+        _describe(info, [Channel("event", "Marker", "")],
+                  {"events": ", ".join(MARKERS), **sync})
+        self.outlets["events"] = pylsl.StreamOutlet(info)
+        self._stamps: dict[int, float] = {}
+        self.sent = 0
+
+    def local_clock(self) -> float:
+        return self._lsl.local_clock()
+
+    def push_frames(self, indices: Sequence[int], arrivals: Sequence[float],
+                    quaternions: np.ndarray, joint_angles: np.ndarray, sensors: np.ndarray,
+                    discontinuity: bool = False) -> list[float]:
+        """One sample per frame on every data stream. ``arrivals``: ``time.perf_counter()``
+        at receipt; quaternions ``[N, 18, 4]``; joint_angles ``[N, 28]`` rad; sensors
+        ``[N, 18, 9]``. Returns the LSL time stamps."""
+        stamps = self.clock.stamp_many(indices, [a + self._to_lsl for a in arrivals],
+                                       discontinuity)
+        q = np.asarray(quaternions, dtype=np.float32).reshape(len(stamps), -1)
+        a = np.degrees(np.asarray(joint_angles, dtype=np.float64)).astype(np.float32)
+        s = np.asarray(sensors, dtype=np.float32).reshape(len(stamps), -1)
+        seg, jnt, sen = (self.outlets[k] for k in ("segments", "joints", "sensors"))
+        for k, t in enumerate(stamps):
+            seg.push_sample(q[k], t)
+            jnt.push_sample(a[k], t)
+            sen.push_sample(s[k], t)
+        for i, t in zip(indices[-64:], stamps[-64:], strict=True):
+            self._stamps[int(i)] = t
+        if len(self._stamps) > 512:
+            for key in sorted(self._stamps)[:-256]:
+                del self._stamps[key]
+        self.sent += len(stamps)
+        return stamps
+
+    def marker(self, text: str, index: int = -1) -> float:
+        """Send an event; stamped at frame ``index``'s time when known, else now (minus the
+        link delay for link events, which concern frames)."""
+        t = self._stamps.get(index)
+        if t is None:
+            t = self.local_clock() - (self.link_delay if text.startswith("link") else 0.0)
+        self.outlets["events"].push_sample([text], t)
+        return t
+
+    def close(self) -> None:
+        self.outlets.clear()  # liblsl closes an outlet when it is released
+
+
+class LslBridge:
+    """Feeds a :class:`bpms.pipeline.session.LiveSession` into :class:`LslOutlets` from its own
+    thread (a bounded subscription: it never slows the processing)."""
+
+    def __init__(self, session, convention: str | None = None, period: float | None = None,
+                 link_delay: float | None = None) -> None:
+        options = session.options
+        self.session = session
+        self.outlets = LslOutlets(
+            convention or session.processor.options.joints.convention,
+            period or FRAME_PERIOD_S,
+            options.lsl.link_delay_s if link_delay is None else link_delay)
+        self._samples = session.subscribe(maxlen=3000)
+        self._markers = session.markers.subscribe(maxlen=500)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="bpms-lsl", daemon=True)
+        self._last_index: int | None = None
+        self._link_state: str | None = None
+        self._pending: list[tuple[str, int, float]] = []  # markers waiting for their frame
+        self.errors = 0
+
+    def start(self) -> LslBridge:
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Send what is waiting, then close the outlets."""
+        self._stop.set()
+        self._thread.join(timeout)
+        self.session.unsubscribe(self._samples)
+        self.session.markers.unsubscribe(self._markers)
+        self.outlets.close()
+
+    @property
+    def sent(self) -> int:
+        return self.outlets.sent
+
+    def _run(self) -> None:
+        while True:
+            stopping = self._stop.is_set()
+            first = self._samples.get(0.1)
+            batch = ([first] if first is not None else []) + self._samples.drain()
+            try:
+                if batch:
+                    self._send(batch)
+                self._send_markers(stopping)
+                self._watch_link()
+            except Exception as exc:  # an LSL failure must not take the session down
+                self.errors += 1
+                log.warning("LSL send failed: %s", exc)
+            if stopping and not batch:
+                break
+
+    def _send_markers(self, flush: bool) -> None:
+        """A frame-tied marker waits (up to 1 s) until its frame has been stamped."""
+        now = time.monotonic()
+        self._pending += [(text, index, now) for text, index in self._markers.drain()]
+        keep = []
+        for text, index, since in self._pending:
+            waiting = index >= 0 and (self._last_index is None or index > self._last_index)
+            if waiting and not flush and now - since < 1.0:
+                keep.append((text, index, since))
+            else:
+                self.outlets.marker(text, index)
+        self._pending = keep
+
+    def _send(self, batch) -> None:
+        from bpms.filter.rotations import dcm_to_quaternion
+
+        C = np.stack([s.C for s in batch])
+        q = np.full((len(batch), 18, 4), np.nan)
+        ok = np.isfinite(C).all(axis=(-1, -2))
+        if ok.any():
+            q[ok] = dcm_to_quaternion(C[ok])
+        acc, mag, gyr = self.session.processor.sensor_calibration.physical_units(
+            np.stack([s.raw for s in batch]))
+        sensors = np.concatenate([acc, mag, gyr], axis=-1)
+        # runs split where the source index does not continue (a seek or reconnection)
+        idx = [s.index for s in batch]
+        starts = [0] + [k for k in range(1, len(idx)) if idx[k] != idx[k - 1] + 1] + [len(idx)]
+        for lo, hi in itertools.pairwise(starts):
+            jump = self._last_index is not None and idx[lo] != self._last_index + 1
+            self.outlets.push_frames(idx[lo:hi], [s.arrival for s in batch[lo:hi]], q[lo:hi],
+                                     np.stack([s.joint_angles for s in batch[lo:hi]]),
+                                     sensors[lo:hi], discontinuity=jump)
+            self._last_index = idx[hi - 1]
+
+    def _watch_link(self) -> None:
+        state = self.session.source.status().state
+        if state == "link lost" and self._link_state != "link lost":
+            self.outlets.marker("link lost")
+        elif self._link_state == "link lost" and state == "streaming":
+            self.outlets.marker("link recovered")
+        self._link_state = state
+
+
+def attach_lsl(session, period: float | None = None) -> LslBridge:
+    """Start LSL streaming of ``session`` (the GUI's switch calls this; ``bridge.stop()`` ends
+    it). ``period``: the frame period of the stream (replay at speed s: ``0.02 / s``)."""
+    return LslBridge(session, period=period).start()

@@ -1,0 +1,82 @@
+"""Run as a separate process: resolve the four BPMS LSL streams, pull until ``frames`` samples
+arrived on each data stream (or a deadline), print a JSON summary on stdout.
+
+Written against pylsl's public API only (no bpms import): an independent receiver.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import pylsl
+import pylsl.util
+
+NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Events")
+
+
+def channel_labels(info) -> list[str]:
+    out = []
+    ch = info.desc().child("channels").child("channel")
+    while not ch.empty():
+        out.append(ch.child_value("label"))
+        ch = ch.next_sibling()
+    return out
+
+
+LOST: set = set()
+
+
+def pull(inlet, timeout):
+    """(samples, stamps); nothing once the outlet has gone (the sender ended)."""
+    try:
+        return inlet.pull_chunk(timeout=timeout)
+    except pylsl.util.LostError:
+        LOST.add(id(inlet))
+        return [], []
+
+
+def main() -> None:
+    frames, timeout = int(sys.argv[1]), float(sys.argv[2])
+    deadline = time.monotonic() + timeout
+    inlets = {}
+    while len(inlets) < len(NAMES) and time.monotonic() < deadline:
+        for info in pylsl.resolve_streams(wait_time=1.0):
+            if info.name() in NAMES and info.name() not in inlets:
+                inlet = pylsl.StreamInlet(info, max_buflen=360, recover=False)
+                inlet.open_stream(timeout=10)
+                inlets[info.name()] = inlet
+    print("ready", file=sys.stderr, flush=True)
+    data = {name: {"stamps": [], "values": []} for name in inlets}
+    full = {}
+    for name, inlet in inlets.items():
+        info = inlet.info(timeout=10)
+        full[name] = {"type": info.type(), "channels": info.channel_count(),
+                      "rate": info.nominal_srate(), "labels": channel_labels(info),
+                      "convention": info.desc().child_value("convention"),
+                      "units": sorted({u for u in [info.desc().child("channels")
+                                                   .child("channel").child_value("unit")]})}
+    while time.monotonic() < deadline:
+        for name, inlet in inlets.items():
+            samples, stamps = pull(inlet, 0.05)
+            data[name]["stamps"] += stamps
+            if name == "BPMS Events":
+                data[name]["values"] += [s[0] for s in samples]
+            elif samples:
+                data[name]["values"] = samples[-1][:8]  # the last sample's first channels
+        if all(len(data[n]["stamps"]) >= frames for n in NAMES[:3] if n in data):
+            break
+        if len(LOST) == len(inlets):
+            break
+    # a short grace period for the last events
+    end = time.monotonic() + 1.0
+    while time.monotonic() < end and "BPMS Events" in inlets:
+        samples, stamps = pull(inlets["BPMS Events"], 0.1)
+        data["BPMS Events"]["stamps"] += stamps
+        data["BPMS Events"]["values"] += [s[0] for s in samples]
+    print(json.dumps({"info": full, "data": data}))
+
+
+if __name__ == "__main__":
+    main()
