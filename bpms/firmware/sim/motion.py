@@ -363,15 +363,44 @@ _JOINT_DOFS: tuple[str | None, ...] = (
 )
 
 
-def true_joint_angles(dofs: np.ndarray) -> np.ndarray:
+#: The clinical (ISB) sense of each column, from anatomy and the segment axes (X forward,
+#: Y right, Z down in the calibration pose), worked out here on its own:
+#:
+#: - a sideways raise turns a hanging limb (+Z) towards +Y on the right (a negative roll) and
+#:   towards −Y on the left (a positive roll): abduction = −roll on the right, +roll on the left;
+#: - a positive pitch swings a hanging limb forward (+Z towards +X) and the toes up (+X towards
+#:   −Z): flexion and dorsiflexion = +pitch on both sides;
+#: - with the elbow bent, a positive yaw turns the forearm (+X) towards +Y: lateral for the
+#:   right arm, medial for the left: external rotation = +yaw right, −yaw left;
+#: - the trunk and head point up (−Z): a positive roll tips them to the right (lateral bending to
+#:   the right, positive in ISB), a positive pitch tips them backward (forward flexion = −pitch),
+#:   a positive yaw turns them to the right (axial rotation to the left = −yaw).
+_ISB_SENSE: dict[str, float] = {
+    "shoulder_r.abduction": -1.0, "shoulder_l.abduction": 1.0,
+    "hip_r.abduction": -1.0, "hip_l.abduction": 1.0,
+    "ankle_r.abduction": -1.0, "ankle_l.abduction": 1.0,
+    "shoulder_r.rotation": 1.0, "shoulder_l.rotation": -1.0,
+    "hip_r.rotation": 1.0, "hip_l.rotation": -1.0,
+    "ankle_r.rotation": 1.0, "ankle_l.rotation": -1.0,
+    "torso.flexion": -1.0, "torso.rotation": -1.0,
+    "head.flexion": -1.0, "head.rotation": -1.0,
+}
+
+
+def true_joint_angles(dofs: np.ndarray, convention: str = "isb") -> np.ndarray:
     """``[N, 28]`` rad, columns :data:`TRUE_JOINT_NAMES`, straight from the script's DOFs
     ``[N, len(DOFS)]``: hinge flexions are ``|DOF|``; ball joints are (roll, pitch, yaw) of
-    ``C_staticᵀ C_dynamic`` in the raw Euler convention of the specification (valid while
-    every joint pitch stays within ±90°, as in every script here)."""
+    ``C_staticᵀ C_dynamic`` (valid while every joint pitch stays within ±90°, as in every
+    script here), in the clinical sense (``convention="isb"``, :data:`_ISB_SENSE`) or as raw
+    Euler angles (``"original"``)."""
     dofs = np.asarray(dofs, dtype=np.float64)
     out = np.zeros((len(dofs), len(TRUE_JOINT_NAMES)))
     for col, name in enumerate(_JOINT_DOFS):
         if name is not None:
             out[:, col] = dofs[:, DOF_INDEX[name]]
     out[:, :4] = np.abs(out[:, :4])
+    if convention == "isb":
+        out *= np.array([_ISB_SENSE.get(name, 1.0) for name in TRUE_JOINT_NAMES])
+    elif convention != "original":
+        raise ValueError(f"convention must be 'isb' or 'original', not {convention!r}")
     return out
