@@ -1,6 +1,6 @@
 """Replay feeds the live outputs: UDP POSE, LSL (received through a real pylsl inlet in another
 process) and the MVN-compatible stream (decoded by a decoder written here from the public
-protocol description, independent of bpms.io.mvn)."""
+protocol description, independent of bpms.pipeline.mvn)."""
 
 from __future__ import annotations
 

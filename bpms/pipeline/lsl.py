@@ -42,6 +42,10 @@ log = logging.getLogger(__name__)
 
 STREAM_NAMES = {"segments": "BPMS Segments", "joints": "BPMS Joint Angles",
                 "sensors": "BPMS Sensors", "events": "BPMS Events"}
+#: Source states in which the link counts as lost (the suit's silent, gone and reopening;
+#: "link lost" is what a UDP client source reports).
+LINK_LOST_STATES = frozenset({"silent", "gone", "reopening", "link lost"})
+
 MARKERS = ("reset zero", "logging start", "logging stop", "link lost", "link recovered",
            "filter re-initialised")
 _QUAT = ("W", "X", "Y", "Z")
@@ -265,9 +269,10 @@ class LslBridge:
 
     def _watch_link(self) -> None:
         state = self.session.source.status().state
-        if state == "link lost" and self._link_state != "link lost":
+        lost = state in LINK_LOST_STATES
+        if lost and self._link_state not in LINK_LOST_STATES:
             self.outlets.marker("link lost")
-        elif self._link_state == "link lost" and state == "streaming":
+        elif self._link_state in LINK_LOST_STATES and state == "streaming":
             self.outlets.marker("link recovered")
         self._link_state = state
 

@@ -1,5 +1,5 @@
 """Network outputs beside the UDP forwarder, hooked onto a live or replayed session: LSL
-(:mod:`bpms.pipeline.lsl`) and the MVN-compatible stream (:mod:`bpms.io.mvn`).
+(:mod:`bpms.pipeline.lsl`) and the MVN-compatible stream (:mod:`bpms.pipeline.mvn`).
 
 ``add_stream_arguments`` gives a command ``--lsl`` and ``--mvn HOST:PORT``;
 ``start_streams`` attaches them to a :class:`bpms.pipeline.session.LiveSession` (before
@@ -20,7 +20,7 @@ class MvnBridge:
     subscription)."""
 
     def __init__(self, session, targets: list[str]) -> None:
-        from bpms.io.mvn import MvnSender
+        from bpms.pipeline.mvn import MvnSender
 
         self.session = session
         self.sender = MvnSender(targets)
