@@ -7,7 +7,13 @@ from PyQt6.QtCore import QPoint, Qt
 from PyQt6.QtTest import QTest
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
-from bpms.gui.plots import RingBuffer, TickBlock, cells_plot, joint_angle_groups
+from bpms.gui.plots import (
+    RingBuffer,
+    TickBlock,
+    cells_plot,
+    human_joint_name,
+    joint_angle_groups,
+)
 
 
 def _block(t0: float, n: int) -> TickBlock:
@@ -36,11 +42,14 @@ def test_ring_buffer_keeps_the_newest_rows_in_order():
 
 def test_joint_angle_groups_hold_all_28_angles_once():
     labels = [spec.label for _, specs in joint_angle_groups("deg") for spec in specs]
-    assert sorted(labels) == sorted(f"{n} [deg]" for n in JOINT_ANGLE_NAMES)
+    assert sorted(labels) == sorted(f"{human_joint_name(n)} [deg]" for n in JOINT_ANGLE_NAMES)
+    assert len(set(labels)) == 28
+    assert human_joint_name("hip_r.abduction") == "Right hip abduction"
+    assert human_joint_name("torso.flexion") == "Torso flexion"
 
 
 def test_plot_window_pause_legend_and_reset(qtbot):
-    window = cells_plot([(0, 0), (8, 18)], "deg", history_s=2.0)
+    window = cells_plot([(0, 13), (8, 0)], "deg", history_s=2.0)  # raw acc x, roll
     qtbot.addWidget(window)
     window.show()
     qtbot.waitExposed(window)

@@ -9,11 +9,13 @@ gyro rad/s, signed board axes); Euler angles are the filter's roll, pitch, yaw i
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
-from PyQt6.QtCore import QAbstractTableModel, QModelIndex, Qt
-from PyQt6.QtWidgets import QAbstractItemView, QTableView, QWidget
+from PyQt6.QtCore import QAbstractTableModel, QMimeData, QModelIndex, Qt, pyqtSignal
+from PyQt6.QtGui import QColor
+from PyQt6.QtWidgets import QAbstractItemView, QHeaderView, QTableView, QWidget
 
 from bpms.filter.calibration import SensorCalibration
 from bpms.io.frames import CHANNEL_NAMES, IMU_NAMES, N_IMUS, SENSOR_NAMES
@@ -35,12 +37,19 @@ class Column:
 
 
 _CAL_UNITS = ("m/s²", "m/s²", "m/s²", "G", "G", "G", "rad/s", "rad/s", "rad/s")
+#: Readable channel names (accelerometer, magnetometer, gyroscope; board axes).
+CHANNEL_LABELS = ("acc x", "acc y", "acc z", "mag x", "mag y", "mag z", "gyro x", "gyro y",
+                  "gyro z")
+#: What matters first: the attitude angles, the error flags, then calibrated, then raw.
 COLUMNS: tuple[Column, ...] = (
-    *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_NAMES)),
-    *(Column("cal", k, c, _CAL_UNITS[k]) for k, c in enumerate(CHANNEL_NAMES)),
     *(Column("euler", k, c, "rad") for k, c in enumerate(("roll", "pitch", "yaw"))),
     Column("errors", 0, "errors", ""),
+    *(Column("cal", k, c, _CAL_UNITS[k]) for k, c in enumerate(CHANNEL_LABELS)),
+    *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_LABELS)),
 )
+assert len(CHANNEL_NAMES) == len(CHANNEL_LABELS)
+#: Error flags stay red at least this long after the last faulty frame, s.
+ERROR_HOLD_S = 2.0
 
 
 def calibrated(calibration: SensorCalibration, raw: np.ndarray) -> np.ndarray:
@@ -72,8 +81,10 @@ _DISPLAY = Qt.ItemDataRole.DisplayRole
 _ALIGN = Qt.ItemDataRole.TextAlignmentRole
 _FOREGROUND = Qt.ItemDataRole.ForegroundRole
 _RIGHT = Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter
-_RED = Qt.GlobalColor.red
-_ERRORS_COLUMN = len(COLUMNS) - 1
+_BACKGROUND = Qt.ItemDataRole.BackgroundRole
+_RED = QColor("#d62728")
+_FAILED_ROW = QColor("#fde0e0")
+_ERRORS_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "errors")
 
 
 class ImuTableModel(QAbstractTableModel):
@@ -88,16 +99,23 @@ class ImuTableModel(QAbstractTableModel):
         self.cal = np.full((N_IMUS, 9), np.nan)
         self.euler = np.full((N_IMUS, 3), np.nan)
         self.errors = np.zeros((N_IMUS, 3), bool)
+        self.error_until = np.zeros((N_IMUS, 3))  # monotonic s until which a flag stays red
         self.has_data = False
         self._text: list[list[str]] = []
 
     # -- updates ------------------------------------------------------------------------
-    def update(self, sample: PoseSample) -> None:
-        """Show ``sample`` (one ``dataChanged`` for the whole table)."""
+    def update(self, sample: PoseSample, errors: np.ndarray | None = None,
+               now: float | None = None) -> None:
+        """Show ``sample`` (one ``dataChanged`` for the whole table). ``errors [18, 3]``: the
+        flags of every frame since the last update (default: this sample's); a flag stays
+        shown for :data:`ERROR_HOLD_S` after the last frame that raised it."""
+        now = time.monotonic() if now is None else now
+        flags = sample.errors if errors is None else errors
+        self.error_until[flags] = now + ERROR_HOLD_S
         self.raw = sample.raw
         self.cal = calibrated(self.calibration, sample.raw)
         self.euler = sample.euler
-        self.errors = sample.errors
+        self.errors = self.error_until > now
         self.has_data = True
         self._format()
         self.dataChanged.emit(self.index(0, 0), self.index(N_IMUS - 1, len(COLUMNS) - 1))
@@ -113,7 +131,7 @@ class ImuTableModel(QAbstractTableModel):
             raw = [str(v) for v in self.raw[i].tolist()]
             cal = ["–" if v != v else f"{v:.3f}" for v in self.cal[i].tolist()]
             eul = ["–" if v != v else efmt.format(v) for v in euler[i].tolist()]
-            rows.append([*raw, *cal, *eul, error_text(self.errors[i])])
+            rows.append([*eul, error_text(self.errors[i]), *cal, *raw])
         self._text = rows
 
     def set_angle_unit(self, unit: str) -> None:
@@ -152,7 +170,28 @@ class ImuTableModel(QAbstractTableModel):
             return _RIGHT
         if role == _FOREGROUND and index.column() == _ERRORS_COLUMN:
             return _RED
+        if role == _BACKGROUND and self.errors[index.row()].any():
+            return _FAILED_ROW  # a failed sensor: the IMU's whole row
         return None
+
+    def flags(self, index: QModelIndex) -> Qt.ItemFlag:
+        base = super().flags(index)
+        if index.isValid() and COLUMNS[index.column()].group != "errors":
+            base |= Qt.ItemFlag.ItemIsDragEnabled
+        return base
+
+    def mimeTypes(self) -> list[str]:
+        from bpms.gui.plots import CELLS_MIME
+
+        return [CELLS_MIME]
+
+    def mimeData(self, indexes) -> QMimeData:
+        """Dragged cells (onto a plot, or onto empty space for a new plot)."""
+        from bpms.gui.plots import cells_to_mime
+
+        cells = sorted({(i.row(), i.column()) for i in indexes
+                        if COLUMNS[i.column()].group != "errors"})
+        return cells_to_mime(cells)
 
     def headerData(self, section: int, orientation: Qt.Orientation,
                    role: int = Qt.ItemDataRole.DisplayRole):
@@ -164,7 +203,11 @@ class ImuTableModel(QAbstractTableModel):
 
 
 class DataTable(QTableView):
-    """The table view: multi-cell selection (click, Ctrl+click, Shift+click, drag)."""
+    """The table view: multi-cell selection (click, Ctrl+click, Shift+click, drag to select);
+    dragging selected cells carries them to a plot (or to empty space for a new plot)."""
+
+    #: (cells, None): cells to plot in a new plot (emitted by the main window's drop area).
+    plotRequested = pyqtSignal(list, object)
 
     def __init__(self, model: ImuTableModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -172,8 +215,17 @@ class DataTable(QTableView):
         self.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
         self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectItems)
         self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.setDragEnabled(True)
+        self.setDragDropMode(QAbstractItemView.DragDropMode.DragOnly)
+        self.setDefaultDropAction(Qt.DropAction.CopyAction)
         self.setAlternatingRowColors(True)
-        self.horizontalHeader().setDefaultSectionSize(78)
+        self.setWordWrap(False)
+        header = self.horizontalHeader()
+        header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
+        metrics = header.fontMetrics()
+        for col in range(len(COLUMNS)):
+            text = str(model.headerData(col, Qt.Orientation.Horizontal))
+            header.resizeSection(col, max(70, metrics.horizontalAdvance(text) + 18))
         self.verticalHeader().setDefaultSectionSize(22)
 
     def table_model(self) -> ImuTableModel:
