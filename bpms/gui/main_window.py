@@ -451,6 +451,7 @@ class MainWindow(QMainWindow):
         self.clear_dynamic_docks()
         d = self.docks
         for dock in d.values():
+            dock.setFloating(False)
             self.removeDockWidget(dock)
         want3d = 1 if views3d is None else views3d
         self.addDockWidget(_LEFT, d["table"])
