@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from PyQt6.QtCore import QPoint, QPointF, Qt, QTimer
+from PyQt6.QtCore import QPointF, Qt, QTimer
 from PyQt6.QtGui import QDragEnterEvent, QDropEvent
 from PyQt6.QtWidgets import QApplication, QDockWidget
 
 from bpms.firmware.sim.session import simulate
-from bpms.gui.layouts import CALIBRATION, LIVE, LayoutStore
+from bpms.gui.layouts import CALIBRATION, LayoutStore
 from bpms.gui.main_window import MainWindow
 from bpms.gui.modes import ModeConfig, SessionRunner
 from bpms.gui.plots import PlotWindow
@@ -139,7 +139,7 @@ def test_drag_a_cell_onto_a_plot_adds_the_curve_or_opens_a_new_plot(qtbot, tmp_p
     # play: the dropped curves get data
     window.set_data(True)
     qtbot.waitUntil(lambda: len(plot.buffer) > 20, timeout=15000)
-    x, y = plot.curves[2].getData()
+    _x, y = plot.curves[2].getData()
     assert np.isfinite(y[-5:]).all()
     window.set_data(False)
     window.close()
