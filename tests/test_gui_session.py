@@ -82,9 +82,8 @@ def test_simulated_suit_session(qtbot, tmp_path):
     window = _go(qtbot, startup)
     assert not startup.isVisible()
     assert window.udp_panel is not None and window.playback_panel is None
-    assert not window.status_panel.reset_button.isEnabled()
-    window.status_panel.data_button.click()
-    assert window.status_panel.reset_button.isEnabled()
+    # the simulated suit streams at once (one click on GO shows live data)
+    assert window.runner.data_on and window.status_panel.reset_button.isEnabled()
     qtbot.waitUntil(lambda: _frames(window) > 25, timeout=15000)
     assert window.model.last_status.source.battery_v == pytest.approx(3.35, abs=0.05)
     window.status_panel.reset_button.click()

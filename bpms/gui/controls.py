@@ -215,7 +215,7 @@ class FilePanel(QGroupBox):
             return
         try:
             session.start_logging(raw=raw, filtered=filtered,
-                                  name=self.name_edit.text().strip() or None,
+                                  name=self.name_edit.text().strip(),  # "" = time stamp
                                   degrees=self.degrees_box.isChecked())
         except (RecordingError, OSError) as exc:
             self.files_label.setText(f"cannot start logging: {exc}")
