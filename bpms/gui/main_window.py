@@ -191,12 +191,15 @@ class MainWindow(QMainWindow):
         }
         self.drop_area = PlotDropArea()
         self.drop_area.cellsDropped.connect(self._cells_dropped)
-        self.setCentralWidget(self.drop_area)
+        # The docks fill the window; the central widget is an empty strip.
+        central = QWidget()
+        central.setMaximumSize(0, 0)
+        self.setCentralWidget(central)
         self.layout_store = layout_store if layout_store is not None else LayoutStore()
         self.current_layout = ""
         self._menus()
         self.resize(1500, 860)
-        self.apply_default_layout(LIVE if runner.replay is None else PLAYBACK, views3d=0)
+        self.apply_default_layout(LIVE if runner.replay is None else PLAYBACK)
         if restore_last and self.layout_store.last is not None:
             self.restore_layout(self.layout_store.last)
         if self.layout_store.problem:
@@ -283,6 +286,9 @@ class MainWindow(QMainWindow):
         toolbar.addAction(acts["reset_zero"])
         self.record_action = toolbar.addAction("● Record", self.file_panel.toggle_logging)
         self.record_action.setToolTip("Start/Stop Logging (Ctrl+L)")
+        toolbar.addSeparator()
+        self.drop_area.setMinimumWidth(300)
+        toolbar.addWidget(self.drop_area)
         self._update_toolbar()
 
     def _fill_layouts_menu(self) -> None:
@@ -341,7 +347,9 @@ class MainWindow(QMainWindow):
         if self._view3d is None or not self.view3d_button.isEnabled():
             return None
         view = self._view3d.View3DWindow(self.model)  # type: ignore[attr-defined]
+        view.resetZeroRequested.connect(self.reset_zero)
         dock = make_dock("3D view", name or self._next_name("view3d"), view, dynamic=True)
+        dock.topLevelChanged.connect(lambda _floating: view.rebuild_view())
         self.addDockWidget(area, dock)
         self.view3d_windows.append(view)
         self.dynamic_docks.append(dock)
@@ -480,8 +488,9 @@ class MainWindow(QMainWindow):
                     self.splitDockWidget(d["table"], dock, Qt.Orientation.Horizontal)
         for dock in d.values():
             dock.show()
-        self.resizeDocks([d["table"]], [900], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["events"]], [140], Qt.Orientation.Vertical)
+        self.resizeDocks([d["table"], d["status"]], [900, 380], Qt.Orientation.Horizontal)
+        self.resizeDocks([d["events"]], [300 if name == PLAYBACK else 150],
+                         Qt.Orientation.Vertical)
         self.current_layout = name
 
     # -- commands ------------------------------------------------------------------------

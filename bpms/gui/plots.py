@@ -183,11 +183,11 @@ def _joint_curve(k: int, degrees: bool) -> CurveSpec:
 
 #: Groups of the joint-angle plot: (title, name prefixes).
 JOINT_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("Elbows and knees (flexion)", ("elbow_", "knee_")),
+    ("Elbows, knees", ("elbow_", "knee_")),
     ("Shoulders", ("shoulder_",)),
     ("Hips", ("hip_",)),
     ("Ankles", ("ankle_",)),
-    ("Torso and head", ("torso.", "head.")),
+    ("Torso, head", ("torso.", "head.")),
 )
 
 
@@ -220,7 +220,7 @@ class PlotWindow(QWidget):
 
     def __init__(self, title: str, groups: list[tuple[str, list[CurveSpec]]],
                  history_s: float = 60.0, parent: QWidget | None = None,
-                 kind: str = "cells") -> None:
+                 kind: str = "cells", columns: int = 1) -> None:
         super().__init__(parent)
         self.setWindowFlag(Qt.WindowType.Window)
         self.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
@@ -268,6 +268,7 @@ class PlotWindow(QWidget):
         self.plots: list[pg.PlotItem] = []
         self.curves: list[pg.PlotCurveItem] = []
         self._plot_unit: dict[str, pg.PlotItem] = {}
+        self.columns = max(1, columns)
         self.buffer = RingBuffer(self.capacity, 1)
         for group_title, specs in groups:
             plot = self._new_plot(group_title, specs[0].unit if specs else "")
@@ -279,7 +280,9 @@ class PlotWindow(QWidget):
 
     # -- building ---------------------------------------------------------------------------
     def _new_plot(self, title: str, unit: str) -> pg.PlotItem:
-        plot = self.graphics.addPlot(row=len(self.plots), col=0, title=title or None)
+        # The group's name goes on its y axis (a title row would take a fifth of a small plot).
+        n = len(self.plots)
+        plot = self.graphics.addPlot(row=n // self.columns, col=n % self.columns)
         legend = plot.addLegend(offset=(5, 5), labelTextColor="k",
                                 brush=pg.mkBrush(255, 255, 255, 200))
         # Text is the slowest thing to paint: the legend and the axes are drawn once into
@@ -290,9 +293,9 @@ class PlotWindow(QWidget):
             axis.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
             axis.setPen("k")
             axis.setTextPen("k")
-        plot.setLabel("bottom", "time", units="s")
-        if unit:
-            plot.setLabel("left", f"[{unit}]")
+        plot.setLabel("bottom", "time [s]")
+        if unit or title:
+            plot.setLabel("left", f"{title} [{unit}]" if title else f"[{unit}]")
         plot.showGrid(x=True, y=True, alpha=0.25)
         plot.setClipToView(True)
         plot.setDownsampling(auto=True, mode="peak")
@@ -523,7 +526,7 @@ def cells_plot(cells: list[tuple[int, int]], angle_unit: str = "deg",
 def joint_angle_plot(angle_unit: str = "deg", history_s: float = 60.0) -> PlotWindow:
     """The 28 joint angles, grouped by joint."""
     window = PlotWindow("Joint angles", joint_angle_groups(angle_unit), history_s,
-                        kind="joints")
+                        kind="joints", columns=2)
     window.resize(900, 900)
     return window
 
