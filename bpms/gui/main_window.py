@@ -349,7 +349,6 @@ class MainWindow(QMainWindow):
         view = self._view3d.View3DWindow(self.model)  # type: ignore[attr-defined]
         view.resetZeroRequested.connect(self.reset_zero)
         dock = make_dock("3D view", name or self._next_name("view3d"), view, dynamic=True)
-        dock.topLevelChanged.connect(lambda _floating: view.rebuild_view())
         self.addDockWidget(area, dock)
         self.view3d_windows.append(view)
         self.dynamic_docks.append(dock)
@@ -716,8 +715,10 @@ class MainWindow(QMainWindow):
             self.model.samplesArrived.disconnect(view.feed)
             view.close()
         self.browser_views.clear()
+        self._prune()
         for view in list(self.view3d_windows):
-            view.close()
+            if not sip.isdeleted(view):
+                view.close()
         self.model.attach(None)
         self.runner.close()
 

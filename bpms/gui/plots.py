@@ -234,6 +234,7 @@ class PlotWindow(QWidget):
         self.follow = True  # x range follows the newest data (until the user zooms or pans)
         self._x_end: float | None = None
         self._dirty = False
+        self.redraws = 0  # (bench/gui.py)
 
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
@@ -474,6 +475,7 @@ class PlotWindow(QWidget):
 
     def redraw(self) -> None:
         self._dirty = False
+        self.redraws += 1
         data = self.buffer.view()
         t = data[:, 0]
         self._follow_time(t)

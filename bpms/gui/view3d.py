@@ -33,8 +33,15 @@ import weakref
 from collections import deque
 
 import numpy as np
-from PyQt6.QtCore import QEvent, Qt, QTimer, pyqtSignal
-from PyQt6.QtGui import QGuiApplication, QKeyEvent, QOffscreenSurface, QOpenGLContext
+from PyQt6.QtCore import Qt, QTimer, pyqtSignal
+from PyQt6.QtGui import (
+    QGuiApplication,
+    QImage,
+    QKeyEvent,
+    QOffscreenSurface,
+    QOpenGLContext,
+    QPainter,
+)
 from PyQt6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 from bpms.filter.body_model import POINT_INDEX, joint_positions
@@ -150,6 +157,7 @@ def _make_gl_view() -> QWidget:
             self.trail_joint: str | None = None
             self.trail: deque[np.ndarray] = deque(maxlen=round(TRAIL_S * 50))
             self.paint_s = 0.0  # smoothed paintGL time, s
+            self.paints = 0  # frames painted (bench/gui.py)
             self.last_points: np.ndarray | None = None
             grid = gl.GLGridItem()
             grid.setSize(6, 6)
@@ -318,15 +326,73 @@ def _make_gl_view() -> QWidget:
                     self._programs[p] = p.prog
                     p.prog = old
             spent = time.perf_counter() - start
+            self.paints += 1
             self.paint_s = spent if self.paint_s == 0.0 else 0.8 * self.paint_s + 0.2 * spent
 
     return AvatarGL()
 
 
+class ImageView(QWidget):
+    """Shows the newest rendered frame; hands keys, mouse and wheel to the 3D view."""
+
+    def __init__(self, owner: View3DWindow) -> None:
+        super().__init__(owner)
+        self.owner = owner
+        self.image: QImage | None = None
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+        self.setMinimumSize(120, 120)
+        self.setAttribute(Qt.WidgetAttribute.WA_OpaquePaintEvent)
+
+    def set_image(self, image: QImage) -> None:
+        self.image = image
+        self.update()
+
+    def paintEvent(self, event) -> None:
+        painter = QPainter(self)
+        if self.image is None or self.image.isNull():
+            painter.fillRect(self.rect(), Qt.GlobalColor.black)
+        else:
+            painter.drawImage(self.rect(), self.image)
+        painter.end()
+
+    def resizeEvent(self, event) -> None:
+        super().resizeEvent(event)
+        self.owner.view_resized()
+
+    def _forward(self, name: str, event) -> None:
+        view = self.owner.view
+        if view is not None:
+            getattr(view, name)(event)
+            self.owner.render()
+
+    def keyPressEvent(self, event) -> None:
+        self._forward("keyPressEvent", event)
+
+    def mousePressEvent(self, event) -> None:
+        self.setFocus()
+        self._forward("mousePressEvent", event)
+
+    def mouseMoveEvent(self, event) -> None:
+        self._forward("mouseMoveEvent", event)
+
+    def mouseReleaseEvent(self, event) -> None:
+        self._forward("mouseReleaseEvent", event)
+
+    def wheelEvent(self, event) -> None:
+        self._forward("wheelEvent", event)
+
+
 class View3DWindow(QWidget):
     """A 3D view following a :class:`SessionModel` (redrawn per display tick): a top-level
     window, or the content of a main-window dock. ``resetZeroRequested`` is emitted by the c
-    key (without a receiver the view asks the session itself)."""
+    key (without a receiver the view asks the session itself).
+
+    The GL view is never shown: it renders off-screen (its own context, its own framebuffer)
+    and the frame is painted as an image. A window holding a visible GL widget is composed
+    through OpenGL as a whole, every time anything in it repaints; with software GL that
+    costs more than all plots together. Off-screen, a frame costs its own pixels only, and a
+    dock can float or re-dock without the GL context changing under it.
+    """
 
     resetZeroRequested = pyqtSignal()
 
@@ -338,6 +404,7 @@ class View3DWindow(QWidget):
         self.setMinimumSize(160, 160)
         self.model = model
         self.view: QWidget | None = None
+        self.image_view: ImageView | None = None
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         self.status = QLabel(self)
@@ -351,11 +418,12 @@ class View3DWindow(QWidget):
                 problem = f"the 3D view could not be created ({type(exc).__name__}: {exc})"
                 log.warning("3D view: %s", problem)
         if self.view is not None:
-            self.view.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
-            layout.addWidget(self.view, 1)
+            self.image_view = ImageView(self)
+            layout.addWidget(self.image_view, 1)
             self.status.setToolTip(KEYS_TEXT)
+            self.image_view.setToolTip(KEYS_TEXT)
             layout.addWidget(self.status)
-            self.setFocusProxy(self.view)
+            self.setFocusProxy(self.image_view)
             self.view.resetZeroKey.connect(self.request_reset_zero)
             self.view.changed.connect(self._show_status)
         else:
@@ -366,7 +434,7 @@ class View3DWindow(QWidget):
         self.fallback_message = None if self.view is not None else self.status.text()
         self._pending: PoseSample | None = model.latest
         self._last_draw = 0.0
-        self.frame_s = 0.0  # smoothed cost of one redraw (GL paint + composition), s
+        self.frame_s = 0.0  # smoothed cost of one redraw (render + read back), s
         self._redraw = QTimer(self)
         self._redraw.setSingleShot(True)
         self._redraw.timeout.connect(self.draw_pending)
@@ -376,35 +444,6 @@ class View3DWindow(QWidget):
         model.samplesArrived.connect(self.on_samples)
         self.on_samples([])
 
-    def rebuild_view(self) -> None:
-        """A new GL widget in place of the old one, same camera and options. Call it when the
-        view moved to another top-level window (a dock floated or docked again): Qt gives the
-        widget a new GL context there, in which the old one's shader programs and buffers do
-        not exist."""
-        old = self.view
-        if old is None:
-            return
-        try:
-            new = _make_gl_view()
-        except Exception as exc:  # keep the old one rather than nothing
-            log.warning("3D view not rebuilt: %s", exc)
-            return
-        new.opts.update({k: old.opts[k] for k in ("center", "distance", "elevation",
-                                                  "azimuth", "fov")})
-        new.aligned, new.show_axes = old.aligned, old.show_axes
-        new.trail_joint, new.trail = old.trail_joint, old.trail
-        new.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
-        new.resetZeroKey.connect(self.request_reset_zero)
-        new.changed.connect(self._show_status)
-        layout = self.layout()
-        old.hide()
-        layout.replaceWidget(old, new)
-        old.setParent(None)
-        old.deleteLater()
-        self.view = new
-        self.setFocusProxy(new)
-        new.show_pose(self._pending)
-
     def request_reset_zero(self) -> None:
         if self.receivers(self.resetZeroRequested):
             self.resetZeroRequested.emit()
@@ -413,8 +452,26 @@ class View3DWindow(QWidget):
 
     @property
     def gl_view(self) -> QWidget | None:
-        """The GLViewWidget (None in the fallback)."""
+        """The GLViewWidget (None in the fallback); ``grabFramebuffer()`` renders a frame."""
         return self.view
+
+    def view_resized(self) -> None:
+        if self.view is None or self.image_view is None:
+            return
+        size = self.image_view.size()
+        if self.view.size() != size:
+            self.view.resize(size)
+            self.render()
+
+    def render(self) -> None:
+        """Render the GL view off-screen and show the frame."""
+        if self.view is None or self.image_view is None or not self.isVisible():
+            return
+        start = time.perf_counter()
+        image = self.view.grabFramebuffer()
+        self.image_view.set_image(image)
+        spent = time.perf_counter() - start
+        self.frame_s = spent if self.frame_s == 0.0 else 0.8 * self.frame_s + 0.2 * spent
 
     def on_samples(self, samples: list[PoseSample]) -> None:
         """Slot of ``samplesArrived``: draw the newest sample, at most once per display tick
@@ -434,33 +491,23 @@ class View3DWindow(QWidget):
             self._redraw.start(max(1, round(wait * 1000)))
 
     def min_interval_s(self) -> float:
-        """Shortest time between redraws so that all open 3D views together paint for at
+        """Shortest time between redraws so that all open 3D views together render for at
         most GL_TIME_BUDGET of the time, s."""
         if self.view is None:
             return 0.0
-        cost = max(self.frame_s, self.view.paint_s)
-        return cost * max(1, len(_OPEN_WINDOWS)) / GL_TIME_BUDGET
-
-    def event(self, event: QEvent | None) -> bool:
-        # A top-level update renders the GL view and composes the window (with software GL
-        # most of the cost is there, not in paintGL): time it for the redraw budget.
-        if event is None or event.type() != QEvent.Type.UpdateRequest:
-            return super().event(event)
-        start = time.perf_counter()
-        handled = super().event(event)
-        spent = time.perf_counter() - start
-        self.frame_s = spent if self.frame_s == 0.0 else 0.8 * self.frame_s + 0.2 * spent
-        return handled
+        return self.frame_s * max(1, len(_OPEN_WINDOWS)) / GL_TIME_BUDGET
 
     def showEvent(self, event) -> None:
         super().showEvent(event)
         if self.view is not None:
+            self.view_resized()
             self.draw_pending()
 
     def draw_pending(self) -> None:
         self._redraw.stop()
         self._last_draw = time.monotonic()
         self.view.show_pose(self._pending)
+        self.render()
         self.draws += 1
         self._show_status()
 
@@ -483,6 +530,8 @@ class View3DWindow(QWidget):
         self._redraw.stop()
         with contextlib.suppress(TypeError, RuntimeError):
             self.model.samplesArrived.disconnect(self.on_samples)
+        if self.view is not None:
+            self.view.deleteLater()  # a parentless widget: not deleted with this one
         super().closeEvent(event)
 
 
@@ -498,6 +547,6 @@ def open_3d_window(model: SessionModel, parent: QWidget | None = None) -> QWidge
     """
     window = View3DWindow(model, parent)
     window.show()
-    if window.view is not None:
-        window.view.setFocus()
+    if window.image_view is not None:
+        window.image_view.setFocus()
     return window
