@@ -85,3 +85,20 @@ def test_plot_window_pause_legend_and_reset(qtbot):
     qtbot.waitUntil(lambda: box.autoRangeEnabled()[1], timeout=2000)
     x_range = box.viewRange()[0]
     assert x_range[0] <= 0.5 and x_range[1] >= 0.5 + 4 * 0.02  # the data in view again
+
+
+def test_peak_decimation_keeps_every_extreme_and_the_newest_row():
+    from bpms.gui.plots import peak_decimate
+
+    rng = np.random.default_rng(5)
+    n = 3000
+    data = np.column_stack([np.arange(n) * 0.02, rng.normal(size=n), rng.normal(size=n)])
+    data[1234, 1] = 50.0  # a one-sample spike
+    data[2000:2010, 2] = np.nan  # a gap
+    out = peak_decimate(data, 400)
+    assert len(out) <= 800
+    assert out[:, 1].max() == 50.0 and np.nanmin(out[:, 1]) == data[:, 1].min()
+    assert out[-1, 0] == data[-1, 0]  # the newest time is kept
+    assert np.isnan(out[:, 2]).any()  # a bin fully inside the gap stays a gap
+    assert np.all(np.diff(out[:, 0]) >= 0)
+    assert len(peak_decimate(data[:500], 400)) == 500  # few rows: unchanged

@@ -88,6 +88,15 @@ from bpms.gui.view3d_geometry import SEG_END, SEG_START  # noqa: E402  (after SE
 def capsule_vertices(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Vertices ``[M * VERTS_PER_SEGMENT, 3]`` of M capsules from ``a [M, 3]`` to
     ``b [M, 3]`` with ``radii [M]`` (metres). A zero-length segment is a sphere."""
+    return capsule_mesh(a, b, radii)[0]
+
+
+def capsule_mesh(a: np.ndarray, b: np.ndarray, radii: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, unit normals), both ``[M * VERTS_PER_SEGMENT, 3]``, of M capsules. The
+    normals are exact (radial on the sides, spherical on the caps) and point inwards, the
+    side pyqtgraph's "shaded" shader lights when it faces the camera; computing them from
+    the faces would cost more than the whole frame."""
     d = b - a
     length = np.linalg.norm(d, axis=1)
     axis = np.where(length[:, None] > 1e-9, d / np.maximum(length, 1e-9)[:, None],
@@ -105,14 +114,25 @@ def capsule_vertices(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> np.ndar
     cx, sy = t[None, :, 0] * radial, t[None, :, 1] * radial
     verts = (a[:, None, :] + cx[..., None] * e1[:, None, :] + sy[..., None] * e2[:, None, :]
              + along[..., None] * axis[:, None, :])
-    return verts.reshape(-1, 3)
+    # outward normal: (cos e1 + sin e2) × radius factor + axis × offset, normalised
+    nr, na = t[:, 2], t[:, 4]
+    normals = (t[None, :, 0, None] * nr[None, :, None] * e1[:, None, :]
+               + t[None, :, 1, None] * nr[None, :, None] * e2[:, None, :]
+               + na[None, :, None] * axis[:, None, :])
+    normals /= np.linalg.norm(normals, axis=2, keepdims=True)
+    return verts.reshape(-1, 3), -normals.reshape(-1, 3)
 
 
 def figure_vertices(points: np.ndarray) -> np.ndarray:
     """The body mesh's vertices ``[V, 3]`` for joint points ``[21, 3]`` (display metres).
     Non-finite points give a degenerate (invisible) capsule at the origin."""
+    return figure_mesh(points)[0]
+
+
+def figure_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, normals) ``[V, 3]`` of the body for joint points ``[21, 3]``."""
     points = np.where(np.isfinite(points), points, 0.0)
-    return capsule_vertices(points[SEG_START], points[SEG_END], SEG_RADII)
+    return capsule_mesh(points[SEG_START], points[SEG_END], SEG_RADII)
 
 
 def shadow_vertices(verts: np.ndarray) -> np.ndarray:

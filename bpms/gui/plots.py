@@ -199,6 +199,25 @@ def joint_angle_groups(angle_unit: str = "deg") -> list[tuple[str, list[CurveSpe
             for title, prefixes in JOINT_GROUPS]
 
 
+def peak_decimate(data: np.ndarray, pixels: int) -> np.ndarray:
+    """Rows ``[n, 1 + k]`` (time, k values) → at most ``2 × pixels`` rows keeping each bin's
+    minimum and maximum (a curve drawn from them looks the same at that width; NaN gaps stay
+    gaps). Bins end at the newest row, so the newest data are never merged away."""
+    n = len(data)
+    if pixels < 1 or n <= 2 * pixels:
+        return data
+    factor = -(-n // pixels)
+    m = (n // factor) * factor
+    head, body = data[:n - m], data[n - m:]
+    bins = body.reshape(-1, factor, data.shape[1])
+    out = np.empty((2 * len(bins), data.shape[1]))
+    out[0::2, 0] = bins[:, 0, 0]
+    out[1::2, 0] = bins[:, -1, 0]
+    out[0::2, 1:] = np.fmin.reduce(bins[:, :, 1:], axis=1)
+    out[1::2, 1:] = np.fmax.reduce(bins[:, :, 1:], axis=1)
+    return np.concatenate([head, out]) if len(head) else out
+
+
 def group_by_unit(specs: Sequence[CurveSpec]) -> list[tuple[str, list[CurveSpec]]]:
     """One group per unit (one y axis per unit), in order of first appearance."""
     groups: dict[str, list[CurveSpec]] = {}
@@ -477,8 +496,10 @@ class PlotWindow(QWidget):
         self._dirty = False
         self.redraws += 1
         data = self.buffer.view()
+        self._follow_time(data[:, 0])
+        if self.follow and self.plots:
+            data = peak_decimate(data, int(self.plots[0].getViewBox().width()))
         t = data[:, 0]
-        self._follow_time(t)
         for k, curve in enumerate(self.curves):
             curve.setData(t, data[:, k + 1])
 

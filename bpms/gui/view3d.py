@@ -86,10 +86,13 @@ def shared_meshdata(key: object, points: np.ndarray, waiting: bool) -> tuple[obj
     if _shared_mesh.get("key") is key and key is not None \
             and _shared_mesh.get("waiting") == waiting:
         return _shared_mesh["body"], _shared_mesh["shadow"]
-    verts = avatar.figure_vertices(points)
+    verts, normals = avatar.figure_mesh(points)
     shadow = avatar.shadow_vertices(verts)
     colours = avatar.WAITING_COLOURS if waiting else avatar.VERTEX_COLOURS
     body = MeshData(vertexes=verts, faces=avatar.FACES, vertexColors=colours)
+    # MeshData would compute the normals from the faces in a Python loop (slower than the
+    # whole frame); the capsules' exact normals go into its cache instead.
+    body._vertexNormals = normals.astype(np.float32)
     flat = MeshData(vertexes=shadow, faces=avatar.FACES)
     _shared_mesh.update(key=key, waiting=waiting, body=body, shadow=flat)
     return body, flat
