@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 from PyQt6 import sip
-from PyQt6.QtCore import QByteArray, Qt, pyqtSignal
+from PyQt6.QtCore import QByteArray, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import QAction, QKeySequence
 from PyQt6.QtWidgets import (
     QComboBox,
@@ -454,7 +454,15 @@ class MainWindow(QMainWindow):
 
     def apply_default_layout(self, name: str, views3d: int | None = None) -> None:
         """One of :data:`DEFAULT_LAYOUTS`, built here (the user's saved version of the same
-        name wins in :meth:`load_layout`). ``views3d`` overrides the number of 3D views."""
+        name wins in :meth:`load_layout`). ``views3d`` overrides the number of 3D views.
+
+        - live monitoring: table over the event log on the left, the 3D view beside the
+          table, status / session / filter tabs on the right;
+        - playback analysis: the same top row (session tab first, with the playback slider),
+          the joint angles and new plots across the bottom, the event log tabbed with them;
+        - calibration check: the table (raw and calibrated columns) large, filter settings and
+          status on the right, a 3D view under them, the event log under the table.
+        """
         self.clear_dynamic_docks()
         d = self.docks
         for dock in d.values():
@@ -463,13 +471,16 @@ class MainWindow(QMainWindow):
         want3d = 1 if views3d is None else views3d
         self.addDockWidget(_LEFT, d["table"])
         self.addDockWidget(_RIGHT, d["status"])
-        self.addDockWidget(_BOTTOM, d["events"])
         if name == CALIBRATION:
-            self.addDockWidget(_RIGHT, d["filter"])
-            self.tabifyDockWidget(d["filter"], d["session"])
+            self.tabifyDockWidget(d["status"], d["filter"])
+            self.tabifyDockWidget(d["status"], d["session"])
             d["filter"].raise_()
-            if want3d:
-                self.add_view3d_dock(area=_RIGHT)
+            self.splitDockWidget(d["table"], d["events"], Qt.Orientation.Vertical)
+            for _ in range(want3d):
+                dock = self.add_view3d_dock(area=_RIGHT)
+                if dock is not None:
+                    self.splitDockWidget(d["status"], dock, Qt.Orientation.Vertical)
+            heights = [(d["events"], 160)]
         else:
             self.tabifyDockWidget(d["status"], d["session"])
             self.tabifyDockWidget(d["status"], d["filter"])
@@ -479,17 +490,35 @@ class MainWindow(QMainWindow):
                 joints = joint_angle_plot(self.table_model.angle_unit,
                                           self.options.display.plot_history_s)
                 self.add_plot_dock(joints, area=_BOTTOM)
+                self.addDockWidget(_BOTTOM, d["events"])
                 self.tabifyDockWidget(self.dock_of(joints), d["events"])
                 self.dock_of(joints).raise_()
+                heights = [(self.dock_of(joints), 420)]
+            else:
+                self.splitDockWidget(d["table"], d["events"], Qt.Orientation.Vertical)
+                heights = [(d["events"], 160)]
             for _ in range(want3d):
                 dock = self.add_view3d_dock(area=_RIGHT)
                 if dock is not None:
                     self.splitDockWidget(d["table"], dock, Qt.Orientation.Horizontal)
         for dock in d.values():
             dock.show()
-        self.resizeDocks([d["table"], d["status"]], [900, 380], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["events"]], [300 if name == PLAYBACK else 150],
-                         Qt.Orientation.Vertical)
+        widths = [(d["table"], 760), (d["status"], 360)]
+        views = [dk for dk in self.dynamic_docks if not isinstance(dk.widget(), PlotWindow)]
+        if views and name != CALIBRATION:
+            widths.append((views[0], 380))
+
+        def sizes() -> None:
+            if sip.isdeleted(self):
+                return
+            for pairs, orientation in ((widths, Qt.Orientation.Horizontal),
+                                       (heights, Qt.Orientation.Vertical)):
+                alive = [(dk, n) for dk, n in pairs if not sip.isdeleted(dk)
+                         and dk.parent() is self]
+                self.resizeDocks([dk for dk, _ in alive], [n for _, n in alive], orientation)
+
+        sizes()
+        QTimer.singleShot(0, sizes)  # again once the window is laid out
         self.current_layout = name
 
     # -- commands ------------------------------------------------------------------------

@@ -33,7 +33,7 @@ import weakref
 from collections import deque
 
 import numpy as np
-from PyQt6.QtCore import Qt, QTimer, pyqtSignal
+from PyQt6.QtCore import QSize, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import (
     QGuiApplication,
     QImage,
@@ -41,8 +41,9 @@ from PyQt6.QtGui import (
     QOffscreenSurface,
     QOpenGLContext,
     QPainter,
+    QResizeEvent,
 )
-from PyQt6.QtWidgets import QLabel, QVBoxLayout, QWidget
+from PyQt6.QtWidgets import QApplication, QLabel, QVBoxLayout, QWidget
 
 from bpms.filter.body_model import POINT_INDEX, joint_positions
 from bpms.gui import avatar
@@ -463,8 +464,24 @@ class View3DWindow(QWidget):
             return
         size = self.image_view.size()
         if self.view.size() != size:
-            self.view.resize(size)
+            self._resize_gl(size)
             self.render()
+
+    def snapshot(self, width: int, height: int) -> QImage:
+        """The current pose rendered at ``width`` × ``height`` pixels (screenshots)."""
+        assert self.view is not None
+        old = self.view.size()
+        self._resize_gl(QSize(width, height))
+        image = self.view.grabFramebuffer()
+        self._resize_gl(old)
+        return image
+
+    def _resize_gl(self, size: QSize) -> None:
+        old = self.view.size()
+        self.view.resize(size)
+        # A widget never shown gets no resize event from resize(); the GL widget needs one
+        # to make its framebuffer the new size.
+        QApplication.sendEvent(self.view, QResizeEvent(size, old))
 
     def render(self) -> None:
         """Render the GL view off-screen and show the frame."""
