@@ -140,7 +140,9 @@ class GainsPanel(QGroupBox):
         for name in GAIN_NAMES:
             box = QDoubleSpinBox()
             box.setDecimals(6)
-            box.setRange(0.0, 100.0)
+            # the options' valid range (a value outside it cannot be typed or stepped to)
+            meta = fields[name].metadata
+            box.setRange(float(meta.get("min", 0.0)), float(meta.get("max", 100.0)))
             box.setSingleStep(0.001 if name.startswith("kp") else 0.00001)
             box.setValue(getattr(options, name))
             box.setToolTip(fields[name].metadata.get("help", ""))

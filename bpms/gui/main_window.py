@@ -51,6 +51,8 @@ from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.options import Options
 from bpms.pipeline.session import LiveStatus
 
+#: Status numbers are refreshed this often, s (the link light at every display tick).
+TEXT_PERIOD_S = 0.25
 #: Reset Zero warns when an IMU turned more than this during the averaging window, deg.
 RESET_MOTION_DEG = 5.0
 
@@ -101,6 +103,8 @@ class MainWindow(QMainWindow):
         self._recent_R: list[np.ndarray] = []  # filter DCMs of the last Reset Zero window
         self._last_recording = None
         self._counters: dict[str, int] = {}
+        self._texts_at = -1e9
+        self._last_state = ""
 
         # -- the table dock ----------------------------------------------------------------
         self.table_model = ImuTableModel(calibration, self.options.display.angle_unit, self)
@@ -689,9 +693,14 @@ class MainWindow(QMainWindow):
                                f"({st.source.description})", "warning")
         elif health.transition == "recovered":
             self.event_log.add("link recovered")
-        self.health_panel.show_health(health, st, now)
-        self.status_panel.show_status(st, health.state if self.runner.data_on else None)
-        self.file_panel.show_status(st)
+        self.health_panel.set_colour(health.colour)
+        # Text changes re-lay out their panels: the numbers are refreshed 4 times a second,
+        # the light at every tick (and at once when the state changes).
+        if now - self._texts_at >= TEXT_PERIOD_S or health.state != self._last_state:
+            self._texts_at, self._last_state = now, health.state
+            self.health_panel.show_health(health, st, now)
+            self.status_panel.show_status(st, health.state if self.runner.data_on else None)
+            self.file_panel.show_status(st)
         self.event_log.merge_session_events(st.events)
         self._watch_counters(st)
         self._watch_recording(st)

@@ -500,8 +500,11 @@ class PlotWindow(QWidget):
         if self.follow and self.plots:
             data = peak_decimate(data, int(self.plots[0].getViewBox().width()))
         t = data[:, 0]
+        # Gaps (NaN) need the slower "finite" path; most of the time there are none.
+        finite = bool(np.isfinite(data).all())
+        connect = "all" if finite else "finite"
         for k, curve in enumerate(self.curves):
-            curve.setData(t, data[:, k + 1])
+            curve.setData(t, data[:, k + 1], connect=connect, skipFiniteCheck=finite)
 
     def closeEvent(self, event) -> None:
         self.closed = True
