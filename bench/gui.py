@@ -305,7 +305,7 @@ def main() -> int:
     print(f"GUI benchmark: table + {N_PLOTS} plots × {N_CURVES} curves + {N_VIEWS} 3D views, "
           f"{ARGS.seconds:g} s at 50 frames/s, display timer {ARGS.refresh:g} Hz, "
           f"platform {app['platform']}, window {SIZE[0]}×{SIZE[1]}")
-    print(f"{'':22}{'main window':>16}{'bare widgets':>16}")
+    print(f"{'':22}{'main window':>22}{'bare widgets':>22}")
     rows = [
         ("process CPU, % core", f"{100 * app['cpu']:.0f}", f"{100 * bare['cpu']:.0f}"),
         ("plots Hz mean/min", f"{np.mean(app['plot_hz']):.1f}/{min(app['plot_hz'], default=0):.1f}",
@@ -320,7 +320,7 @@ def main() -> int:
          f"{bare['dropped']} dropped, {bare['gaps']} gaps"),
     ]
     for label, a, b in rows:
-        print(f"{label:22}{a:>16}{b:>16}")
+        print(f"{label:22}{a:>22}{b:>22}")
     ratio = app["cpu"] / bare["cpu"] if bare["cpu"] else float("inf")
     ok = (min(app["plot_hz"], default=0) >= 20 and min(app["view_hz"], default=99) >= 15
           and app["dropped"] == 0 and app["gaps"] == 0 and ratio <= 1.15)
