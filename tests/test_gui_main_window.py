@@ -136,11 +136,23 @@ def test_drag_a_cell_onto_a_plot_adds_the_curve_or_opens_a_new_plot(qtbot, tmp_p
     assert _drop(window.drop_area, model.mimeData([model.index(17, 2)]))
     assert len(window.plot_windows) == before + 1
     assert window.plot_windows[-1].curves[0].name() == "Head yaw [deg]"
+    # joint names from the joint-angle list: onto the plot, and onto empty space
+    jm = window.joint_model
+    assert jm.data(jm.index(10, 0)) == "Right hip abduction"
+    assert _drop(plot, jm.mimeData([jm.index(10, 0), jm.index(10, 1)]))
+    assert plot.curves[-1].name() == "Right hip abduction [deg]" and len(plot.curves) == 4
+    assert plot.description()["joints"] == [10]
+    before = len(window.plot_windows)
+    assert _drop(window.drop_area, jm.mimeData([jm.index(0, 0), jm.index(2, 0)]))
+    assert len(window.plot_windows) == before + 1
+    assert [c.name() for c in window.plot_windows[-1].curves] == [
+        "Right elbow flexion [deg]", "Right knee flexion [deg]"]
     # play: the dropped curves get data
     window.set_data(True)
     qtbot.waitUntil(lambda: len(plot.buffer) > 20, timeout=15000)
-    _x, y = plot.curves[2].getData()
-    assert np.isfinite(y[-5:]).all()
+    for curve in (plot.curves[2], plot.curves[3]):
+        _x, y = curve.getData()
+        assert np.isfinite(y[-5:]).all()
     window.set_data(False)
     window.close()
 

@@ -247,3 +247,89 @@ class DataTable(QTableView):
         flag = QItemSelectionModel.SelectionFlag.Select
         for row, col in cells:
             sel.select(self.model().index(row, col), flag)
+
+
+class JointAngleModel(QAbstractTableModel):
+    """The 28 joint angles of the newest sample: readable name, value in deg or rad.
+    Rows drag as joint angles onto plots."""
+
+    def __init__(self, angle_unit: str = "deg", parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        from bpms.filter.joints import JOINT_ANGLE_NAMES
+        from bpms.gui.plots import human_joint_name
+
+        self.names = [human_joint_name(n) for n in JOINT_ANGLE_NAMES]
+        self.angle_unit = angle_unit
+        self.values = np.full(len(self.names), np.nan)  # rad
+        self._text = ["" for _ in self.names]
+
+    def update(self, sample: PoseSample) -> None:
+        self.values = np.asarray(sample.joint_angles, dtype=np.float64)
+        self._format()
+        self.dataChanged.emit(self.index(0, 1), self.index(len(self.names) - 1, 1))
+
+    def _format(self) -> None:
+        deg = self.angle_unit == "deg"
+        shown = np.degrees(self.values) if deg else self.values
+        fmt = "{:.1f}" if deg else "{:.3f}"
+        self._text = ["–" if v != v else fmt.format(v) for v in shown.tolist()]
+
+    def set_angle_unit(self, unit: str) -> None:
+        self.angle_unit = unit
+        self._format()
+        self.headerDataChanged.emit(Qt.Orientation.Horizontal, 1, 1)
+        self.dataChanged.emit(self.index(0, 1), self.index(len(self.names) - 1, 1))
+
+    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else len(self.names)
+
+    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else 2
+
+    def data(self, index: QModelIndex, role: int = _DISPLAY):
+        if role == _DISPLAY:
+            return self.names[index.row()] if index.column() == 0 else self._text[index.row()]
+        if role == _ALIGN and index.column() == 1:
+            return _RIGHT
+        return None
+
+    def headerData(self, section: int, orientation: Qt.Orientation,
+                   role: int = Qt.ItemDataRole.DisplayRole):
+        if role != Qt.ItemDataRole.DisplayRole or orientation != Qt.Orientation.Horizontal:
+            return None
+        return "joint angle" if section == 0 else f"value [{self.angle_unit}]"
+
+    def flags(self, index: QModelIndex) -> Qt.ItemFlag:
+        return super().flags(index) | Qt.ItemFlag.ItemIsDragEnabled
+
+    def mimeTypes(self) -> list[str]:
+        from bpms.gui.plots import JOINTS_MIME
+
+        return [JOINTS_MIME]
+
+    def mimeData(self, indexes) -> QMimeData:
+        """Dragged joint angles (onto a plot, or onto empty space for a new plot)."""
+        from bpms.gui.plots import joints_to_mime
+
+        return joints_to_mime(sorted({i.row() for i in indexes}))
+
+
+class JointTable(QTableView):
+    """The joint-angle list: select rows, drag them onto a plot."""
+
+    def __init__(self, model: JointAngleModel, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setModel(model)
+        self.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
+        self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.setDragEnabled(True)
+        self.setDragDropMode(QAbstractItemView.DragDropMode.DragOnly)
+        self.setAlternatingRowColors(True)
+        self.verticalHeader().setVisible(False)
+        self.verticalHeader().setDefaultSectionSize(22)
+        self.horizontalHeader().setStretchLastSection(True)
+        self.setColumnWidth(0, 220)
+
+    def selected_joints(self) -> list[int]:
+        return sorted({i.row() for i in self.selectionModel().selectedIndexes()})

@@ -26,12 +26,13 @@ from PyQt6.QtWidgets import (
     QMainWindow,
     QMessageBox,
     QPushButton,
+    QTabWidget,
     QVBoxLayout,
     QWidget,
 )
 
 from bpms.gui.controls import FilePanel, GainsPanel, PlaybackPanel, StatusPanel, UdpServerPanel
-from bpms.gui.data_table import DataTable, ImuTableModel
+from bpms.gui.data_table import DataTable, ImuTableModel, JointAngleModel, JointTable
 from bpms.gui.docks import make_dock
 from bpms.gui.event_log import EventLog
 from bpms.gui.health import HealthPanel, LinkHealth
@@ -153,7 +154,13 @@ class MainWindow(QMainWindow):
         top.addWidget(QLabel("Angles"))
         top.addWidget(self.unit_combo)
         table_layout.addLayout(top)
-        table_layout.addWidget(self.table)
+        self.joint_model = JointAngleModel(self.options.display.angle_unit, self)
+        self.joint_table = JointTable(self.joint_model)
+        self.table_tabs = QTabWidget()
+        self.table_tabs.setDocumentMode(True)
+        self.table_tabs.addTab(self.table, "IMUs")
+        self.table_tabs.addTab(self.joint_table, "Joint angles")
+        table_layout.addWidget(self.table_tabs)
 
         # -- side panels -------------------------------------------------------------------
         self.health_panel = HealthPanel(self.simulated)
@@ -195,6 +202,7 @@ class MainWindow(QMainWindow):
         }
         self.drop_area = PlotDropArea()
         self.drop_area.cellsDropped.connect(self._cells_dropped)
+        self.drop_area.jointsDropped.connect(self._joints_dropped)
         # The docks fill the window; the central widget is an empty strip.
         central = QWidget()
         central.setMaximumSize(0, 0)
@@ -340,6 +348,7 @@ class MainWindow(QMainWindow):
                          dynamic=True)
         plot.setMinimumSize(200, 150)
         plot.cellsDropped.connect(self._cells_dropped)
+        plot.jointsDropped.connect(self._joints_dropped)
         self.addDockWidget(area, dock)
         self.plot_windows.append(plot)
         self.dynamic_docks.append(dock)
@@ -590,6 +599,7 @@ class MainWindow(QMainWindow):
 
     def set_angle_unit(self, unit: str) -> None:
         self.table_model.set_angle_unit(unit)
+        self.joint_model.set_angle_unit(unit)
         self.options.display.angle_unit = unit
 
     def _toggle_unit(self) -> None:
@@ -601,7 +611,12 @@ class MainWindow(QMainWindow):
             self.playback_panel.step(n)
 
     def plot_selection(self) -> PlotWindow | None:
-        """A new plot dock of the selected cells (one curve each)."""
+        """A new plot dock of the selected cells (one curve each), or of the selected joint
+        angles when their tab is in front."""
+        if self.table_tabs.currentWidget() is self.joint_table:
+            joints = self.joint_table.selected_joints()
+            if joints:
+                return self._joints_dropped(joints, None)
         cells = self.table.selected_cells()
         if not cells:
             self.statusBar().showMessage("Select one or more numeric cells first "
@@ -622,6 +637,20 @@ class MainWindow(QMainWindow):
             plot.add_cells(cells)
         elif cells:
             self._new_cells_plot(cells)
+
+    def _joints_dropped(self, joints: list, plot: object) -> PlotWindow | None:
+        """Joint angles dragged from their list: onto a plot or elsewhere (new plot)."""
+        if isinstance(plot, PlotWindow):
+            plot.add_joints(joints, self.table_model.angle_unit)
+            return plot
+        if not joints:
+            return None
+        number = 1 + sum(isinstance(d.widget(), PlotWindow) for d in self.dynamic_docks)
+        window = plot_from({"kind": "cells", "title": f"Plot {number}", "joints": joints},
+                           self.table_model.angle_unit, self.options.display.plot_history_s)
+        if window is not None:
+            self._show_plot(window)
+        return window
 
     def open_joint_plot(self) -> PlotWindow:
         window = joint_angle_plot(self.table_model.angle_unit,
@@ -664,6 +693,8 @@ class MainWindow(QMainWindow):
         self._prune()
         self.health.frames_arrived()
         self.table_model.update(samples[-1], np.any([s.errors for s in samples], axis=0))
+        if self.joint_table.isVisible():
+            self.joint_model.update(samples[-1])
         window = max(2, round(self.options.pose.reset_window_s / FRAME_PERIOD_S))
         self._recent_R.extend(s.R for s in samples[-window:])
         del self._recent_R[:-window]

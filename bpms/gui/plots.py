@@ -56,6 +56,27 @@ def curve_pen(k: int) -> Any:
     return pg.mkPen(colour, width=1, style=style)
 
 
+#: Drag-and-drop payload of joint angles: JSON ``[k, ...]`` (``JOINT_ANGLE_NAMES`` indices).
+JOINTS_MIME = "application/x-bpms-joints"
+
+
+def joints_to_mime(joints: Sequence[int]) -> QMimeData:
+    mime = QMimeData()
+    mime.setData(JOINTS_MIME, json.dumps([int(k) for k in joints]).encode())
+    return mime
+
+
+def joints_from_mime(mime: QMimeData | None) -> list[int]:
+    """The joint-angle indices of a drag, [] when it carries none."""
+    if mime is None or not mime.hasFormat(JOINTS_MIME):
+        return []
+    try:
+        data = json.loads(bytes(mime.data(JOINTS_MIME)).decode())
+        return [int(k) for k in data if 0 <= int(k) < len(JOINT_ANGLE_NAMES)]
+    except (ValueError, TypeError):
+        return []
+
+
 def cells_to_mime(cells: Sequence[tuple[int, int]]) -> QMimeData:
     mime = QMimeData()
     mime.setData(CELLS_MIME, json.dumps([[int(r), int(c)] for r, c in cells]).encode())
@@ -162,6 +183,7 @@ class CurveSpec:
     values: Callable[[TickBlock], np.ndarray]
     unit: str = ""
     cell: tuple[int, int] | None = None  # (IMU, column) for a table cell
+    joint: int | None = None  # index into JOINT_ANGLE_NAMES for a joint angle
 
 
 def cell_curve(imu: int, col: int, angle_unit: str = "deg") -> CurveSpec:
@@ -178,7 +200,12 @@ def _joint_curve(k: int, degrees: bool) -> CurveSpec:
     unit = "deg" if degrees else "rad"
     return CurveSpec(f"{human_joint_name(JOINT_ANGLE_NAMES[k])} [{unit}]",
                      lambda b: np.degrees(b.joint_angles[:, k]) if degrees
-                     else b.joint_angles[:, k], unit)
+                     else b.joint_angles[:, k], unit, joint=k)
+
+
+def joint_curve(k: int, angle_unit: str = "deg") -> CurveSpec:
+    """The curve of joint angle ``k`` (``JOINT_ANGLE_NAMES`` order)."""
+    return _joint_curve(k, angle_unit == "deg")
 
 
 #: Groups of the joint-angle plot: (title, name prefixes).
@@ -236,6 +263,7 @@ class PlotWindow(QWidget):
     """
 
     cellsDropped = pyqtSignal(list, object)
+    jointsDropped = pyqtSignal(list, object)
 
     def __init__(self, title: str, groups: list[tuple[str, list[CurveSpec]]],
                  history_s: float = 60.0, parent: QWidget | None = None,
@@ -347,7 +375,14 @@ class PlotWindow(QWidget):
         unit = angle_unit or next((s.unit for s in self.specs if s.cell
                                    and COLUMNS[s.cell[1]].group == "euler"), "deg")
         shown = {s.cell for s in self.specs}
-        new = [cell_curve(r, c, unit) for r, c in cells if (r, c) not in shown]
+        return self._add_specs([cell_curve(r, c, unit) for r, c in cells if (r, c) not in shown])
+
+    def add_joints(self, joints: Sequence[int], angle_unit: str = "deg") -> int:
+        """Add curves for joint angles not shown yet. Returns how many were added."""
+        shown = {s.joint for s in self.specs}
+        return self._add_specs([joint_curve(k, angle_unit) for k in joints if k not in shown])
+
+    def _add_specs(self, new: list[CurveSpec]) -> int:
         if not new:
             return 0
         for spec in new:
@@ -367,11 +402,13 @@ class PlotWindow(QWidget):
         if self.kind == "joints":
             return {"kind": "joints", "title": self.windowTitle()}
         return {"kind": "cells", "title": self.windowTitle(),
-                "cells": [list(s.cell) for s in self.specs if s.cell is not None]}
+                "cells": [list(s.cell) for s in self.specs if s.cell is not None],
+                "joints": [s.joint for s in self.specs if s.joint is not None]}
 
     # -- drag and drop ------------------------------------------------------------------------
     def dragEnterEvent(self, event) -> None:
-        if cells_from_mime(event.mimeData()):
+        mime = event.mimeData()
+        if cells_from_mime(mime) or joints_from_mime(mime):
             event.acceptProposedAction()
         else:
             event.ignore()
@@ -380,15 +417,21 @@ class PlotWindow(QWidget):
         self.dragEnterEvent(event)
 
     def dropEvent(self, event) -> None:
-        cells = cells_from_mime(event.mimeData())
-        if not cells:
+        cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
+        if not cells and not joints:
             event.ignore()
             return
         event.acceptProposedAction()
-        if self.receivers(self.cellsDropped):
-            self.cellsDropped.emit(cells, self)
-        else:
-            self.add_cells(cells)
+        if cells:
+            if self.receivers(self.cellsDropped):
+                self.cellsDropped.emit(cells, self)
+            else:
+                self.add_cells(cells)
+        if joints:
+            if self.receivers(self.jointsDropped):
+                self.jointsDropped.emit(joints, self)
+            else:
+                self.add_joints(joints)
 
     # -- mouse --------------------------------------------------------------------------------
     def _clicked(self, event) -> None:
@@ -516,6 +559,7 @@ class PlotDropArea(QLabel):
     (``cellsDropped(cells, None)``)."""
 
     cellsDropped = pyqtSignal(list, object)
+    jointsDropped = pyqtSignal(list, object)
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__("Drag table cells here for a new plot", parent)
@@ -525,7 +569,8 @@ class PlotDropArea(QLabel):
         self.setMinimumHeight(28)
 
     def dragEnterEvent(self, event) -> None:
-        if cells_from_mime(event.mimeData()):
+        mime = event.mimeData()
+        if cells_from_mime(mime) or joints_from_mime(mime):
             event.acceptProposedAction()
         else:
             event.ignore()
@@ -534,12 +579,15 @@ class PlotDropArea(QLabel):
         self.dragEnterEvent(event)
 
     def dropEvent(self, event) -> None:
-        cells = cells_from_mime(event.mimeData())
-        if cells:
-            event.acceptProposedAction()
-            self.cellsDropped.emit(cells, None)
-        else:
+        cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
+        if not cells and not joints:
             event.ignore()
+            return
+        event.acceptProposedAction()
+        if cells:
+            self.cellsDropped.emit(cells, None)
+        if joints:
+            self.jointsDropped.emit(joints, None)
 
 
 def cells_plot(cells: list[tuple[int, int]], angle_unit: str = "deg",
@@ -571,8 +619,11 @@ def plot_from(description: dict[str, Any], angle_unit: str = "deg",
         if 0 <= r < len(IMU_NAMES) and 0 <= c < len(COLUMNS) \
                 and COLUMNS[c].group != "errors":
             cells.append((r, c))
-    if not cells:
+    joints = [int(k) for k in description.get("joints", [])
+              if isinstance(k, int) and 0 <= k < len(JOINT_ANGLE_NAMES)]
+    if not cells and not joints:
         return None
-    specs = [cell_curve(r, c, angle_unit) for r, c in cells]
+    specs = [cell_curve(r, c, angle_unit) for r, c in cells] \
+        + [joint_curve(k, angle_unit) for k in joints]
     window = PlotWindow(str(description.get("title", "Plot")), group_by_unit(specs), history_s)
     return window
