@@ -232,3 +232,32 @@ def test_simulated_source_is_unmistakable_and_stop_start_is_not_a_link_loss(qtbo
     assert any(t.startswith("logging started") for t in texts)
     assert any(t.startswith("logging stopped: Raw_evlog_1.bpmsraw") for t in texts)
     window.close()
+
+
+def test_reset_zero_warns_when_the_subject_moved_during_its_window(qtbot, tmp_path,
+                                                                 recording_path):
+    from scipy.spatial.transform import Rotation
+
+    store = LayoutStore(tmp_path / "layouts.json")
+    config = ModeConfig(mode="file", path=str(recording_path), recording_dir=str(tmp_path))
+    window = _window(qtbot, config, store, restore_last=False)
+    window.set_data(True)  # (Reset Zero is enabled while data run)
+    qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)
+    # still: every IMU's filter DCM constant over the window (no event loop runs between
+    # setting the window's recent DCMs and pressing Reset Zero)
+    still = np.broadcast_to(np.eye(3), (18, 3, 3))
+    window._recent_R = [still.copy() for _ in range(25)]
+    window.reset_zero()
+    assert not any("moved" in t for t in window.event_log.texts())
+    # IMU 4 (right arm) turns 12° about one axis during the window
+    turned = []
+    for k in range(25):
+        R = still.copy()
+        R[4] = Rotation.from_euler("z", 12.0 * k / 24, degrees=True).as_matrix()
+        turned.append(R)
+    window._recent_R = turned
+    window.reset_zero()
+    warning = [t for t in window.event_log.texts() if "moved" in t]
+    assert len(warning) == 1 and "12°" in warning[0] and "IMU 4" in warning[0]
+    window.set_data(False)
+    window.close()
