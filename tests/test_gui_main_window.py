@@ -261,3 +261,16 @@ def test_reset_zero_warns_when_the_subject_moved_during_its_window(qtbot, tmp_pa
     assert len(warning) == 1 and "12°" in warning[0] and "IMU 4" in warning[0]
     window.set_data(False)
     window.close()
+
+
+def test_a_truncated_recording_is_a_file_warning_in_the_event_log(qtbot, tmp_path,
+                                                                   recording_path):
+    torn = tmp_path / "Raw_torn_1.bpmsraw"
+    data = recording_path.read_bytes()
+    torn.write_bytes(data[:-100])  # the last record cut short, as by a crash
+    store = LayoutStore(tmp_path / "layouts.json")
+    window = _window(qtbot, ModeConfig(mode="file", path=str(torn),
+                                       recording_dir=str(tmp_path)), store)
+    warnings = [text for when, level, text in window.event_log.entries if level == "warning"]
+    assert any(t.startswith("file warning:") and "incomplete" in t for t in warnings), warnings
+    window.close()
