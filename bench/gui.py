@@ -54,6 +54,25 @@ def plot_cells() -> list[list[tuple[int, int]]]:
             for _ in range(N_PLOTS)]
 
 
+class PaintCounter:
+    """Counts the paint events each watched widget receives (what reached the screen)."""
+
+    def __init__(self, widgets: list) -> None:
+        from PyQt6.QtCore import QEvent, QObject
+
+        counts = self.counts = [0] * len(widgets)
+
+        class Filter(QObject):
+            def eventFilter(self, obj, event):
+                if event.type() == QEvent.Type.Paint:
+                    counts[widgets.index(obj)] += 1
+                return False
+
+        self._filter = Filter()
+        for widget in widgets:
+            widget.installEventFilter(self._filter)
+
+
 def percentiles(values: list[float]) -> tuple[float, float]:
     a = np.array(values) * 1e3
     return (float(np.percentile(a, 50)), float(np.percentile(a, 99))) if len(a) else (0, 0)
@@ -89,8 +108,11 @@ def run_app(app, recording: Path, folder: Path, refresh: float) -> dict:
     window.show()
     model = window.model
 
+    painted = PaintCounter([p.graphics.viewport() for p in window.plot_windows])
+
     def counters() -> dict:
         return {"plots": [p.redraws for p in window.plot_windows],
+                "plot_paints": list(painted.counts),
                 "views": [v.draws for v in window.view3d_windows],
                 "paints": [v.view.paints if v.view is not None else 0
                            for v in window.view3d_windows]}
@@ -160,14 +182,17 @@ def run_bare(app, recording: Path, folder: Path, refresh: float) -> dict:
     cells = plot_cells()
     history = 60 * 50
     plots = []
+    plot_widgets: list = []
     for k, plot_cells_k in enumerate(cells):
         widget = pg.PlotWidget()
+        plot_widgets.append(widget)
         curves = [widget.plot(pen=pg.mkPen(pg.intColor(j), width=1)) for j in range(N_CURVES)]
         grid.addWidget(widget, 1 + k // 4, k % 4 + (1 if k % 4 >= 2 else 0))
         plots.append((plot_cells_k, curves, np.full((0, 1 + N_CURVES), np.nan)))
     window.resize(*SIZE)
     window.show()
     counts = {"plots": [0] * N_PLOTS, "views": [0] * N_VIEWS}
+    painted = PaintCounter([widget.viewport() for widget in plot_widgets])
     ticks: list[float] = []
 
     def tick() -> None:
@@ -217,6 +242,7 @@ def run_bare(app, recording: Path, folder: Path, refresh: float) -> dict:
 
     result = measure(app, None, Runner(), window,
                      lambda: {"plots": list(counts["plots"]), "views": list(counts["views"]),
+                              "plot_paints": list(painted.counts),
                               "paints": [0] * N_VIEWS}, check, ticks=ticks,
                      dropped=lambda: sub.dropped)
     session.stop()
@@ -249,6 +275,8 @@ def measure(app, model, runner, window, counters, check, ticks=None, dropped=Non
                                                            strict=True)]
         state["paint_hz"] = [(b - a) / wall for a, b in zip(state["c0"]["paints"],
                                                             c1["paints"], strict=True)]
+        state["plot_paint_hz"] = [(b - a) / wall for a, b in zip(
+            state["c0"]["plot_paints"], c1["plot_paints"], strict=True)]
         state["ticks"] = percentiles(ticks[state["ticks0"]:])
         now_dropped = dropped() if dropped else model.session.status().dropped
         state["dropped"] = now_dropped - state["drop0"]
@@ -310,6 +338,9 @@ def main() -> int:
         ("process CPU, % core", f"{100 * app['cpu']:.0f}", f"{100 * bare['cpu']:.0f}"),
         ("plots Hz mean/min", f"{np.mean(app['plot_hz']):.1f}/{min(app['plot_hz'], default=0):.1f}",
          f"{np.mean(bare['plot_hz']):.1f}/{min(bare['plot_hz'], default=0):.1f}"),
+        ("plot paints Hz mean/min",
+         f"{np.mean(app['plot_paint_hz']):.1f}/{min(app['plot_paint_hz'], default=0):.1f}",
+         f"{np.mean(bare['plot_paint_hz']):.1f}/{min(bare['plot_paint_hz'], default=0):.1f}"),
         ("3D Hz mean/min", f"{np.mean(app['view_hz']):.1f}/{min(app['view_hz'], default=0):.1f}",
          f"{np.mean(bare['view_hz']):.1f}/{min(bare['view_hz'], default=0):.1f}"),
         ("3D GL paints Hz", f"{np.mean(app['paint_hz']):.1f}", "–"),
