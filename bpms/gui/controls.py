@@ -130,7 +130,7 @@ class GainsPanel(QGroupBox):
         self.filter_combo = QComboBox()
         self.filter_combo.addItems(list(fields["algorithm"].metadata["choices"]))
         self.filter_combo.setCurrentText(options.algorithm)
-        self.filter_combo.setToolTip("mahony: the original DCM filter (SPEC §5); observer and "
+        self.filter_combo.setToolTip("mahony: the original DCM filter; observer and "
                                      "vqf keep the attitude right under body acceleration "
                                      "(docs/filters.md)")
         self.filter_combo.currentTextChanged.connect(self.filterChanged.emit)
