@@ -399,8 +399,9 @@ class PlotWindow(QWidget):
 
     def description(self) -> dict[str, Any]:
         """What a saved layout needs to re-create this plot."""
-        if self.kind == "joints":
-            return {"kind": "joints", "title": self.windowTitle()}
+        if self.kind == "joints":  # the 28 angles, plus any cells dropped on it
+            return {"kind": "joints", "title": self.windowTitle(),
+                    "cells": [list(s.cell) for s in self.specs if s.cell is not None]}
         return {"kind": "cells", "title": self.windowTitle(),
                 "cells": [list(s.cell) for s in self.specs if s.cell is not None],
                 "joints": [s.joint for s in self.specs if s.joint is not None]}
@@ -608,8 +609,6 @@ def joint_angle_plot(angle_unit: str = "deg", history_s: float = 60.0) -> PlotWi
 def plot_from(description: dict[str, Any], angle_unit: str = "deg",
               history_s: float = 60.0) -> PlotWindow | None:
     """The plot of :meth:`PlotWindow.description` (None when it describes nothing usable)."""
-    if description.get("kind") == "joints":
-        return joint_angle_plot(angle_unit, history_s)
     cells = []
     for item in description.get("cells", []):
         try:
@@ -619,6 +618,11 @@ def plot_from(description: dict[str, Any], angle_unit: str = "deg",
         if 0 <= r < len(IMU_NAMES) and 0 <= c < len(COLUMNS) \
                 and COLUMNS[c].group != "errors":
             cells.append((r, c))
+    if description.get("kind") == "joints":
+        window = joint_angle_plot(angle_unit, history_s)
+        if cells:
+            window.add_cells(cells, angle_unit)
+        return window
     joints = [int(k) for k in description.get("joints", [])
               if isinstance(k, int) and 0 <= k < len(JOINT_ANGLE_NAMES)]
     if not cells and not joints:
