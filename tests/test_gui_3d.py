@@ -78,3 +78,32 @@ def test_imu_axes_follow_the_segment_orientation():
     np.testing.assert_array_equal(colours[0], [1, 0, 0, 1])
     C[3] = np.nan  # an uninitialised IMU draws no triad
     assert len(imu_axes_lines(points, C)[0]) == 17 * 6
+
+
+def test_avatar_capsules_enclose_their_segments_with_exact_normals():
+    from bpms.gui.avatar import FACES, SEG_RADII, VERTS_PER_SEGMENT, capsule_mesh, figure_mesh
+    from bpms.gui.view3d_geometry import CALIBRATION_POSE, SEG_END, SEG_START, to_display
+
+    a = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]])
+    b = np.array([[0.0, 0.0, 0.5], [1.0, 2.3, 3.0]])
+    radii = np.array([0.1, 0.05])
+    verts, normals = capsule_mesh(a, b, radii)
+    for k in range(2):
+        v = verts[k * VERTS_PER_SEGMENT:(k + 1) * VERTS_PER_SEGMENT]
+        n = normals[k * VERTS_PER_SEGMENT:(k + 1) * VERTS_PER_SEGMENT]
+        d = (b[k] - a[k]) / np.linalg.norm(b[k] - a[k])
+        s = np.clip((v - a[k]) @ d, 0.0, np.linalg.norm(b[k] - a[k]))
+        closest = a[k] + s[:, None] * d
+        dist = np.linalg.norm(v - closest, axis=1)
+        # every vertex within the radius of the segment, the side rings exactly on it
+        assert dist.max() <= radii[k] + 1e-9 and np.isclose(np.median(dist), radii[k])
+        assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+        # normals point inwards (towards the segment), as the shader wants
+        assert (np.einsum("ij,ij->i", n, v - closest) <= 1e-9).all()
+    points = to_display(CALIBRATION_POSE)
+    verts, normals = figure_mesh(points)
+    assert verts.shape == normals.shape == (len(SEG_START) * VERTS_PER_SEGMENT, 3)
+    assert FACES.max() < len(verts) and np.isfinite(verts).all()
+    # the figure stands on the floor: nothing far below z = 0, the head near 1.73 m
+    assert verts[:, 2].min() > -0.1 and 1.6 < verts[:, 2].max() < 2.0
+    assert len(SEG_RADII) == len(SEG_END)

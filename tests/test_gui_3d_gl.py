@@ -92,3 +92,44 @@ def test_two_windows_are_independent_and_identical_for_the_same_input(run):
     # Window 1 was grabbed after window 0's keys (last: d) were pressed: it saw none of them.
     assert first["d"]["axes_shown"] and not second["start"]["axes_shown"]
     assert second["start"]["camera"] == first["start"]["camera"] != first["z"]["camera"]
+
+
+def test_the_original_keys_pan_zoom_recentre_and_trail(run):
+    _out, results = run
+    for extra in results["extra"]:
+        left = extra["Left"]
+        assert left["after"][:3] != left["before"][:3]  # arrows pan: the centre moves
+        assert left["after"][3] == left["before"][3]
+        assert extra["="]["after"][3] < extra["="]["before"][3]  # narrower field of view
+        assert extra["0"]["after"][3] == 60.0  # default field of view
+        assert extra["p"]["after"][:3] != extra["p"]["before"][:3]  # on the pelvis
+        assert extra["t"]["trail"] == "wrist_r"
+
+
+DOCKED = Path(__file__).parent / "gl" / "run_docked_views.py"
+
+
+@pytest.fixture(scope="module")
+def docked(tmp_path_factory) -> tuple[Path, dict]:
+    out = tmp_path_factory.mktemp("gldocked")
+    env = {**os.environ, "QT_QPA_PLATFORM": "xcb"}
+    proc = subprocess.run([*XVFB, sys.executable, str(DOCKED), str(out)], env=env,
+                          capture_output=True, text=True, timeout=180)
+    if proc.returncode == 3:
+        pytest.skip(f"no OpenGL under Xvfb here: {proc.stdout.strip()}")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr, proc.stderr
+    return out, json.loads((out / "results.json").read_text())
+
+
+def test_several_docked_3d_views_render_the_solid_avatar(docked):
+    _out, results = docked
+    assert results["index"] >= 745
+    assert len(results["docked"]) == 3
+    for shot in results["docked"]:
+        assert shot["valid"] and shot["draws"] > 0
+        # both sides of the shaded figure in every view (shared mesh, per-view GL state)
+        assert shot["right"] > 100 and shot["left"] > 100, shot
+    floating = results["floating"]
+    assert floating["floating"] and floating["valid"]
+    assert floating["right"] > 200 and floating["left"] > 200, floating

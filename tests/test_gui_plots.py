@@ -5,9 +5,16 @@ from __future__ import annotations
 import numpy as np
 from PyQt6.QtCore import QPoint, Qt
 from PyQt6.QtTest import QTest
+from PyQt6.QtWidgets import QApplication
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
-from bpms.gui.plots import RingBuffer, TickBlock, cells_plot, joint_angle_groups
+from bpms.gui.plots import (
+    RingBuffer,
+    TickBlock,
+    cells_plot,
+    human_joint_name,
+    joint_angle_groups,
+)
 
 
 def _block(t0: float, n: int) -> TickBlock:
@@ -36,11 +43,14 @@ def test_ring_buffer_keeps_the_newest_rows_in_order():
 
 def test_joint_angle_groups_hold_all_28_angles_once():
     labels = [spec.label for _, specs in joint_angle_groups("deg") for spec in specs]
-    assert sorted(labels) == sorted(f"{n} [deg]" for n in JOINT_ANGLE_NAMES)
+    assert sorted(labels) == sorted(f"{human_joint_name(n)} [deg]" for n in JOINT_ANGLE_NAMES)
+    assert len(set(labels)) == 28
+    assert human_joint_name("hip_r.abduction") == "Right hip abduction"
+    assert human_joint_name("torso.flexion") == "Torso flexion"
 
 
 def test_plot_window_pause_legend_and_reset(qtbot):
-    window = cells_plot([(0, 0), (8, 18)], "deg", history_s=2.0)
+    window = cells_plot([(0, 13), (8, 0)], "deg", history_s=2.0)  # raw acc x, roll
     qtbot.addWidget(window)
     window.show()
     qtbot.waitExposed(window)
@@ -76,3 +86,60 @@ def test_plot_window_pause_legend_and_reset(qtbot):
     qtbot.waitUntil(lambda: box.autoRangeEnabled()[1], timeout=2000)
     x_range = box.viewRange()[0]
     assert x_range[0] <= 0.5 and x_range[1] >= 0.5 + 4 * 0.02  # the data in view again
+
+
+def test_peak_decimation_keeps_every_extreme_and_the_newest_row():
+    from bpms.gui.plots import peak_decimate
+
+    rng = np.random.default_rng(5)
+    n = 3000
+    data = np.column_stack([np.arange(n) * 0.02, rng.normal(size=n), rng.normal(size=n)])
+    data[1234, 1] = 50.0  # a one-sample spike
+    data[2000:2010, 2] = np.nan  # a gap
+    out = peak_decimate(data, 400)
+    assert len(out) <= 800
+    assert out[:, 1].max() == 50.0 and np.nanmin(out[:, 1]) == data[:, 1].min()
+    assert out[-1, 0] == data[-1, 0]  # the newest time is kept
+    assert np.isnan(out[:, 2]).any()  # a bin fully inside the gap stays a gap
+    assert np.all(np.diff(out[:, 0]) >= 0)
+    assert len(peak_decimate(data[:500], 400)) == 500  # few rows: unchanged
+
+
+def test_legend_name_click_toggles_and_view_all_keeps_following(qtbot):
+    window = cells_plot([(8, 0), (8, 1)], "deg", history_s=20.0)
+    qtbot.addWidget(window)
+    window.resize(700, 400)
+    window.show()
+    qtbot.waitExposed(window)
+    window.append(_block(0.0, 100))
+    # a click on the legend's *name* (not its swatch) hides the curve, a second shows it
+    legend = window.plots[0].legend
+    _sample, label = legend.items[1]
+    view = window.graphics
+    centre = view.mapFromScene(label.sceneBoundingRect().center())
+    at = QPoint(centre.x(), centre.y())
+    QTest.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
+    qtbot.waitUntil(lambda: not window.curves[1].isVisible(), timeout=2000)
+    assert window.curves[0].isVisible()
+    qtbot.wait(QApplication.doubleClickInterval() + 50)
+    QTest.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=at)
+    qtbot.waitUntil(lambda: window.curves[1].isVisible(), timeout=2000)
+    # zooming stops following; View All (the view menu) follows the new data again
+    box = window.plots[0].getViewBox()
+    box.setRange(xRange=(0.5, 0.6))
+    window._manual_range()
+    assert not window.follow and not window.follow_button.isChecked()
+    box.menu.viewAll.trigger()
+    assert window.follow and window.follow_button.isChecked()
+    window.append(_block(2.0, 1000))  # 20 s later
+    x_range = box.viewRange()[0]
+    assert x_range[0] <= 21.9 <= x_range[1]  # the newest data are in view
+
+
+def test_four_plots_tile_on_a_1920_by_1080_screen(qtbot):
+    plots = [cells_plot([(k, 0), (k, 4)], "deg") for k in range(4)]
+    for plot in plots:
+        qtbot.addWidget(plot)
+        # a quarter of the screen, less window decorations
+        assert plot.minimumSizeHint().width() <= 1920 // 4
+        assert plot.minimumSizeHint().height() <= (1080 - 80) // 2

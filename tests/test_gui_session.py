@@ -20,7 +20,7 @@ from bpms.io.filtered_file import read_filtered
 from bpms.io.rawfile import read_raw
 
 ROOT = Path(__file__).resolve().parents[1]
-SIX_CELLS = [(0, 0), (4, 9), (5, 13), (8, 18), (12, 19), (17, 20)]  # raw, cal, euler
+SIX_CELLS = [(0, 13), (4, 4), (5, 8), (8, 0), (12, 1), (17, 2)]  # raw, cal, euler
 
 
 @pytest.fixture(scope="module")
@@ -53,8 +53,8 @@ def _plot_six(qtbot, window: MainWindow):
     assert window.table.selected_cells() == SIX_CELLS
     plot = window.plot_selection()
     labels = [c.name() for c in plot.curves]
-    assert labels[0] == "Right Leg raw ax [counts]"
-    assert labels[1] == "Right Arm ax [m/s²]"
+    assert labels[0] == "Right Leg raw acc x [counts]"
+    assert labels[1] == "Right Arm acc x [m/s²]"
     assert labels[3] == "Spine roll [deg]"
     qtbot.waitUntil(lambda: len(plot.buffer) > 20, timeout=10000)
     x, y = plot.curves[3].getData()
@@ -70,8 +70,8 @@ def _log(qtbot, window: MainWindow, raw: bool, name: str):
     panel.log_button.click()
     assert panel.logging
     qtbot.waitUntil(lambda: _rows(window) >= 60, timeout=15000)
-    panel.log_button.click()
-    assert not panel.logging
+    panel.log_button.click()  # the files close in the background
+    qtbot.waitUntil(lambda: not panel.busy and not panel.logging, timeout=15000)
     return panel.last_recording
 
 
@@ -82,19 +82,17 @@ def test_simulated_suit_session(qtbot, tmp_path):
     window = _go(qtbot, startup)
     assert not startup.isVisible()
     assert window.udp_panel is not None and window.playback_panel is None
-    assert not window.status_panel.reset_button.isEnabled()
-    window.status_panel.data_button.click()
-    assert window.status_panel.reset_button.isEnabled()
+    # the simulated suit streams at once (one click on GO shows live data)
+    assert window.runner.data_on and window.status_panel.reset_button.isEnabled()
     qtbot.waitUntil(lambda: _frames(window) > 25, timeout=15000)
     assert window.model.last_status.source.battery_v == pytest.approx(3.35, abs=0.05)
     window.status_panel.reset_button.click()
     # the table shows the newest sample, units in the headers
     model = window.table_model
-    assert model.headerData(18, Qt.Orientation.Horizontal) \
-        == "roll [deg]"
+    assert model.headerData(0, Qt.Orientation.Horizontal) == "roll [deg]"
     window.unit_combo.setCurrentText("rad")
-    assert COLUMNS[18].label(model.angle_unit) == "roll [rad]"
-    assert abs(model.value(8, 18)) < 2 * np.pi
+    assert COLUMNS[0].label(model.angle_unit) == "roll [rad]"
+    assert abs(model.value(8, 0)) < 2 * np.pi
     window.unit_combo.setCurrentText("deg")
     _plot_six(qtbot, window)
     joints = window.open_joint_plot()
@@ -110,7 +108,9 @@ def test_simulated_suit_session(qtbot, tmp_path):
         window.udp_panel.targets_edit.setText(f"127.0.0.1:{sink.getsockname()[1]}")
         window.udp_panel.button.click()
         assert len(sink.recv(2048)) > 340
+        qtbot.wait(600)  # a second click within 0.5 s would be ignored (debounced)
         window.udp_panel.button.click()
+        assert not window.udp_panel.on
     rec = _log(qtbot, window, raw=True, name="guisim")
     window.status_panel.data_button.click()  # Stop Data
     assert not window.runner.data_on
@@ -138,8 +138,11 @@ def test_file_mode_session(qtbot, tmp_path, recording_path):
     panel = window.playback_panel
     assert panel is not None and window.udp_panel is None
     assert not window.file_panel.raw_box.isEnabled()  # raw recording disabled in file mode
-    panel.slider.setValue(100)  # seek to 2 s while stopped
-    assert window.runner.replay.position == 100
+    panel.slider.setValue(100)  # seek to 2 s while stopped: that frame is shown
+    qtbot.waitUntil(lambda: window.model.latest is not None, timeout=10000)
+    assert window.model.latest.index == 100
+    assert window.table_model.has_data and window.table_model.data(
+        window.table_model.index(0, 13)) == str(window.model.latest.raw[0, 0])
     window.status_panel.data_button.click()  # play
     qtbot.waitUntil(lambda: not panel.slider.isEnabled(), timeout=5000)
     assert not panel.speed_combo.isEnabled()
@@ -148,6 +151,7 @@ def test_file_mode_session(qtbot, tmp_path, recording_path):
     window.status_panel.reset_button.click()
     plot = _plot_six(qtbot, window)
     assert plot.buffer.view()[0, 0] >= 2.0  # time axis: frame index × 20 ms
+    qtbot.wait(600)  # (a second click within 0.5 s is ignored)
     window.status_panel.data_button.click()  # pause
     assert not window.runner.replay.playing
     qtbot.waitUntil(lambda: panel.slider.isEnabled(), timeout=5000)
@@ -167,10 +171,13 @@ def _log_during_play(qtbot, window: MainWindow):
     panel.filtered_box.setChecked(True)
     panel.name_edit.setText("guifile")
     panel.log_button.click()
+    qtbot.wait(600)  # (a second click within 0.5 s is ignored)
     window.status_panel.data_button.click()  # play on
     qtbot.waitUntil(lambda: _rows(window) >= 60, timeout=15000)
+    qtbot.wait(600)  # (a second click within 0.5 s is ignored)
     window.status_panel.data_button.click()  # pause
     panel.log_button.click()
+    qtbot.waitUntil(lambda: not panel.busy and not panel.logging, timeout=15000)
     return panel.last_recording
 
 

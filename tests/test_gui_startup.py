@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from PyQt6.QtWidgets import QLineEdit
+from PyQt6.QtWidgets import QApplication, QLineEdit
 from waiting import wait_until
 
 from bpms.gui.modes import ModeConfig, ModeError, SessionRunner
@@ -193,3 +193,95 @@ def test_a_bad_recording_is_reported_and_the_start_up_window_stays(qtbot, tmp_pa
     assert startup.main_window is None and startup.isVisible()
     assert str(bad) in startup.last_dialog.text()
     startup.last_dialog.close()
+
+
+def test_no_port_is_pre_selected_and_the_simulated_suit_is(qtbot):
+    startup = StartupWindow()
+    qtbot.addWidget(startup)
+    assert startup.port_combo.currentText() == ""
+    assert startup.mode == "sim"
+    startup.refresh_ports()
+    assert startup.port_combo.currentText() == ""
+
+
+def test_the_remembered_port_is_pre_selected_only_when_a_suit_answers(qtbot, tmp_path):
+    from bpms.gui.modes import SimulatedSuit
+
+    options = Options()
+    options.serial.port = str(tmp_path / "ttyGONE")
+    options.serial.discovery_timeout_s = 0.5
+    silent = StartupWindow(options)
+    qtbot.addWidget(silent)
+    qtbot.waitUntil(lambda: "no suit answered" in silent.discover_label.text(), timeout=10000)
+    assert silent.mode == "sim" and silent.port_combo.currentText() == ""
+    suit = SimulatedSuit()
+    try:
+        options = Options()
+        options.serial.port = suit.path
+        startup = StartupWindow(options)
+        qtbot.addWidget(startup)
+        qtbot.waitUntil(lambda: startup.mode == "suit", timeout=10000)
+        assert startup.port_combo.currentText() == suit.path
+    finally:
+        suit.close()
+
+
+def test_when_go_finds_no_suit_the_same_dialog_offers_the_simulated_suit(qtbot, tmp_path):
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.show()
+    startup.select_mode("suit")
+    startup.port_combo.setEditText(str(tmp_path / "ttyNOPE"))
+    startup.go_button.click()
+    qtbot.waitUntil(lambda: not startup.busy and startup.last_dialog is not None, timeout=10000)
+    box = startup.last_dialog
+    assert "paired" in box.text() and startup.main_window is None
+    with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
+        startup.use_sim_button.click()
+    window = blocker.args[0]
+    assert window.runner.mode == "sim" and "SIMULATED" in window.windowTitle()
+    qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)  # live data
+    # clearing Name returns to time-stamp names
+    panel = window.file_panel
+    for name in ("subject7", ""):
+        panel.name_edit.setText(name)
+        panel.toggle_logging()
+        qtbot.waitUntil(lambda: window.runner.session.status().recording is not None,
+                        timeout=5000)
+        panel.toggle_logging()
+        qtbot.waitUntil(lambda: not panel.busy and panel.last_recording is not None
+                        and not panel.logging, timeout=15000)
+        stem = panel.last_recording.raw_path.name
+        if name:
+            assert stem == "Raw_subject7_1.bpmsraw"
+        else:
+            import re
+
+            assert re.fullmatch(r"Raw_\d{8}-\d{6}_1\.bpmsraw", stem), stem
+        panel.last_recording = None
+    window.close()
+
+
+def test_every_options_editor_lies_inside_its_tab_at_640_by_560(qtbot):
+    dialog = OptionsDialog(Options())
+    qtbot.addWidget(dialog)
+    dialog.resize(640, 560)
+    dialog.show()
+    qtbot.waitExposed(dialog)
+    assert (dialog.width(), dialog.height()) == (640, 560)
+    for k, (section, scroll) in enumerate(dialog.scrolls.items()):
+        dialog.tabs.setCurrentIndex(k)
+        qtbot.waitUntil(scroll.isVisible, timeout=2000)
+        viewport = scroll.viewport()
+        for (sec, key), editor in dialog.editors.items():
+            if sec != section:
+                continue
+            QApplication.processEvents()  # the page laid out
+            # scroll as a user would: the editor's row near the top of the viewport
+            top = editor.mapTo(scroll.widget(), editor.rect().topLeft()).y()
+            scroll.verticalScrollBar().setValue(top - 8)
+            QApplication.processEvents()
+            top_left = editor.mapTo(viewport, editor.rect().topLeft())
+            rect = editor.rect().translated(top_left)
+            assert viewport.rect().contains(rect), (section, key, rect, viewport.rect())
+            assert editor.width() >= 80, (section, key)  # room to type

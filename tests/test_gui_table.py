@@ -31,20 +31,47 @@ def test_table_shows_raw_calibrated_euler_and_flags_with_units(qtbot):
     sample = _sample()
     model.update(sample)
     header = [model.headerData(c, Qt.Orientation.Horizontal) for c in range(len(COLUMNS))]
-    assert header[0] == "raw ax [counts]" and header[9] == "ax [m/s²]"
-    assert header[12] == "mx [G]" and header[15] == "gx [rad/s]" and header[20] == "yaw [deg]"
+    # what matters first: angles, error flags, calibrated, raw
+    assert header[:4] == ["roll [deg]", "pitch [deg]", "yaw [deg]", "errors"]
+    assert header[4] == "acc x [m/s²]" and header[7] == "mag x [G]"
+    assert header[10] == "gyro x [rad/s]" and header[13] == "raw acc x [counts]"
     assert model.headerData(17, Qt.Orientation.Vertical) == "17 Head"
     acc, mag, gyr = calibration.physical_units(sample.raw)
-    text = model.data(model.index(4, 9))
-    assert text == f"{acc[4, 0]:.3f}"
-    assert model.data(model.index(4, 12)) == f"{mag[4, 0]:.3f}"
-    assert model.data(model.index(4, 17)) == f"{gyr[4, 2]:.3f}"
-    assert model.data(model.index(4, 3)) == str(sample.raw[4, 3])
-    assert model.data(model.index(2, 18)) == f"{np.degrees(sample.euler[2, 0]):.2f}"
-    assert model.data(model.index(4, 21)) == "mag gyro" and model.data(model.index(5, 21)) == ""
+    assert model.data(model.index(4, 4)) == f"{acc[4, 0]:.3f}"
+    assert model.data(model.index(4, 7)) == f"{mag[4, 0]:.3f}"
+    assert model.data(model.index(4, 12)) == f"{gyr[4, 2]:.3f}"
+    assert model.data(model.index(4, 16)) == str(sample.raw[4, 3])
+    assert model.data(model.index(2, 0)) == f"{np.degrees(sample.euler[2, 0]):.2f}"
+    assert model.data(model.index(4, 3)) == "mag gyro" and model.data(model.index(5, 3)) == ""
     model.set_angle_unit("rad")
-    assert model.data(model.index(2, 18)) == f"{sample.euler[2, 0]:.3f}"
-    assert model.headerData(20, Qt.Orientation.Horizontal) == "yaw [rad]"
+    assert model.data(model.index(2, 0)) == f"{sample.euler[2, 0]:.3f}"
+    assert model.headerData(2, Qt.Orientation.Horizontal) == "yaw [rad]"
+    # every header fits its column (none clipped)
+    metrics = table.horizontalHeader().fontMetrics()
+    for c, text in enumerate(header):
+        assert metrics.horizontalAdvance(text) < table.columnWidth(c)
+
+
+def test_error_flags_are_red_held_two_seconds_and_colour_the_row(qtbot):
+    model = ImuTableModel(SensorCalibration.from_table(load_factory_calibration()))
+    faulty = _sample()
+    eye = np.broadcast_to(np.eye(3), (18, 3, 3))
+    clean = PoseSample(8, 0.0, b"", faulty.raw, np.zeros((18, 3), bool), faulty.euler, eye,
+                       eye, np.zeros(28), np.zeros((21, 3)), 0.0)
+    red = model.data(model.index(4, 3), Qt.ItemDataRole.ForegroundRole)
+    assert red is not None and red.red() > 200 and red.green() < 80
+    model.update(faulty, now=100.0)
+    assert model.data(model.index(4, 3)) == "mag gyro"
+    assert model.data(model.index(4, 0), Qt.ItemDataRole.BackgroundRole) is not None
+    assert model.data(model.index(5, 0), Qt.ItemDataRole.BackgroundRole) is None
+    model.update(clean, now=101.9)  # a clean frame 1.9 s later: still shown
+    assert model.data(model.index(4, 3)) == "mag gyro"
+    model.update(clean, now=102.1)  # 2.1 s after the last faulty frame: cleared
+    assert model.data(model.index(4, 3)) == ""
+    assert model.data(model.index(4, 0), Qt.ItemDataRole.BackgroundRole) is None
+    # a fault in an earlier frame of the same tick counts too
+    model.update(clean, errors=faulty.errors, now=103.0)
+    assert model.data(model.index(4, 3)) == "mag gyro"
 
 
 def test_ctrl_and_shift_click_select_several_cells(qtbot):
@@ -59,9 +86,9 @@ def test_ctrl_and_shift_click_select_several_cells(qtbot):
         rect = table.visualRect(model.index(row, col))
         QTest.mouseClick(table.viewport(), Qt.MouseButton.LeftButton, mod, rect.center())
 
-    click(0, 0)
-    click(3, 18, Qt.KeyboardModifier.ControlModifier)
-    click(5, 18, Qt.KeyboardModifier.ShiftModifier)
-    assert table.selected_cells() == [(0, 0), (3, 18), (4, 18), (5, 18)]
-    click(8, 21, Qt.KeyboardModifier.ControlModifier)  # error flags: not plottable
-    assert (8, 21) not in table.selected_cells()
+    click(0, 13)
+    click(3, 0, Qt.KeyboardModifier.ControlModifier)
+    click(5, 0, Qt.KeyboardModifier.ShiftModifier)
+    assert table.selected_cells() == [(0, 13), (3, 0), (4, 0), (5, 0)]
+    click(8, 3, Qt.KeyboardModifier.ControlModifier)  # error flags: not plottable
+    assert (8, 3) not in table.selected_cells()

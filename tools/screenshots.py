@@ -2,9 +2,11 @@
 
     tools/screenshots.sh            # = xvfb-run ... .venv/bin/python tools/screenshots.py
 
-Plays a simulated recording (file mode), grabs the start-up window, the main window with two
-plot windows (the whole screen) and a 3D window (its OpenGL framebuffer). A window that cannot
-be made is reported in one line and the others are still saved.
+Plays a simulated recording (file mode) and grabs: the start-up window (startup.png); the main
+window in the "live monitoring" layout (main-window.png); the avatar in a 3D view
+(3d-view.png, 3d-view-imu-axes.png); the main window in the "playback analysis" layout with
+plots (main-window-with-plots.png). A window that cannot be made is reported in one line and
+the others are still saved. Saved layouts of the user running it are not used.
 """
 
 from __future__ import annotations
@@ -19,7 +21,9 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "screenshots"
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("QT_QPA_PLATFORM", "xcb")
+os.environ["BPMS_CONFIG_DIR"] = tempfile.mkdtemp(prefix="bpms-shots-config-")
 
+from PyQt6.QtCore import Qt  # noqa: E402
 from PyQt6.QtWidgets import QApplication, QWidget  # noqa: E402
 
 
@@ -111,34 +115,43 @@ def main() -> int:
         return 0
     window = opened[0]
     startup.hide()
+    from bpms.gui.layouts import LIVE, PLAYBACK
+
     window.move(0, 0)
-    window.resize(900, 700)
-    window.status_panel.data_button.click()  # play
+    window.resize(1560, 940)
+    window.apply_default_layout(LIVE)
+    window.set_data(True)  # play
     wait_for(app, lambda: window.model.latest is not None, 20)
-    euler = (18, 19, 20)  # table columns: roll, pitch, yaw
-    window.table.select_cells([(6, c) for c in euler])  # hip
-    first = window.plot_selection()
-    window.table.select_cells([(r, c) for r in (4, 5) for c in euler])  # right arm, forearm
-    second = window.plot_selection()
-    for plot, (x, y) in ((first, (910, 0)), (second, (910, 500))):
-        if plot is not None:
-            plot.resize(680, 470)
-            plot.move(x, y)
-    view = window.open_3d_view()
-    if view is not None:
-        view.move(300, 200)
-        # 14.9 s into the simulated script: both arms raised sideways.
-        wait_for(app, lambda: window.model.latest.index >= 745, 40)
-        save_3d(view, "3d-view.png")
-        view.gl_view.toggle_axes()
-        pump(app, 0.2)
-        save_3d(view, "3d-view-imu-axes.png")
-        view.hide()
-    wait_for(app, lambda: window.model.latest.index > 1200, 40)
-    pump(app, 0.5)
+    # 14.9 s into the simulated script: both arms raised sideways.
+    wait_for(app, lambda: window.model.latest.index >= 745, 40)
+    window.set_data(False)
+    window.table.select_cells([(6, c) for c in (0, 1, 2)])
+    pump(app, 0.8)
     save_widget(window, "main-window.png")
-    app.primaryScreen().grabWindow(0).save(str(OUT / "main-window-with-plots.png"))
-    print(f"saved {OUT / 'main-window-with-plots.png'}")
+    views = window.view3d_windows
+    if views and views[0].gl_view is not None:
+        view = views[0].gl_view
+        for name in ("3d-view.png", "3d-view-imu-axes.png"):
+            views[0].snapshot(520, 640).save(str(OUT / name))
+            print(f"saved {OUT / name}")
+            view.toggle_axes()
+    else:
+        print("3D view not available (no OpenGL?); 3d-view*.png not saved")
+    window.apply_default_layout(PLAYBACK)
+    window.table.select_cells([(6, c) for c in (0, 1, 2)])  # hip roll, pitch, yaw
+    window.plot_selection()
+    window.table.select_cells([(4, 0), (5, 0), (10, 0), (11, 0)])  # arms and forearms, roll
+    window.plot_selection()
+    pump(app, 0.3)
+    bottom = [d for d in window.dynamic_docks
+              if window.dockWidgetArea(d) == Qt.DockWidgetArea.BottomDockWidgetArea]
+    window.resizeDocks(bottom, [430] * len(bottom), Qt.Orientation.Vertical)
+    bottom[0].raise_()  # the joint angles in front of the event log
+    window.set_data(True)
+    wait_for(app, lambda: window.model.latest.index > 1200, 40)
+    window.set_data(False)
+    pump(app, 0.8)
+    save_widget(window, "main-window-with-plots.png")
     window.shutdown()
     window.close()
     return 0

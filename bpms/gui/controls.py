@@ -27,6 +27,7 @@ from PyQt6.QtWidgets import (
 )
 
 from bpms.gui.modes import SessionRunner
+from bpms.gui.safety import BackgroundTask, debounce, guard_wheel
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, option_range
 from bpms.io.rawfile import RecordingError
@@ -40,6 +41,13 @@ SPEEDS: tuple[tuple[str, float | None], ...] = (
     ("0.25×", 0.25), ("0.5×", 0.5), ("1×", 1.0), ("2×", 2.0), ("4×", 4.0), ("8×", 8.0),
     ("max", None),
 )
+
+
+def _mmss(seconds: float, decimals: int = 0) -> str:
+    """Seconds → "m:ss" (or "m:ss.ss" with ``decimals``)."""
+    minutes, rest = divmod(max(0.0, seconds), 60.0)
+    width = 2 if decimals == 0 else 3 + decimals
+    return f"{int(minutes)}:{rest:0{width}.{decimals}f}"
 
 
 def _size(n: int) -> str:
@@ -58,7 +66,7 @@ class StatusPanel(QGroupBox):
         buttons = QHBoxLayout()
         self.data_button = QPushButton("Start Data")
         self.data_button.setToolTip("Start or stop the stream (Ctrl+Space)")
-        self.data_button.clicked.connect(lambda: self.dataToggled.emit(not self.streaming))
+        debounce(self.data_button, lambda: self.dataToggled.emit(not self.streaming))
         self.reset_button = QPushButton("Reset Zero")
         self.reset_button.setToolTip("Stand in the calibration pose and press (Ctrl+R); "
                                      "done automatically 1 s after the stream starts")
@@ -85,11 +93,17 @@ class StatusPanel(QGroupBox):
         self.data_button.setText("Stop Data" if on else "Start Data")
         self.reset_button.setEnabled(on)
 
-    def show_status(self, st: LiveStatus) -> None:
+    def show_status(self, st: LiveStatus, health_state: str | None = None) -> None:
+        """``health_state``: the GUI's view of the link (:mod:`bpms.gui.health`), shown instead
+        of the source's own word when data is on (a UDP client says "streaming" at 0 Hz)."""
         src = st.source
+        state = src.state
+        if health_state is not None and health_state != "streaming" \
+                and not health_state.startswith("degraded"):
+            state = health_state
         text = {
             "source": src.description,
-            "state": src.state if st.running else f"{src.state} (session stopped)",
+            "state": state if st.running else f"{state} (session stopped)",
             "rate": f"{st.rate_hz:.1f} Hz (nominal 50 Hz)",
             "frames": f"{st.frames} received, {st.processed} processed",
             "errors": f"{st.error_bits} sensor error flags",
@@ -125,6 +139,7 @@ class GainsPanel(QGroupBox):
                                      "(docs/filters.md)")
         self.filter_combo.currentTextChanged.connect(self.filterChanged.emit)
         self.filter_combo.currentTextChanged.connect(self.show_settings_of)
+        guard_wheel(self.filter_combo)
         form.addRow("filter", self.filter_combo)
         self.boxes: dict[str, QDoubleSpinBox] = {}
         self.labels: dict[str, QLabel] = {}
@@ -142,6 +157,7 @@ class GainsPanel(QGroupBox):
                                f"{rng.describe() if rng else 'any'}")
                 box.setKeyboardTracking(False)
                 box.valueChanged.connect(lambda v, n=name: self.gainsChanged.emit({n: v}))
+                guard_wheel(box)
                 self.boxes[name] = box
                 self.labels[name] = QLabel(name.removeprefix(f"{algorithm}_"))
                 form.addRow(self.labels[name], box)
@@ -184,7 +200,7 @@ class FilePanel(QGroupBox):
         form.addRow(boxes)
         self.log_button = QPushButton("Start Logging")
         self.log_button.setToolTip("Ctrl+L")
-        self.log_button.clicked.connect(self.toggle_logging)
+        debounce(self.log_button, self.toggle_logging)
         form.addRow(self.log_button)
         self.files_label = QLabel("not logging")
         self.files_label.setWordWrap(True)
@@ -192,6 +208,8 @@ class FilePanel(QGroupBox):
         form.addRow(self.files_label)
         self.message = ""
         self.last_recording = None
+        self.stopping: BackgroundTask | None = None
+        self.on_stopped: list = []  # callables(RecordingStatus | None) after a stop completes
 
     @property
     def logging(self) -> bool:
@@ -199,13 +217,16 @@ class FilePanel(QGroupBox):
         return session is not None and session.status().recording is not None
 
     def toggle_logging(self) -> None:
+        """Start Logging, or Stop Logging: the files are flushed and closed in the background
+        (the button says "Stopping…" until they are)."""
         session = self.runner.session
-        if session is None:
+        if session is None or (self.stopping is not None and self.stopping.running):
             return
         if self.logging:
-            self.last_recording = session.stop_logging()
-            self.log_button.setText("Start Logging")
-            self.files_label.setText("stopped: " + self._describe(self.last_recording))
+            self.log_button.setEnabled(False)
+            self.log_button.setText("Stopping…")
+            self.stopping = BackgroundTask(self, session.stop_logging, self._stopped,
+                                           name="bpms-stop-logging")
             return
         raw = self.raw_box.isChecked() and self.raw_box.isEnabled()
         filtered = self.filtered_box.isChecked()
@@ -214,12 +235,28 @@ class FilePanel(QGroupBox):
             return
         try:
             session.start_logging(raw=raw, filtered=filtered,
-                                  name=self.name_edit.text().strip() or None,
+                                  name=self.name_edit.text().strip(),  # "" = time stamp
                                   degrees=self.degrees_box.isChecked())
         except (RecordingError, OSError) as exc:
             self.files_label.setText(f"cannot start logging: {exc}")
             return
         self.log_button.setText("Stop Logging")
+
+    def _stopped(self, rec, error: BaseException | None) -> None:
+        self.log_button.setEnabled(True)
+        self.log_button.setText("Start Logging")
+        self.last_recording = rec
+        if error is not None:
+            self.files_label.setText(f"stopping failed: {error}")
+        else:
+            self.files_label.setText("stopped: " + self._describe(rec))
+        for callback in self.on_stopped:
+            callback(rec)
+
+    @property
+    def busy(self) -> bool:
+        """A stop is still closing the files."""
+        return self.stopping is not None and self.stopping.running
 
     @staticmethod
     def _describe(rec) -> str:
@@ -241,7 +278,8 @@ class FilePanel(QGroupBox):
             text = "logging: " + self._describe(st.recording)
             if self.files_label.text() != text:
                 self.files_label.setText(text)
-            self.log_button.setText("Stop Logging")
+            if not self.busy:
+                self.log_button.setText("Stop Logging")
         elif self.log_button.text() == "Stop Logging":
             self.log_button.setText("Start Logging")
 
@@ -254,13 +292,36 @@ class PlaybackPanel(QGroupBox):
         assert runner.replay is not None
         self.runner = runner
         self.replay = runner.replay
+        self.step_buttons: list[QPushButton] = []
+        self.shown = self.replay.position  # the frame at the slider
         layout = QVBoxLayout(self)
         self.slider = QSlider(Qt.Orientation.Horizontal)
         self.slider.setRange(0, max(0, len(self.replay) - 1))
         self.slider.setToolTip("Seek (only while stopped)")
         self.slider.sliderReleased.connect(lambda: self.seek(self.slider.value()))
         self.slider.valueChanged.connect(self._slider_moved)
+        guard_wheel(self.slider)
         layout.addWidget(self.slider)
+        ticks = QHBoxLayout()
+        self.tick_labels: list[QLabel] = []
+        n_ticks = 5
+        for k in range(n_ticks):
+            label = QLabel(_mmss(k / (n_ticks - 1) * len(self.replay) * FRAME_PERIOD_S))
+            label.setStyleSheet("color: #666; font-size: 9pt")
+            self.tick_labels.append(label)
+            ticks.addWidget(label)
+            if k < n_ticks - 1:
+                ticks.addStretch(1)
+        layout.addLayout(ticks)
+        steps = QHBoxLayout()
+        for text, n, tip in (("⏮ −1 s", -50, "Ctrl+Shift+Left"), ("◀ −1", -1, "Ctrl+Left"),
+                             ("+1 ▶", 1, "Ctrl+Right"), ("+1 s ⏭", 50, "Ctrl+Shift+Right")):
+            button = QPushButton(text)
+            button.setToolTip(f"Paused: step {abs(n)} frame(s) ({tip})")
+            button.clicked.connect(lambda _=False, n=n: self.step(n))
+            steps.addWidget(button)
+            self.step_buttons.append(button)
+        layout.addLayout(steps)
         row = QHBoxLayout()
         self.position_label = QLabel()
         row.addWidget(self.position_label, 1)
@@ -271,6 +332,7 @@ class PlaybackPanel(QGroupBox):
         self.speed_combo.setCurrentIndex(2)
         self.speed_combo.currentIndexChanged.connect(
             lambda i: self.replay.set_speed(SPEEDS[i][1]))
+        guard_wheel(self.speed_combo)
         row.addWidget(self.speed_combo)
         layout.addLayout(row)
         self._update_label(self.replay.position)
@@ -282,25 +344,45 @@ class PlaybackPanel(QGroupBox):
         self._update_label(value)
 
     def seek(self, index: int) -> None:
-        """Jump to frame ``index`` (the filters are pre-rolled; Reset Zero is kept)."""
-        self.replay.seek(index)
+        """Jump to frame ``index`` (the filters are pre-rolled; Reset Zero is kept). While
+        paused the frame itself is delivered, so every view shows it."""
+        if self.replay.playing:
+            self.replay.seek(index)
+        else:
+            self.runner.show_frame(index)
+        self.shown = index
         self._update_label(index)
+
+    def step(self, n: int) -> None:
+        """Paused: move ``n`` frames (clamped to the recording)."""
+        if self.replay.playing:
+            return
+        index = min(max(0, self.shown + n), max(0, len(self.replay) - 1))
+        self.slider.blockSignals(True)
+        self.slider.setValue(index)
+        self.slider.blockSignals(False)
+        self.seek(index)
 
     def _update_label(self, index: int) -> None:
         total = len(self.replay)
-        self.position_label.setText(f"{index * FRAME_PERIOD_S:.2f} s / "
-                                    f"{total * FRAME_PERIOD_S:.2f} s (frame {index} of {total})")
+        self.position_label.setText(f"{_mmss(index * FRAME_PERIOD_S, 2)} / "
+                                    f"{_mmss(total * FRAME_PERIOD_S, 2)} "
+                                    f"(frame {index} of {total})")
 
     def show_status(self, st: LiveStatus | None = None) -> None:
         playing = self.replay.playing
         self.slider.setEnabled(not playing)
         self.speed_combo.setEnabled(not playing)
-        if not self.slider.isSliderDown():
-            pos = min(self.replay.position, self.slider.maximum())
+        for button in self.step_buttons:
+            button.setEnabled(not playing)
+        if playing and not self.slider.isSliderDown():
+            # the last delivered frame (position is the next one)
+            pos = min(max(0, self.replay.position - 1), self.slider.maximum())
             self.slider.blockSignals(True)
             self.slider.setValue(pos)
             self.slider.blockSignals(False)
-            self._update_label(self.replay.position)
+            self.shown = pos
+            self._update_label(pos)
 
 
 class UdpServerPanel(QGroupBox):
@@ -315,7 +397,7 @@ class UdpServerPanel(QGroupBox):
         self.targets_edit.setToolTip("host:port targets, comma-separated (multicast allowed)")
         form.addRow("Targets", self.targets_edit)
         self.button = QPushButton("Start UDP server")
-        self.button.clicked.connect(self.toggle)
+        debounce(self.button, self.toggle)
         form.addRow(self.button)
         self.status_label = QLabel("off")
         self.status_label.setWordWrap(True)
@@ -334,6 +416,10 @@ class UdpServerPanel(QGroupBox):
             self.targets_edit.setEnabled(True)
             return
         targets = [t.strip() for t in self.targets_edit.text().split(",") if t.strip()]
+        if not targets:
+            self.status_label.setText("cannot start: no target; enter host:port (e.g. "
+                                      "127.0.0.1:5005), comma-separated for several")
+            return
         try:
             session.start_forwarding(targets)
         except (UdpConfigError, OSError) as exc:

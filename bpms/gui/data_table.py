@@ -9,11 +9,13 @@ gyro rad/s, signed board axes); Euler angles are the filter's roll, pitch, yaw i
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
-from PyQt6.QtCore import QAbstractTableModel, QModelIndex, Qt
-from PyQt6.QtWidgets import QAbstractItemView, QTableView, QWidget
+from PyQt6.QtCore import QAbstractTableModel, QMimeData, QModelIndex, Qt, pyqtSignal
+from PyQt6.QtGui import QColor
+from PyQt6.QtWidgets import QAbstractItemView, QHeaderView, QTableView, QWidget
 
 from bpms.filter.calibration import SensorCalibration
 from bpms.io.frames import CHANNEL_NAMES, IMU_NAMES, N_IMUS, SENSOR_NAMES
@@ -35,12 +37,19 @@ class Column:
 
 
 _CAL_UNITS = ("m/s²", "m/s²", "m/s²", "G", "G", "G", "rad/s", "rad/s", "rad/s")
+#: Readable channel names (accelerometer, magnetometer, gyroscope; board axes).
+CHANNEL_LABELS = ("acc x", "acc y", "acc z", "mag x", "mag y", "mag z", "gyro x", "gyro y",
+                  "gyro z")
+#: What matters first: the attitude angles, the error flags, then calibrated, then raw.
 COLUMNS: tuple[Column, ...] = (
-    *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_NAMES)),
-    *(Column("cal", k, c, _CAL_UNITS[k]) for k, c in enumerate(CHANNEL_NAMES)),
     *(Column("euler", k, c, "rad") for k, c in enumerate(("roll", "pitch", "yaw"))),
     Column("errors", 0, "errors", ""),
+    *(Column("cal", k, c, _CAL_UNITS[k]) for k, c in enumerate(CHANNEL_LABELS)),
+    *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_LABELS)),
 )
+assert len(CHANNEL_NAMES) == len(CHANNEL_LABELS)
+#: Error flags stay red at least this long after the last faulty frame, s.
+ERROR_HOLD_S = 2.0
 
 
 def calibrated(calibration: SensorCalibration, raw: np.ndarray) -> np.ndarray:
@@ -72,8 +81,10 @@ _DISPLAY = Qt.ItemDataRole.DisplayRole
 _ALIGN = Qt.ItemDataRole.TextAlignmentRole
 _FOREGROUND = Qt.ItemDataRole.ForegroundRole
 _RIGHT = Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter
-_RED = Qt.GlobalColor.red
-_ERRORS_COLUMN = len(COLUMNS) - 1
+_BACKGROUND = Qt.ItemDataRole.BackgroundRole
+_RED = QColor("#d62728")
+_FAILED_ROW = QColor("#fde0e0")
+_ERRORS_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "errors")
 
 
 class ImuTableModel(QAbstractTableModel):
@@ -88,16 +99,23 @@ class ImuTableModel(QAbstractTableModel):
         self.cal = np.full((N_IMUS, 9), np.nan)
         self.euler = np.full((N_IMUS, 3), np.nan)
         self.errors = np.zeros((N_IMUS, 3), bool)
+        self.error_until = np.zeros((N_IMUS, 3))  # monotonic s until which a flag stays red
         self.has_data = False
         self._text: list[list[str]] = []
 
     # -- updates ------------------------------------------------------------------------
-    def update(self, sample: PoseSample) -> None:
-        """Show ``sample`` (one ``dataChanged`` for the whole table)."""
+    def update(self, sample: PoseSample, errors: np.ndarray | None = None,
+               now: float | None = None) -> None:
+        """Show ``sample`` (one ``dataChanged`` for the whole table). ``errors [18, 3]``: the
+        flags of every frame since the last update (default: this sample's); a flag stays
+        shown for :data:`ERROR_HOLD_S` after the last frame that raised it."""
+        now = time.monotonic() if now is None else now
+        flags = sample.errors if errors is None else errors
+        self.error_until[flags] = now + ERROR_HOLD_S
         self.raw = sample.raw
         self.cal = calibrated(self.calibration, sample.raw)
         self.euler = sample.euler
-        self.errors = sample.errors
+        self.errors = self.error_until > now
         self.has_data = True
         self._format()
         self.dataChanged.emit(self.index(0, 0), self.index(N_IMUS - 1, len(COLUMNS) - 1))
@@ -113,7 +131,7 @@ class ImuTableModel(QAbstractTableModel):
             raw = [str(v) for v in self.raw[i].tolist()]
             cal = ["–" if v != v else f"{v:.3f}" for v in self.cal[i].tolist()]
             eul = ["–" if v != v else efmt.format(v) for v in euler[i].tolist()]
-            rows.append([*raw, *cal, *eul, error_text(self.errors[i])])
+            rows.append([*eul, error_text(self.errors[i]), *cal, *raw])
         self._text = rows
 
     def set_angle_unit(self, unit: str) -> None:
@@ -152,7 +170,28 @@ class ImuTableModel(QAbstractTableModel):
             return _RIGHT
         if role == _FOREGROUND and index.column() == _ERRORS_COLUMN:
             return _RED
+        if role == _BACKGROUND and self.errors[index.row()].any():
+            return _FAILED_ROW  # a failed sensor: the IMU's whole row
         return None
+
+    def flags(self, index: QModelIndex) -> Qt.ItemFlag:
+        base = super().flags(index)
+        if index.isValid() and COLUMNS[index.column()].group != "errors":
+            base |= Qt.ItemFlag.ItemIsDragEnabled
+        return base
+
+    def mimeTypes(self) -> list[str]:
+        from bpms.gui.plots import CELLS_MIME
+
+        return [CELLS_MIME]
+
+    def mimeData(self, indexes) -> QMimeData:
+        """Dragged cells (onto a plot, or onto empty space for a new plot)."""
+        from bpms.gui.plots import cells_to_mime
+
+        cells = sorted({(i.row(), i.column()) for i in indexes
+                        if COLUMNS[i.column()].group != "errors"})
+        return cells_to_mime(cells)
 
     def headerData(self, section: int, orientation: Qt.Orientation,
                    role: int = Qt.ItemDataRole.DisplayRole):
@@ -164,7 +203,11 @@ class ImuTableModel(QAbstractTableModel):
 
 
 class DataTable(QTableView):
-    """The table view: multi-cell selection (click, Ctrl+click, Shift+click, drag)."""
+    """The table view: multi-cell selection (click, Ctrl+click, Shift+click, drag to select);
+    dragging selected cells carries them to a plot (or to empty space for a new plot)."""
+
+    #: (cells, None): cells to plot in a new plot (emitted by the main window's drop area).
+    plotRequested = pyqtSignal(list, object)
 
     def __init__(self, model: ImuTableModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -172,8 +215,17 @@ class DataTable(QTableView):
         self.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
         self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectItems)
         self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.setDragEnabled(True)
+        self.setDragDropMode(QAbstractItemView.DragDropMode.DragOnly)
+        self.setDefaultDropAction(Qt.DropAction.CopyAction)
         self.setAlternatingRowColors(True)
-        self.horizontalHeader().setDefaultSectionSize(78)
+        self.setWordWrap(False)
+        header = self.horizontalHeader()
+        header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
+        metrics = header.fontMetrics()
+        for col in range(len(COLUMNS)):
+            text = str(model.headerData(col, Qt.Orientation.Horizontal))
+            header.resizeSection(col, max(70, metrics.horizontalAdvance(text) + 18))
         self.verticalHeader().setDefaultSectionSize(22)
 
     def table_model(self) -> ImuTableModel:
@@ -195,3 +247,89 @@ class DataTable(QTableView):
         flag = QItemSelectionModel.SelectionFlag.Select
         for row, col in cells:
             sel.select(self.model().index(row, col), flag)
+
+
+class JointAngleModel(QAbstractTableModel):
+    """The 28 joint angles of the newest sample: readable name, value in deg or rad.
+    Rows drag as joint angles onto plots."""
+
+    def __init__(self, angle_unit: str = "deg", parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        from bpms.filter.joints import JOINT_ANGLE_NAMES
+        from bpms.gui.plots import human_joint_name
+
+        self.names = [human_joint_name(n) for n in JOINT_ANGLE_NAMES]
+        self.angle_unit = angle_unit
+        self.values = np.full(len(self.names), np.nan)  # rad
+        self._text = ["" for _ in self.names]
+
+    def update(self, sample: PoseSample) -> None:
+        self.values = np.asarray(sample.joint_angles, dtype=np.float64)
+        self._format()
+        self.dataChanged.emit(self.index(0, 1), self.index(len(self.names) - 1, 1))
+
+    def _format(self) -> None:
+        deg = self.angle_unit == "deg"
+        shown = np.degrees(self.values) if deg else self.values
+        fmt = "{:.1f}" if deg else "{:.3f}"
+        self._text = ["–" if v != v else fmt.format(v) for v in shown.tolist()]
+
+    def set_angle_unit(self, unit: str) -> None:
+        self.angle_unit = unit
+        self._format()
+        self.headerDataChanged.emit(Qt.Orientation.Horizontal, 1, 1)
+        self.dataChanged.emit(self.index(0, 1), self.index(len(self.names) - 1, 1))
+
+    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else len(self.names)
+
+    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else 2
+
+    def data(self, index: QModelIndex, role: int = _DISPLAY):
+        if role == _DISPLAY:
+            return self.names[index.row()] if index.column() == 0 else self._text[index.row()]
+        if role == _ALIGN and index.column() == 1:
+            return _RIGHT
+        return None
+
+    def headerData(self, section: int, orientation: Qt.Orientation,
+                   role: int = Qt.ItemDataRole.DisplayRole):
+        if role != Qt.ItemDataRole.DisplayRole or orientation != Qt.Orientation.Horizontal:
+            return None
+        return "joint angle" if section == 0 else f"value [{self.angle_unit}]"
+
+    def flags(self, index: QModelIndex) -> Qt.ItemFlag:
+        return super().flags(index) | Qt.ItemFlag.ItemIsDragEnabled
+
+    def mimeTypes(self) -> list[str]:
+        from bpms.gui.plots import JOINTS_MIME
+
+        return [JOINTS_MIME]
+
+    def mimeData(self, indexes) -> QMimeData:
+        """Dragged joint angles (onto a plot, or onto empty space for a new plot)."""
+        from bpms.gui.plots import joints_to_mime
+
+        return joints_to_mime(sorted({i.row() for i in indexes}))
+
+
+class JointTable(QTableView):
+    """The joint-angle list: select rows, drag them onto a plot."""
+
+    def __init__(self, model: JointAngleModel, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setModel(model)
+        self.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
+        self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.setDragEnabled(True)
+        self.setDragDropMode(QAbstractItemView.DragDropMode.DragOnly)
+        self.setAlternatingRowColors(True)
+        self.verticalHeader().setVisible(False)
+        self.verticalHeader().setDefaultSectionSize(22)
+        self.horizontalHeader().setStretchLastSection(True)
+        self.setColumnWidth(0, 220)
+
+    def selected_joints(self) -> list[int]:
+        return sorted({i.row() for i in self.selectionModel().selectedIndexes()})

@@ -14,7 +14,7 @@ Views connect to:
 
 from __future__ import annotations
 
-from PyQt6.QtCore import QObject, QTimer, pyqtSignal
+from PyQt6.QtCore import QObject, Qt, QTimer, pyqtSignal
 
 from bpms.io.options import Options
 from bpms.pipeline.fanout import Subscription
@@ -34,6 +34,9 @@ class SessionModel(QObject):
         self.last_status: LiveStatus | None = None
         self._sub: Subscription[PoseSample] | None = None
         self._timer = QTimer(self)
+        # Precise: a late tick does not push every later one back (a coarse timer drifts by
+        # the lateness, so a busy GUI thread would redraw below the configured rate).
+        self._timer.setTimerType(Qt.TimerType.PreciseTimer)
         self._timer.timeout.connect(self.tick)
         self.set_refresh_hz(self.options.display.refresh_hz)
 

@@ -87,6 +87,7 @@ class SessionRunner:
         self._udp_stopped = False
         self._lsl = None  # i16: LslBridge while LSL streaming is on (set_lsl)
         self._mvn: list = []  # i16: MvnBridges to the options' mvn.targets
+        self.problems: list[str] = []  # warnings about the source (e.g. a truncated file)
 
     @property
     def mode(self) -> str:
@@ -150,6 +151,7 @@ class SessionRunner:
                 recording = open_recording(cfg.path)
             except (RawFileError, OSError) as exc:
                 raise ModeError(f"cannot play {cfg.path}: {exc}") from None
+            self.problems = list(getattr(recording, "problems", []) or [])
             if len(recording) == 0:
                 raise ModeError(f"{cfg.path} holds no frames")
             self.replay = ReplaySource(recording, speed=1.0, autoplay=False)
@@ -201,6 +203,17 @@ class SessionRunner:
             self.session.start()
         self._data_on = True
         return self.session
+
+    def show_frame(self, index: int) -> None:
+        """File mode, paused: jump to frame ``index`` and deliver exactly that frame (filters
+        pre-rolled), so every view shows the frame at the slider. Starts the session's threads
+        if needed (nothing plays: the replay stays paused)."""
+        assert self.replay is not None and self.session is not None
+        self.replay.seek(index)
+        if index < len(self.replay):
+            self.replay.step(1)
+        if not self.session.running:
+            self.session.start()
 
     def stop_data(self) -> None:
         """Stop Data: suit stream stopped, playback paused, UDP session stopped."""

@@ -12,13 +12,15 @@
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import QPointF, Qt
+from PyQt6.QtCore import QMimeData, QPointF, Qt, pyqtSignal
 from PyQt6.QtGui import QKeySequence, QShortcut
 from PyQt6.QtWidgets import (
     QApplication,
@@ -38,6 +40,72 @@ from bpms.pipeline.session import PoseSample
 
 #: The time axis of a following plot moves by this much at a time, s.
 PAGE_S = 5.0
+#: Drag-and-drop payload of table cells: JSON ``[[imu, column], ...]``.
+CELLS_MIME = "application/x-bpms-cells"
+#: Colour-blind-safe palette: Okabe & Ito (2008) without black, then Paul Tol's "bright"
+#: purple and grey; curves beyond it repeat the colours dashed, then dotted.
+PALETTE = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442",
+           "#AA3377", "#BBBBBB")
+_STYLES = (Qt.PenStyle.SolidLine, Qt.PenStyle.DashLine, Qt.PenStyle.DotLine)
+
+
+def curve_pen(k: int) -> Any:
+    """The pen of the ``k``-th curve of one plot (distinct colours first, then dashes)."""
+    colour = PALETTE[k % len(PALETTE)]
+    style = _STYLES[(k // len(PALETTE)) % len(_STYLES)]
+    return pg.mkPen(colour, width=1, style=style)
+
+
+#: Drag-and-drop payload of joint angles: JSON ``[k, ...]`` (``JOINT_ANGLE_NAMES`` indices).
+JOINTS_MIME = "application/x-bpms-joints"
+
+
+def joints_to_mime(joints: Sequence[int]) -> QMimeData:
+    mime = QMimeData()
+    mime.setData(JOINTS_MIME, json.dumps([int(k) for k in joints]).encode())
+    return mime
+
+
+def joints_from_mime(mime: QMimeData | None) -> list[int]:
+    """The joint-angle indices of a drag, [] when it carries none."""
+    if mime is None or not mime.hasFormat(JOINTS_MIME):
+        return []
+    try:
+        data = json.loads(bytes(mime.data(JOINTS_MIME)).decode())
+        return [int(k) for k in data if 0 <= int(k) < len(JOINT_ANGLE_NAMES)]
+    except (ValueError, TypeError):
+        return []
+
+
+def cells_to_mime(cells: Sequence[tuple[int, int]]) -> QMimeData:
+    mime = QMimeData()
+    mime.setData(CELLS_MIME, json.dumps([[int(r), int(c)] for r, c in cells]).encode())
+    return mime
+
+
+def cells_from_mime(mime: QMimeData | None) -> list[tuple[int, int]]:
+    """The (IMU, column) cells of a drag, [] when it carries none."""
+    if mime is None or not mime.hasFormat(CELLS_MIME):
+        return []
+    try:
+        data = json.loads(bytes(mime.data(CELLS_MIME)).decode())
+        return [(int(r), int(c)) for r, c in data
+                if 0 <= int(r) < len(IMU_NAMES) and 0 <= int(c) < len(COLUMNS)
+                and COLUMNS[int(c)].group != "errors"]
+    except (ValueError, TypeError):
+        return []
+
+
+def human_joint_name(name: str) -> str:
+    """``hip_r.abduction`` → "Right hip abduction"; ``torso.flexion`` → "Torso flexion"."""
+    segment, _, angle = name.partition(".")
+    side = ""
+    if segment.endswith("_r"):
+        side, segment = "Right ", segment[:-2]
+    elif segment.endswith("_l"):
+        side, segment = "Left ", segment[:-2]
+    words = f"{segment.replace('_', ' ')} {angle.replace('_', ' ')}".strip()
+    return (side + words) if side else words[:1].upper() + words[1:]
 
 
 @dataclass
@@ -113,6 +181,9 @@ class CurveSpec:
 
     label: str
     values: Callable[[TickBlock], np.ndarray]
+    unit: str = ""
+    cell: tuple[int, int] | None = None  # (IMU, column) for a table cell
+    joint: int | None = None  # index into JOINT_ANGLE_NAMES for a joint angle
 
 
 def cell_curve(imu: int, col: int, angle_unit: str = "deg") -> CurveSpec:
@@ -122,23 +193,28 @@ def cell_curve(imu: int, col: int, angle_unit: str = "deg") -> CurveSpec:
     unit = angle_unit if column.group == "euler" else column.unit
     label = f"{IMU_NAMES[imu]} {column.name} [{unit}]"
     return CurveSpec(label, lambda b: column_values(column, b.raw, b.cal, b.euler,
-                                                    degrees)[:, imu])
+                                                    degrees)[:, imu], unit, (imu, col))
 
 
 def _joint_curve(k: int, degrees: bool) -> CurveSpec:
     unit = "deg" if degrees else "rad"
-    return CurveSpec(f"{JOINT_ANGLE_NAMES[k]} [{unit}]",
+    return CurveSpec(f"{human_joint_name(JOINT_ANGLE_NAMES[k])} [{unit}]",
                      lambda b: np.degrees(b.joint_angles[:, k]) if degrees
-                     else b.joint_angles[:, k])
+                     else b.joint_angles[:, k], unit, joint=k)
+
+
+def joint_curve(k: int, angle_unit: str = "deg") -> CurveSpec:
+    """The curve of joint angle ``k`` (``JOINT_ANGLE_NAMES`` order)."""
+    return _joint_curve(k, angle_unit == "deg")
 
 
 #: Groups of the joint-angle plot: (title, name prefixes).
 JOINT_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("Elbows and knees (flexion)", ("elbow_", "knee_")),
+    ("Elbows, knees", ("elbow_", "knee_")),
     ("Shoulders", ("shoulder_",)),
     ("Hips", ("hip_",)),
     ("Ankles", ("ankle_",)),
-    ("Torso and head", ("torso.", "head.")),
+    ("Torso, head", ("torso.", "head.")),
 )
 
 
@@ -150,74 +226,229 @@ def joint_angle_groups(angle_unit: str = "deg") -> list[tuple[str, list[CurveSpe
             for title, prefixes in JOINT_GROUPS]
 
 
-class PlotWindow(QWidget):
-    """A live plot window: ``groups`` of curves, one pyqtgraph plot per group.
+def peak_decimate(data: np.ndarray, pixels: int) -> np.ndarray:
+    """Rows ``[n, 1 + k]`` (time, k values) → at most ``2 × pixels`` rows keeping each bin's
+    minimum and maximum (a curve drawn from them looks the same at that width; NaN gaps stay
+    gaps). Bins end at the newest row, so the newest data are never merged away."""
+    n = len(data)
+    if pixels < 1 or n <= 2 * pixels:
+        return data
+    factor = -(-n // pixels)
+    m = (n // factor) * factor
+    head, body = data[:n - m], data[n - m:]
+    bins = body.reshape(-1, factor, data.shape[1])
+    out = np.empty((2 * len(bins), data.shape[1]))
+    out[0::2, 0] = bins[:, 0, 0]
+    out[1::2, 0] = bins[:, -1, 0]
+    out[0::2, 1:] = np.fmin.reduce(bins[:, :, 1:], axis=1)
+    out[1::2, 1:] = np.fmax.reduce(bins[:, :, 1:], axis=1)
+    return np.concatenate([head, out]) if len(head) else out
 
-    Feed it with :meth:`append` once per display tick; it redraws then (unless paused).
+
+def group_by_unit(specs: Sequence[CurveSpec]) -> list[tuple[str, list[CurveSpec]]]:
+    """One group per unit (one y axis per unit), in order of first appearance."""
+    groups: dict[str, list[CurveSpec]] = {}
+    for spec in specs:
+        groups.setdefault(spec.unit, []).append(spec)
+    return [("", specs) for specs in groups.values()]
+
+
+class PlotWindow(QWidget):
+    """A live plot: ``groups`` of curves, one pyqtgraph plot (one y axis, one unit) per group,
+    x axes linked. It lives in a dock of the main window (or stands alone).
+
+    Feed it with :meth:`append` once per display tick; it redraws then, unless paused or
+    hidden (a hidden plot keeps its history and redraws when shown). Table cells dropped on it
+    are added (``cellsDropped(cells, self)`` lets the main window do it).
     """
 
+    cellsDropped = pyqtSignal(list, object)
+    jointsDropped = pyqtSignal(list, object)
+
     def __init__(self, title: str, groups: list[tuple[str, list[CurveSpec]]],
-                 history_s: float = 60.0, parent: QWidget | None = None) -> None:
+                 history_s: float = 60.0, parent: QWidget | None = None,
+                 kind: str = "cells", columns: int = 1) -> None:
         super().__init__(parent)
         self.setWindowFlag(Qt.WindowType.Window)
         self.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
         self.setWindowTitle(title)
-        self.specs = [spec for _, specs in groups for spec in specs]
-        self.buffer = RingBuffer(max(1, round(history_s * FRAME_RATE_HZ)), 1 + len(self.specs))
+        self.setAcceptDrops(True)
+        self.kind = kind
         self.history_s = history_s
+        self.capacity = max(1, round(history_s * FRAME_RATE_HZ))
         self.paused = False
         self.closed = False
         self.follow = True  # x range follows the newest data (until the user zooms or pans)
         self._x_end: float | None = None
+        self._dirty = False
+        self.redraws = 0  # (bench/gui.py)
 
         layout = QVBoxLayout(self)
+        layout.setContentsMargins(2, 2, 2, 2)
         bar = QHBoxLayout()
         self.pause_button = QPushButton("Pause")
         self.pause_button.setCheckable(True)
         self.pause_button.setToolTip("Freeze the drawing (the history keeps filling); Space")
         self.pause_button.toggled.connect(self.set_paused)
+        self.follow_button = QPushButton("Follow")
+        self.follow_button.setCheckable(True)
+        self.follow_button.setChecked(True)
+        self.follow_button.setToolTip("The time axis follows the newest data (double-click "
+                                      "the plot or View All turns it back on)")
+        self.follow_button.toggled.connect(lambda on: self.reset_view() if on
+                                           else self._manual_range())
         bar.addWidget(self.pause_button)
-        bar.addWidget(QLabel(f"history {history_s:g} s · legend click hides a curve · "
-                             "drag to zoom · double-click or right-click ▸ View All resets"))
-        bar.addStretch(1)
+        bar.addWidget(self.follow_button)
+        hint = QLabel(f"{history_s:g} s · drop table cells here · click a legend name to "
+                      "hide/show")
+        hint.setStyleSheet("color: #666")
+        hint.setMinimumWidth(10)
+        bar.addWidget(hint, 1)
         layout.addLayout(bar)
         self.graphics = pg.GraphicsLayoutWidget()
+        self.graphics.setBackground("w")
+        self.graphics.setMinimumSize(150, 100)
+        self.graphics.setAcceptDrops(False)  # drops land on this widget
         layout.addWidget(self.graphics)
         QShortcut(QKeySequence(Qt.Key.Key_Space), self, activated=self.pause_button.toggle)
 
+        self.specs: list[CurveSpec] = []
         self.plots: list[pg.PlotItem] = []
         self.curves: list[pg.PlotCurveItem] = []
-        n = len(self.specs)
-        for row, (group_title, specs) in enumerate(groups):
-            plot = self.graphics.addPlot(row=row, col=0, title=group_title or None)
-            legend = plot.addLegend(offset=(5, 5))
-            # Text is the slowest thing to paint: the legend and the axes are drawn once into
-            # a pixmap and reused while the curves under them change.
-            legend.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
-            for name in ("left", "bottom"):
-                plot.getAxis(name).setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
-            plot.setLabel("bottom", "time", units="s")
-            plot.getViewBox().setMouseMode(pg.ViewBox.RectMode)
-            plot.getViewBox().sigRangeChangedManually.connect(self._manual_range)
-            plot.enableAutoRange(axis="x", enable=False)
+        self._plot_unit: dict[str, pg.PlotItem] = {}
+        self.columns = max(1, columns)
+        self.buffer = RingBuffer(self.capacity, 1)
+        for group_title, specs in groups:
+            plot = self._new_plot(group_title, specs[0].unit if specs else "")
             for spec in specs:
-                # PlotCurveItem, not PlotDataItem: a history of ≤ 60 s × 50 Hz needs no
-                # downsampling, and its setData costs a third. Pens 1 px wide: wider ones are
-                # much slower to draw.
-                curve = pg.PlotCurveItem(
-                    name=spec.label, connect="finite",
-                    pen=pg.mkPen(pg.intColor(len(self.curves), hues=max(n, 6)), width=1))
-                plot.addItem(curve)
-                self.curves.append(curve)
-            self.plots.append(plot)
+                self._add_curve(plot, spec)
+        self.buffer = RingBuffer(self.capacity, 1 + len(self.specs))
         self._last_click = (0.0, QPointF())
         self.graphics.scene().sigMouseClicked.connect(self._clicked)
 
+    # -- building ---------------------------------------------------------------------------
+    def _new_plot(self, title: str, unit: str) -> pg.PlotItem:
+        # The group's name goes on its y axis (a title row would take a fifth of a small plot).
+        n = len(self.plots)
+        plot = self.graphics.addPlot(row=n // self.columns, col=n % self.columns)
+        legend = plot.addLegend(offset=(5, 5), labelTextColor="k",
+                                brush=pg.mkBrush(255, 255, 255, 200))
+        # Text is the slowest thing to paint: the legend and the axes are drawn once into
+        # a pixmap and reused while the curves under them change.
+        legend.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+        for name in ("left", "bottom"):
+            axis = plot.getAxis(name)
+            axis.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+            axis.setPen("k")
+            axis.setTextPen("k")
+        plot.setLabel("bottom", "time [s]")
+        if unit or title:
+            plot.setLabel("left", f"{title} [{unit}]" if title else f"[{unit}]")
+        plot.showGrid(x=True, y=True, alpha=0.25)
+        plot.setClipToView(True)
+        plot.setDownsampling(auto=True, mode="peak")
+        box = plot.getViewBox()
+        box.setMouseMode(pg.ViewBox.RectMode)
+        box.sigRangeChangedManually.connect(self._manual_range)
+        box.menu.viewAll.triggered.connect(self.reset_view)  # View All: follow again
+        plot.enableAutoRange(axis="x", enable=False)
+        if self.plots:
+            plot.setXLink(self.plots[0])
+        self.plots.append(plot)
+        self._plot_unit.setdefault(unit, plot)
+        return plot
+
+    def _add_curve(self, plot: pg.PlotItem, spec: CurveSpec) -> pg.PlotCurveItem:
+        k = sum(1 for c in self.curves if c.getViewBox() is plot.getViewBox())
+        # PlotCurveItem, not PlotDataItem: a history of ≤ 60 s × 50 Hz needs no
+        # downsampling, and its setData costs a third. Pens 1 px wide: wider ones are
+        # much slower to draw.
+        curve = pg.PlotCurveItem(name=spec.label, connect="finite", pen=curve_pen(k))
+        plot.addItem(curve)
+        self.curves.append(curve)
+        self.specs.append(spec)
+        return curve
+
+    def add_cells(self, cells: Sequence[tuple[int, int]], angle_unit: str | None = None) -> int:
+        """Add curves for table cells not shown yet (on the plot of their unit, a new plot for
+        a new unit). Returns how many were added; their history starts now."""
+        unit = angle_unit or next((s.unit for s in self.specs if s.cell
+                                   and COLUMNS[s.cell[1]].group == "euler"), "deg")
+        shown = {s.cell for s in self.specs}
+        return self._add_specs([cell_curve(r, c, unit) for r, c in cells if (r, c) not in shown])
+
+    def add_joints(self, joints: Sequence[int], angle_unit: str = "deg") -> int:
+        """Add curves for joint angles not shown yet. Returns how many were added."""
+        shown = {s.joint for s in self.specs}
+        return self._add_specs([joint_curve(k, angle_unit) for k in joints if k not in shown])
+
+    def _add_specs(self, new: list[CurveSpec]) -> int:
+        if not new:
+            return 0
+        for spec in new:
+            plot = self._plot_unit.get(spec.unit) or self._new_plot("", spec.unit)
+            self._add_curve(plot, spec)
+        old = self.buffer.view().copy()
+        self.buffer = RingBuffer(self.capacity, 1 + len(self.specs))
+        if len(old):
+            rows = np.full((len(old), 1 + len(self.specs)), np.nan)
+            rows[:, :old.shape[1]] = old
+            self.buffer.extend(rows)
+        self.redraw()
+        return len(new)
+
+    def description(self) -> dict[str, Any]:
+        """What a saved layout needs to re-create this plot."""
+        if self.kind == "joints":  # the 28 angles, plus any cells dropped on it
+            return {"kind": "joints", "title": self.windowTitle(),
+                    "cells": [list(s.cell) for s in self.specs if s.cell is not None]}
+        return {"kind": "cells", "title": self.windowTitle(),
+                "cells": [list(s.cell) for s in self.specs if s.cell is not None],
+                "joints": [s.joint for s in self.specs if s.joint is not None]}
+
+    # -- drag and drop ------------------------------------------------------------------------
+    def dragEnterEvent(self, event) -> None:
+        mime = event.mimeData()
+        if cells_from_mime(mime) or joints_from_mime(mime):
+            event.acceptProposedAction()
+        else:
+            event.ignore()
+
+    def dragMoveEvent(self, event) -> None:
+        self.dragEnterEvent(event)
+
+    def dropEvent(self, event) -> None:
+        cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
+        if not cells and not joints:
+            event.ignore()
+            return
+        event.acceptProposedAction()
+        if cells:
+            if self.receivers(self.cellsDropped):
+                self.cellsDropped.emit(cells, self)
+            else:
+                self.add_cells(cells)
+        if joints:
+            if self.receivers(self.jointsDropped):
+                self.jointsDropped.emit(joints, self)
+            else:
+                self.add_joints(joints)
+
+    # -- mouse --------------------------------------------------------------------------------
     def _clicked(self, event) -> None:
-        # A double click: pyqtgraph flags it, or (depending on the event sequence the platform
-        # sends) two single clicks within the double-click interval.
         if event.button() != Qt.MouseButton.LeftButton:
             return
+        # A click on a legend's name toggles its curve (pyqtgraph only toggles on the swatch).
+        for plot in self.plots:
+            legend = plot.legend
+            if legend is None:
+                continue
+            for sample, label in legend.items:
+                if label.sceneBoundingRect().contains(event.scenePos()):
+                    self.toggle_curve(sample.item)
+                    return
+        # A double click: pyqtgraph flags it, or (depending on the event sequence the platform
+        # sends) two single clicks within the double-click interval.
         now, pos = time.monotonic(), event.screenPos()
         last_t, last_pos = self._last_click
         interval = QApplication.doubleClickInterval() / 1000.0
@@ -227,16 +458,36 @@ class PlotWindow(QWidget):
             now = 0.0
         self._last_click = (now, pos)
 
+    def toggle_curve(self, curve: pg.PlotCurveItem) -> None:
+        """Hide or show ``curve``; its legend entry is greyed while hidden."""
+        curve.setVisible(not curve.isVisible())
+        for plot in self.plots:
+            if plot.legend is None:
+                continue
+            for sample, label in plot.legend.items:
+                if sample.item is curve:
+                    label.setOpacity(1.0 if curve.isVisible() else 0.4)
+                    sample.update()
+
     def reset_view(self) -> None:
         """Back to following the data: y auto-range, x the newest history."""
         self.follow = True
         self._x_end = None
+        if not self.follow_button.isChecked():
+            self.follow_button.blockSignals(True)
+            self.follow_button.setChecked(True)
+            self.follow_button.blockSignals(False)
         for plot in self.plots:
             plot.enableAutoRange(axis="y")
+            plot.enableAutoRange(axis="x", enable=False)
         self.redraw()
 
     def _manual_range(self, *_args) -> None:
         self.follow = False
+        if self.follow_button.isChecked():
+            self.follow_button.blockSignals(True)
+            self.follow_button.setChecked(False)
+            self.follow_button.blockSignals(False)
 
     def _follow_time(self, t: np.ndarray) -> None:
         # The time axis moves in pages of PAGE_S, not at every tick: redrawing an axis's
@@ -260,9 +511,10 @@ class PlotWindow(QWidget):
         if not paused:
             self.redraw()
 
+    # -- data ---------------------------------------------------------------------------------
     def append(self, block: TickBlock) -> None:
-        """Add one tick's data and redraw (unless paused). A jump back in time (seek, new
-        stream) starts the history again."""
+        """Add one tick's data and redraw (unless paused or hidden). A jump back in time
+        (seek, new stream) starts the history again."""
         if len(block.t) == 0:
             return
         if len(self.buffer) and block.t[0] < self.buffer.view()[-1, 0]:
@@ -272,30 +524,110 @@ class PlotWindow(QWidget):
         for k, spec in enumerate(self.specs):
             rows[:, k + 1] = spec.values(block)
         self.buffer.extend(rows)
-        if not self.paused:
+        if self.paused:
+            return
+        if self.isVisible():
+            self.redraw()
+        else:
+            self._dirty = True
+
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        if self._dirty:
             self.redraw()
 
     def redraw(self) -> None:
+        self._dirty = False
+        self.redraws += 1
         data = self.buffer.view()
+        self._follow_time(data[:, 0])
+        if self.follow and self.plots:
+            data = peak_decimate(data, int(self.plots[0].getViewBox().width()))
         t = data[:, 0]
-        self._follow_time(t)
+        # Gaps (NaN) need the slower "finite" path; most of the time there are none.
+        finite = bool(np.isfinite(data).all())
+        connect = "all" if finite else "finite"
         for k, curve in enumerate(self.curves):
-            curve.setData(t, data[:, k + 1])
+            curve.setData(t, data[:, k + 1], connect=connect, skipFiniteCheck=finite)
 
     def closeEvent(self, event) -> None:
         self.closed = True
         super().closeEvent(event)
 
 
+class PlotDropArea(QLabel):
+    """Empty space of the main window: table cells dropped here open a new plot
+    (``cellsDropped(cells, None)``)."""
+
+    cellsDropped = pyqtSignal(list, object)
+    jointsDropped = pyqtSignal(list, object)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__("Drag table cells here for a new plot", parent)
+        self.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.setAcceptDrops(True)
+        self.setStyleSheet("color: #888; border: 1px dashed #bbb; margin: 2px")
+        self.setMinimumHeight(28)
+
+    def dragEnterEvent(self, event) -> None:
+        mime = event.mimeData()
+        if cells_from_mime(mime) or joints_from_mime(mime):
+            event.acceptProposedAction()
+        else:
+            event.ignore()
+
+    def dragMoveEvent(self, event) -> None:
+        self.dragEnterEvent(event)
+
+    def dropEvent(self, event) -> None:
+        cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
+        if not cells and not joints:
+            event.ignore()
+            return
+        event.acceptProposedAction()
+        if cells:
+            self.cellsDropped.emit(cells, None)
+        if joints:
+            self.jointsDropped.emit(joints, None)
+
+
 def cells_plot(cells: list[tuple[int, int]], angle_unit: str = "deg",
                history_s: float = 60.0, number: int = 1) -> PlotWindow:
-    """A plot window of table cells (IMU, column)."""
+    """A plot of table cells (IMU, column): one y axis per unit."""
     specs = [cell_curve(imu, col, angle_unit) for imu, col in cells]
-    return PlotWindow(f"BPMS plot {number}", [("", specs)], history_s)
+    return PlotWindow(f"Plot {number}", group_by_unit(specs), history_s)
 
 
 def joint_angle_plot(angle_unit: str = "deg", history_s: float = 60.0) -> PlotWindow:
-    """The 28 joint angles, grouped (docs/body-model.md)."""
-    window = PlotWindow("BPMS joint angles", joint_angle_groups(angle_unit), history_s)
+    """The 28 joint angles, grouped by joint (docs/body-model.md)."""
+    window = PlotWindow("Joint angles", joint_angle_groups(angle_unit), history_s,
+                        kind="joints", columns=2)
     window.resize(900, 900)
+    return window
+
+
+def plot_from(description: dict[str, Any], angle_unit: str = "deg",
+              history_s: float = 60.0) -> PlotWindow | None:
+    """The plot of :meth:`PlotWindow.description` (None when it describes nothing usable)."""
+    cells = []
+    for item in description.get("cells", []):
+        try:
+            r, c = int(item[0]), int(item[1])
+        except (TypeError, ValueError, IndexError):
+            continue
+        if 0 <= r < len(IMU_NAMES) and 0 <= c < len(COLUMNS) \
+                and COLUMNS[c].group != "errors":
+            cells.append((r, c))
+    if description.get("kind") == "joints":
+        window = joint_angle_plot(angle_unit, history_s)
+        if cells:
+            window.add_cells(cells, angle_unit)
+        return window
+    joints = [int(k) for k in description.get("joints", [])
+              if isinstance(k, int) and 0 <= k < len(JOINT_ANGLE_NAMES)]
+    if not cells and not joints:
+        return None
+    specs = [cell_curve(r, c, angle_unit) for r, c in cells] \
+        + [joint_curve(k, angle_unit) for k in joints]
+    window = PlotWindow(str(description.get("title", "Plot")), group_by_unit(specs), history_s)
     return window

@@ -42,6 +42,7 @@ from PyQt6.QtWidgets import (
 from bpms.gui import settings_store
 from bpms.gui.main_window import MainWindow, optional_module
 from bpms.gui.modes import MODE_LABELS, MODES, ModeConfig, ModeError, SessionRunner
+from bpms.gui.safety import guard_wheel
 from bpms.io import defaults
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.link import describe_candidate_ports, discover_suit
@@ -131,6 +132,18 @@ def _parse_field(text: str, default: Any) -> Any:
     return text
 
 
+class _FormScroll(QScrollArea):
+    """A scroll area whose page is as tall as its wrapped rows need at the current width
+    (QScrollArea alone ignores height-for-width, squeezing word-wrapped rows together)."""
+
+    def resizeEvent(self, event) -> None:
+        super().resizeEvent(event)
+        page = self.widget()
+        layout = page.layout() if page is not None else None
+        if layout is not None and layout.hasHeightForWidth():
+            page.setMinimumHeight(layout.heightForWidth(self.viewport().width()))
+
+
 class OptionsDialog(QDialog):
     """A form generated from the Options dataclasses (help text with units on each field).
 
@@ -145,9 +158,14 @@ class OptionsDialog(QDialog):
         self.editors: dict[tuple[str, str], QWidget] = {}
         self.defaults: dict[tuple[str, str], Any] = {}
         tabs = QTabWidget()
+        self.tabs = tabs
+        self.scrolls: dict[str, QScrollArea] = {}
         for name, section in options.sections().items():
             page = QWidget()
             form = QFormLayout(page)
+            # Name and help above the field: long help texts never push the field off-screen.
+            form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapAllRows)
+            form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
             for f in dataclasses.fields(section):
                 value = getattr(section, f.name)
                 help_text = f.metadata.get("help", "")
@@ -164,11 +182,16 @@ class OptionsDialog(QDialog):
                 self.editors[(name, f.name)] = editor
                 self.defaults[(name, f.name)] = f.default if f.default is not dataclasses.MISSING \
                     else f.default_factory()  # type: ignore[misc]
-                label = QLabel(f"<b>{f.name}</b><br><small>{help_text}</small>")
+                label = QLabel(f"<b>{f.name}</b> <small>{help_text}</small>")
+                label.setWordWrap(True)
+                label.setBuddy(editor)
+                guard_wheel(editor)
                 form.addRow(label, editor)
-            scroll = QScrollArea()
+            scroll = _FormScroll()
             scroll.setWidget(page)
             scroll.setWidgetResizable(True)
+            scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+            self.scrolls[name] = scroll
             tabs.addTab(scroll, name)
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok
                                    | QDialogButtonBox.StandardButton.Cancel)
@@ -321,7 +344,11 @@ class StartupWindow(QWidget):
         layout.addLayout(bottom)
         self._show_files()
         self.refresh_ports()
-        self.select_mode("suit" if self.port_combo.count() else "sim")
+        # The simulated suit unless the remembered port answers (probed in the background):
+        # a generic serial port is never pre-selected.
+        self.select_mode("sim")
+        if self.options.serial.port:
+            self.probe_remembered_port(self.options.serial.port)
         self.resize(760, 420)
         settings_store.restore_startup(self)  # mode, port, folder... of the last launch
 
@@ -394,16 +421,31 @@ class StartupWindow(QWidget):
         self.mode_buttons[mode].setChecked(True)
 
     def refresh_ports(self) -> None:
+        """List the candidate ports; keep what the user typed, else leave the field empty
+        (= discover at GO): no port is pre-selected just because it exists."""
         current = self.port_combo.currentText()
         self.port_combo.clear()
         for device, description in describe_candidate_ports():  # what the OS calls each port
             self.port_combo.addItem(device)
             self.port_combo.setItemData(self.port_combo.count() - 1, description or device,
                                         Qt.ItemDataRole.ToolTipRole)
-        if current:
-            self.port_combo.setCurrentText(current)
-        elif self.options.serial.port:
-            self.port_combo.setCurrentText(self.options.serial.port)
+        self.port_combo.setCurrentIndex(-1)  # no generic port pre-selected
+        self.port_combo.setEditText(current)
+
+    def probe_remembered_port(self, port: str) -> None:
+        """Pre-select ``port`` and the suit mode only if a suit answers there."""
+        timeout, baud = self.options.serial.discovery_timeout_s, self.baud_spin.value()
+        self.discover_label.setText(f"asking the remembered port {port}…")
+
+        def done(found: str | None, error: BaseException | None) -> None:
+            if found and self.mode == "sim" and not self.port_combo.currentText():
+                self.port_combo.setEditText(found)
+                self.select_mode("suit")
+                self.discover_label.setText(f"suit found on {found}")
+            elif not found:
+                self.discover_label.setText(f"no suit answered on the remembered port {port}")
+
+        self._probe = _Worker(self, lambda: discover_suit([port], timeout, baud), done)
 
     def discover(self) -> None:
         """Look for the suit in a worker thread; none found → the simulated suit."""
@@ -567,13 +609,34 @@ class StartupWindow(QWidget):
                 message = str(error) if isinstance(error, ModeError) else \
                     f"{type(error).__name__}: {error}"
                 self.status_label.setText(message)
-                self.last_dialog = show_error(self, "Cannot start", message)
+                if runner.mode == "suit":
+                    self.last_dialog = self._offer_simulated_suit(message)
+                else:
+                    self.last_dialog = show_error(self, "Cannot start", message)
                 self.show()
                 return
             self.status_label.setText("")
             self.open_main_window(runner)
 
         self._worker = _Worker(self, runner.prepare, done)
+
+    def _offer_simulated_suit(self, message: str) -> QMessageBox:
+        """No suit: say what to check, and offer the simulated suit in the same dialog."""
+        box = QMessageBox(QMessageBox.Icon.Warning, "No suit found", message, parent=self)
+        box.setInformativeText("You can try the software with the simulated suit instead.")
+        self.use_sim_button = box.addButton("Use the simulated suit",
+                                            QMessageBox.ButtonRole.AcceptRole)
+        box.addButton(QMessageBox.StandardButton.Close)
+        box.setDefaultButton(self.use_sim_button)
+
+        def clicked(button) -> None:
+            if button is self.use_sim_button:
+                self.select_mode("sim")
+                self.go()
+
+        box.buttonClicked.connect(clicked)
+        box.open()
+        return box
 
     def open_main_window(self, runner: SessionRunner) -> MainWindow:
         window = MainWindow(runner)
@@ -582,6 +645,8 @@ class StartupWindow(QWidget):
         window.closed.connect(self._main_closed)
         self.main_window = window
         window.show()
+        if runner.mode == "sim":
+            window.set_data(True)  # one click on GO shows live data
         self.hide()
         self.mainWindowOpened.emit(window)
         return window

@@ -13,24 +13,23 @@ import time
 from pathlib import Path
 
 import numpy as np
+from PyQt6.QtCore import Qt
 from PyQt6.QtGui import QImage
 from PyQt6.QtTest import QTest
 from PyQt6.QtWidgets import QApplication
 
 from bpms.firmware.sim.session import simulate
+from bpms.gui.avatar import LEFT_ARM, LEFT_LEG, RIGHT_ARM, RIGHT_LEG
 from bpms.gui.model import SessionModel
 from bpms.gui.view3d import open_3d_window, opengl_problem
-from bpms.gui.view3d_geometry import (
-    AXIS_COLOURS,
-    LEFT_COLOUR,
-    RIGHT_COLOUR,
-    WAITING_COLOUR,
-)
+from bpms.gui.view3d_geometry import AXIS_COLOURS
 from bpms.io.rawfile import new_header, read_raw, write_raw
 from bpms.io.replay import ReplaySource
 from bpms.pipeline.session import LiveSession
 
 KEYS = ("x", "y", "z", "r", "d")
+#: The original suite's keys, pressed after KEYS: pan, field of view, re-centre, trail.
+EXTRA_KEYS = ("Left", "=", "0", "p", "t")
 
 
 def pump(app: QApplication, seconds: float) -> None:
@@ -47,20 +46,29 @@ def pixels(image: QImage) -> np.ndarray:
     return buf.reshape(h, stride)[:, : w * 3].reshape(h, w, 3)
 
 
-def near(rgb: np.ndarray, colour: tuple[float, ...], tol: int = 40) -> int:
-    target = np.array(colour[:3]) * 255
-    return int((np.abs(rgb.astype(int) - target).max(axis=2) <= tol).sum())
+def hue(rgb: np.ndarray, *colours: tuple[float, ...], cos: float = 0.995) -> int:
+    """Pixels of one of ``colours`` whatever the shading (the shaded solid scales a colour's
+    brightness, not its direction in RGB space); dark pixels are left out."""
+    p = rgb.reshape(-1, 3).astype(float)
+    bright = p.max(axis=1) > 40
+    unit = p / np.maximum(np.linalg.norm(p, axis=1), 1e-9)[:, None]
+    hit = np.zeros(len(p), bool)
+    for colour in colours:
+        c = np.array(colour[:3], float)
+        hit |= unit @ (c / np.linalg.norm(c)) > cos
+    return int((hit & bright).sum())
 
 
 def measure(image: QImage) -> dict:
     rgb = pixels(image)
+    spread = rgb.max(axis=2).astype(int) - rgb.min(axis=2)
     return {
         "size": [image.width(), image.height()],
         "non_background": int((rgb.max(axis=2) > 30).sum()),
-        "right": near(rgb, RIGHT_COLOUR),
-        "left": near(rgb, LEFT_COLOUR),
-        "grey": near(rgb, WAITING_COLOUR, tol=12),
-        "axis_blue": near(rgb, AXIS_COLOURS[2], tol=30),
+        "right": hue(rgb, RIGHT_ARM, RIGHT_LEG),
+        "left": hue(rgb, LEFT_ARM, LEFT_LEG),
+        "grey": int(((spread < 8) & (rgb.max(axis=2) > 70)).sum()),
+        "axis_blue": hue(rgb, AXIS_COLOURS[2], cos=0.98),
     }
 
 
@@ -116,6 +124,18 @@ def main(out: Path) -> int:
             shots[step]["camera"] = [view.opts["elevation"], view.opts["azimuth"]]
             shots[step]["axes_shown"] = view.show_axes
             np.save(out / f"w{w}_{step}.npy", pixels(image))
+        extra = {}
+        for step in EXTRA_KEYS:
+            key = getattr(Qt.Key, f"Key_{step}") if len(step) > 1 else step
+            c = view.opts["center"]
+            before = [c.x(), c.y(), c.z(), view.opts["fov"]]
+            QTest.keyClick(view, key)
+            pump(app, 0.1)
+            c = view.opts["center"]
+            after = [c.x(), c.y(), c.z(), view.opts["fov"]]
+            extra[step] = {"before": before, "after": after,
+                           "trail": view.trail_joint}
+        results.setdefault("extra", []).append(extra)
         # The other window did not move when this one's keys were pressed.
         results["windows"].append(shots)
     model.stop()

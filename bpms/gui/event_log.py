@@ -1,0 +1,73 @@
+"""The event log panel: what happened during the session, with wall-clock times.
+
+Entries come from two places: the GUI's own observations (link lost/recovered from
+:class:`bpms.gui.health.LinkHealth`, Reset Zero, logging started/stopped, filter switched,
+another UDP sender, file warnings) via :meth:`EventLog.add`, and the session's notable events
+(``LiveStatus.events``, already time-stamped) via :meth:`EventLog.merge_session_events`.
+Warnings are shown in red; every entry is also logged through :mod:`logging`.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+from PyQt6.QtGui import QColor
+from PyQt6.QtWidgets import QListWidget, QListWidgetItem, QWidget
+
+log = logging.getLogger(__name__)
+
+#: At most this many entries are kept (the oldest go first).
+MAX_ENTRIES = 2000
+
+
+class EventLog(QListWidget):
+    """A list of ``HH:MM:SS  text`` entries, newest last (the view follows the newest)."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setObjectName("event_log")
+        self.setAlternatingRowColors(True)
+        self.setToolTip("Link lost/recovered, Reset Zero, logging, filter changes, file "
+                        "warnings, with times")
+        self.entries: list[tuple[str, str, str]] = []  # (time, level, text)
+        self._session_seen: list[str] = []
+
+    def add(self, text: str, level: str = "info", when: str | None = None) -> None:
+        """Append an entry; ``level`` "info" or "warning"; ``when`` HH:MM:SS (default now)."""
+        when = when or time.strftime("%H:%M:%S")
+        self.entries.append((when, level, text))
+        item = QListWidgetItem(f"{when}  {text}")
+        if level == "warning":
+            item.setForeground(QColor("#d62728"))
+            log.warning("%s", text)
+        else:
+            log.info("%s", text)
+        self.addItem(item)
+        if self.count() > MAX_ENTRIES:
+            self.takeItem(0)
+            del self.entries[0]
+        self.scrollToBottom()
+
+    def merge_session_events(self, events: list[str]) -> None:
+        """Add the session's events not seen yet (``LiveStatus.events``: "HH:MM:SS text",
+        newest last, a bounded list)."""
+        if events == self._session_seen:
+            return
+        seen = self._session_seen
+        start = 0
+        # the newest seen entry's position in the new list: what follows it is new
+        if seen:
+            last = seen[-1]
+            for k in range(len(events) - 1, -1, -1):
+                if events[k] == last:
+                    start = k + 1
+                    break
+        for entry in events[start:]:
+            when, _, text = entry.partition(" ")
+            self.add(text, "warning", when)
+        self._session_seen = list(events)
+
+    def texts(self) -> list[str]:
+        """The entries' texts (without times), oldest first."""
+        return [text for _, _, text in self.entries]

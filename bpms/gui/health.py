@@ -1,0 +1,219 @@
+"""Health at a glance: the link light, the REC indicator and the numbers beside them.
+
+:class:`LinkHealth` is the rule (no Qt): given what the GUI saw, it says
+
+- grey  "stopped": data is off (Stop Data, playback paused);
+- red   "no data": data is on and no frame arrived for :data:`SILENT_S` (1 s), or the source
+  itself reports a lost link;
+- amber "degraded": the rate is below :data:`DEGRADED_HZ` (45 Hz, scaled by the playback
+  speed) or the suit flagged sensor errors in the last second;
+- green "streaming".
+
+Times are ``time.monotonic()`` seconds of the GUI thread. A Stop → Start restarts the clock,
+so a quick Stop → Start is never a link loss; a loss is only reported after frames had arrived
+since the last Start.
+
+:class:`HealthPanel` shows it: a coloured light, the time since the last frame, the rate, the
+error counter, the battery (a warning below :data:`LOW_BATTERY_V`), a red REC indicator with
+the elapsed time, file name and folder, and SIMULATED for a simulated source.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from PyQt6.QtCore import Qt
+from PyQt6.QtWidgets import QFormLayout, QGroupBox, QHBoxLayout, QLabel, QWidget
+
+from bpms.pipeline.session import LiveStatus
+
+#: No frame for this long (data on) = red, s.
+SILENT_S = 1.0
+#: Below this rate (at 1× speed) = amber, Hz.
+DEGRADED_HZ = 45.0
+#: Sensor error flags within this time = amber, s.
+ERROR_HOLD_S = 1.0
+#: The suit's single LiFePO4 cell (2.6-3.6 V, cut-off 2.6 V) is nearly empty below this, V.
+LOW_BATTERY_V = 3.0
+
+COLOURS = {"grey": "#9e9e9e", "green": "#2e9e44", "amber": "#f0a000", "red": "#d62728"}
+
+
+@dataclass(frozen=True)
+class Health:
+    """One evaluation: ``colour`` grey/green/amber/red, ``state`` a few words, ``since_s`` the
+    time since the last frame (None before the first), ``transition`` "lost"/"recovered"/""
+    when the link was lost or came back at this evaluation."""
+
+    colour: str
+    state: str
+    since_s: float | None
+    transition: str = ""
+
+
+class LinkHealth:
+    """The link-light rule, fed once per display tick."""
+
+    def __init__(self, silent_s: float = SILENT_S, degraded_hz: float = DEGRADED_HZ) -> None:
+        self.silent_s = silent_s
+        self.degraded_hz = degraded_hz
+        self.last_frame: float | None = None
+        self.started: float | None = None
+        self._last_error_t: float | None = None
+        self._error_bits: int | None = None
+        self._lost = False
+
+    def start(self, now: float | None = None) -> None:
+        """Start Data pressed: forget the previous stream's last frame."""
+        self.started = time.monotonic() if now is None else now
+        self.last_frame = None
+        self._lost = False
+
+    def stop(self) -> None:
+        """Stop Data pressed: grey, and no loss to report."""
+        self.started = None
+        self._lost = False
+
+    def frames_arrived(self, now: float | None = None) -> None:
+        self.last_frame = time.monotonic() if now is None else now
+
+    def evaluate(self, now: float, rate_hz: float, error_bits: int,
+                 source_state: str = "streaming", nominal_hz: float | None = 50.0) -> Health:
+        """The light now. ``nominal_hz`` the expected rate (None: any rate is fine, e.g. a
+        replay at maximum speed); ``error_bits`` the session's growing error counter."""
+        if self._error_bits is not None and error_bits > self._error_bits:
+            self._last_error_t = now
+        self._error_bits = error_bits
+        since = None if self.last_frame is None else now - self.last_frame
+        if self.started is None:
+            return Health("grey", "stopped", since)
+        reference = self.last_frame if self.last_frame is not None else self.started
+        silent = now - reference >= self.silent_s
+        if silent or source_state == "link lost":
+            transition = "lost" if (not self._lost and self.last_frame is not None) else ""
+            self._lost = self._lost or self.last_frame is not None
+            if self.last_frame is None:
+                return Health("red", "no data since Start", since, transition)
+            return Health("red", "no data" if source_state != "link lost" else "link lost",
+                          since, transition)
+        transition = "recovered" if self._lost else ""
+        self._lost = False
+        if self.last_frame is None:
+            return Health("amber", "waiting for data", since, transition)
+        low = nominal_hz is not None and rate_hz < self.degraded_hz * nominal_hz / 50.0
+        errors = self._last_error_t is not None and now - self._last_error_t < ERROR_HOLD_S
+        if low or errors:
+            why = " and ".join(w for w, on in (("low rate", low), ("sensor errors", errors))
+                               if on)
+            return Health("amber", f"degraded ({why})", since, transition)
+        return Health("green", "streaming", since, transition)
+
+
+def _clock(seconds: float) -> str:
+    s = int(seconds)
+    return f"{s // 3600:d}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else \
+        f"{s // 60:02d}:{s % 60:02d}"
+
+
+class HealthPanel(QGroupBox):
+    """The status area's top: link light and state, time since the last frame, rate, error
+    counter, battery, REC indicator; SIMULATED for a simulated source."""
+
+    def __init__(self, simulated: bool = False, parent: QWidget | None = None) -> None:
+        super().__init__("Health", parent)
+        form = QFormLayout(self)
+        row = QHBoxLayout()
+        self.light = QLabel()
+        self.light.setFixedSize(18, 18)
+        self.state_label = QLabel("stopped")
+        self.state_label.setStyleSheet("font-weight: bold")
+        row.addWidget(self.light)
+        row.addWidget(self.state_label, 1)
+        self.simulated_label = QLabel("SIMULATED")
+        self.simulated_label.setStyleSheet(
+            "background: #6a3d9a; color: white; font-weight: bold; padding: 1px 6px")
+        self.simulated_label.setToolTip("The data come from the simulated suit, not a suit")
+        self.simulated_label.setVisible(simulated)
+        row.addWidget(self.simulated_label)
+        form.addRow(row)
+        self.labels: dict[str, QLabel] = {}
+        for key, title in (("since", "Last frame"), ("rate", "Rate"), ("errors", "Errors"),
+                           ("battery", "Battery")):
+            label = QLabel("–")
+            self.labels[key] = label
+            form.addRow(title, label)
+        self.rec_label = QLabel("")
+        self.rec_label.setWordWrap(True)
+        self.rec_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        form.addRow(self.rec_label)
+        self.colour = ""
+        self.battery_low = False
+        self._rec_started: float | None = None
+        self._rec_key: object = None
+        self.set_colour("grey")
+
+    def set_colour(self, colour: str) -> None:
+        if colour == self.colour:
+            return
+        self.colour = colour
+        self.light.setStyleSheet(f"background: {COLOURS[colour]}; border-radius: 9px; "
+                                 "border: 1px solid #444")
+        self.light.setToolTip({"grey": "data off", "green": "streaming",
+                               "amber": "degraded: rate below 45 Hz or sensor errors in the "
+                                        "last second",
+                               "red": "no frame for 1 s"}[colour])
+
+    def _set(self, key: str, text: str, style: str = "") -> None:
+        label = self.labels[key]
+        if label.text() != text:
+            label.setText(text)
+        if label.styleSheet() != style:
+            label.setStyleSheet(style)
+
+    def show_health(self, health: Health, st: LiveStatus | None, now: float) -> None:
+        self.set_colour(health.colour)
+        if self.state_label.text() != health.state:
+            self.state_label.setText(health.state)
+        self._set("since", "–" if health.since_s is None else f"{health.since_s:.1f} s ago",
+                  "color: #d62728" if health.colour == "red" else "")
+        if st is None:
+            return
+        self._set("rate", f"{st.rate_hz:.1f} Hz")
+        self._set("errors", f"{st.error_bits} sensor error flags",
+                  "color: #d62728" if health.colour == "amber" and st.error_bits else "")
+        volts = st.source.battery_v
+        self.battery_low = volts is not None and volts < LOW_BATTERY_V
+        if volts is None:
+            self._set("battery", "–")
+        elif self.battery_low:
+            self._set("battery", f"{volts:.2f} V — LOW, charge the suit",
+                      "color: white; background: #d62728; font-weight: bold")
+        else:
+            self._set("battery", f"{volts:.2f} V")
+        self.show_recording(st, now)
+
+    def show_recording(self, st: LiveStatus, now: float) -> None:
+        rec = st.recording
+        if rec is None:
+            self._rec_started, self._rec_key = None, None
+            if self.rec_label.text():
+                self.rec_label.setText("")
+                self.rec_label.setStyleSheet("")
+            return
+        if rec is not self._rec_key:
+            self._rec_key, self._rec_started = rec, now
+        path: Path | None = rec.raw_path or rec.filtered_path
+        names = ", ".join(p.name for p in (rec.raw_path, rec.filtered_path) if p is not None)
+        folder = str(path.parent) if path is not None else "–"
+        text = (f"● REC {_clock(now - (self._rec_started or now))}  {names}  in {folder}"
+                + (f"  — error: {rec.error}" if rec.error else ""))
+        if self.rec_label.text() != text:
+            self.rec_label.setText(text)
+            self.rec_label.setStyleSheet("color: white; background: #d62728; "
+                                         "font-weight: bold; padding: 2px")
+
+    @property
+    def recording_text(self) -> str:
+        return self.rec_label.text()

@@ -1,0 +1,78 @@
+"""Under Xvfb (QT_QPA_PLATFORM=xcb): the main window with three docked 3D views, one of them
+then floated, on a replayed simulated recording.
+
+Usage: run_docked_views.py OUTDIR. Writes OUTDIR/results.json (per view: isValid(), pixel
+counts of the avatar's right and left sides) and the framebuffers as PNGs;
+tests/test_gui_3d_gl.py asserts on them. Exit status 3 = OpenGL unavailable.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("BPMS_CONFIG_DIR", tempfile.mkdtemp(prefix="bpms-gl-config-"))
+
+from PyQt6.QtWidgets import QApplication
+
+from bpms.firmware.sim.session import simulate
+from bpms.gui.main_window import MainWindow
+from bpms.gui.modes import ModeConfig, SessionRunner
+from bpms.gui.view3d import opengl_problem
+from bpms.io.options import Options
+
+sys.path.insert(0, str(Path(__file__).parent))
+from run_3d_windows import measure, pump
+
+
+def main(out: Path) -> int:
+    app = QApplication(sys.argv[:1])
+    problem = opengl_problem()
+    if problem is not None:
+        print(f"OpenGL unavailable: {problem}")
+        return 3
+    out.mkdir(parents=True, exist_ok=True)
+    path = simulate(duration_s=18.0, seed=2).save_raw(out / "Raw_docked_1.bpmsraw")
+    runner = SessionRunner(ModeConfig(mode="file", path=str(path), recording_dir=str(out)),
+                           Options())
+    runner.prepare()
+    window = MainWindow(runner, restore_last=False)
+    window.resize(1500, 900)
+    window.show()
+    while len(window.view3d_windows) < 3:
+        window.open_3d_view()
+    pump(app, 0.3)
+    window.set_data(True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and (window.model.latest is None
+                                           or window.model.latest.index < 745):
+        pump(app, 0.05)
+    window.set_data(False)
+    pump(app, 0.5)
+    results: dict = {"docked": [], "index": window.model.latest.index}
+    for k, view in enumerate(window.view3d_windows):
+        image = view.gl_view.grabFramebuffer()
+        image.save(str(out / f"docked_{k}.png"))
+        results["docked"].append({"valid": view.gl_view.isValid(), "draws": view.draws,
+                                  **measure(image)})
+    dock = window.dock_of(window.view3d_windows[1])
+    dock.setFloating(True)
+    pump(app, 0.5)
+    window.step_frames(1)  # a new frame while floating: drawn in the new top-level window
+    pump(app, 1.0)
+    view = window.view3d_windows[1]
+    image = view.gl_view.grabFramebuffer()
+    image.save(str(out / "floating.png"))
+    results["floating"] = {"valid": view.gl_view.isValid(), "floating": dock.isFloating(),
+                           **measure(image)}
+    window.close()
+    (out / "results.json").write_text(json.dumps(results, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(Path(sys.argv[1])))

@@ -1,0 +1,276 @@
+"""The main window (issue 15.1, 15.2, 15.5): docks and saved layouts, menus, the health light
+and event log on a real UDP stream and the simulated suit, dragging table cells onto plots."""
+
+from __future__ import annotations
+
+import socket
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PyQt6.QtCore import QPointF, Qt, QTimer
+from PyQt6.QtGui import QDragEnterEvent, QDropEvent
+from PyQt6.QtWidgets import QApplication, QDockWidget
+
+from bpms.firmware.sim.session import simulate
+from bpms.gui.layouts import CALIBRATION, LayoutStore
+from bpms.gui.main_window import MainWindow
+from bpms.gui.modes import ModeConfig, SessionRunner
+from bpms.gui.plots import PlotWindow
+from bpms.io.options import Options
+from bpms.io.udp import UdpForwarder
+
+
+@pytest.fixture(scope="module")
+def recording_path(tmp_path_factory) -> Path:
+    rec = simulate(duration_s=6.0, seed=3)
+    return rec.save_raw(tmp_path_factory.mktemp("rec") / "Raw_mw_001.bpmsraw")
+
+
+def _window(qtbot, config: ModeConfig, store: LayoutStore, **kw) -> MainWindow:
+    runner = SessionRunner(config, Options())
+    runner.prepare()
+    window = MainWindow(runner, layout_store=store, **kw)
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    return window
+
+
+def _drop(widget, mime) -> bool:
+    """A drag entering ``widget`` and dropping ``mime`` there (the events a real drop sends);
+    True when the widget accepted the drop."""
+    pos = QPointF(widget.rect().center())
+    actions = Qt.DropAction.CopyAction
+    enter = QDragEnterEvent(pos.toPoint(), actions, mime, Qt.MouseButton.LeftButton,
+                            Qt.KeyboardModifier.NoModifier)
+    QApplication.sendEvent(widget, enter)
+    if not enter.isAccepted():
+        return False
+    drop = QDropEvent(pos, actions, mime, Qt.MouseButton.LeftButton,
+                      Qt.KeyboardModifier.NoModifier)
+    QApplication.sendEvent(widget, drop)
+    return drop.isAccepted()
+
+
+def test_docks_layouts_saved_and_restored_between_launches(qtbot, tmp_path, recording_path):
+    store = LayoutStore(tmp_path / "layouts.json")
+    config = ModeConfig(mode="file", path=str(recording_path), recording_dir=str(tmp_path))
+    window = _window(qtbot, config, store)
+    # every panel is a Qt dock: movable, floatable, closable
+    for name in ("table", "status", "session", "filter", "events"):
+        dock = window.docks[name]
+        assert isinstance(dock, QDockWidget) and dock.objectName() == name
+        features = dock.features()
+        for f in (QDockWidget.DockWidgetFeature.DockWidgetMovable,
+                  QDockWidget.DockWidgetFeature.DockWidgetFloatable,
+                  QDockWidget.DockWidgetFeature.DockWidgetClosable):
+            assert features & f
+    # a layout of my own: two cell plots, the filter dock floating, the event log closed
+    window.table.select_cells([(3, 0), (3, 4)])
+    first = window.plot_selection()
+    window.table.select_cells([(6, 1)])
+    window.plot_selection()
+    window.docks["filter"].setFloating(True)
+    window.docks["events"].close()
+    window.save_layout("mine")
+    assert store.names() == ["mine"]
+    # another layout replaces it...
+    window.apply_default_layout(CALIBRATION)
+    assert not window.docks["filter"].isFloating() and window.docks["events"].isVisible()
+    assert not any(isinstance(d.widget(), PlotWindow) for d in window.dynamic_docks)
+    # ...and loading "mine" brings back the plots with their curves and the dock states
+    assert window.load_layout("mine")
+    plots = [d.widget() for d in window.dynamic_docks if isinstance(d.widget(), PlotWindow)]
+    # (the playback layout's joint-angle plot was part of "mine" too)
+    assert sorted(len(p.curves) for p in plots) == [1, 2, 28]
+    labels = sorted(c.name() for p in plots if p.kind == "cells" for c in p.curves)
+    assert labels == sorted([*(c.name() for c in first.curves), "Hip pitch [deg]"])
+    assert window.docks["filter"].isFloating()
+    assert not window.docks["events"].isVisible()
+    window.close()  # remembered as the last layout
+    # the next launch (a new main window, same user) starts with it
+    again = _window(qtbot, config, LayoutStore(tmp_path / "layouts.json"))
+    plots = [d.widget() for d in again.dynamic_docks if isinstance(d.widget(), PlotWindow)]
+    assert sorted(len(p.curves) for p in plots) == [1, 2, 28]
+    assert again.docks["filter"].isFloating()
+    again.close()
+
+
+def test_menus_list_every_command_with_its_shortcut(qtbot, tmp_path, recording_path):
+    store = LayoutStore(tmp_path / "layouts.json")
+    config = ModeConfig(mode="file", path=str(recording_path), recording_dir=str(tmp_path))
+    window = _window(qtbot, config, store)
+    in_menus = {a for menu in window.menuBar().findChildren(type(window.layouts_menu))
+                for a in menu.actions()}
+    for key, action in window.actions_by_name.items():
+        assert action in in_menus, key
+    shortcuts = {a.text(): a.shortcut().toString() for a in window.actions_by_name.values()}
+    assert shortcuts["Reset Zero"] == "Ctrl+R" and shortcuts["Start/Stop Data"] == "Ctrl+Space"
+    toolbar = [a.text() for a in window.toolbar.actions()]
+    assert any("Start" in t for t in toolbar) and "Reset Zero" in toolbar
+    assert any("Record" in t for t in toolbar)
+    window.close()
+
+
+def test_drag_a_cell_onto_a_plot_adds_the_curve_or_opens_a_new_plot(qtbot, tmp_path,
+                                                                    recording_path):
+    store = LayoutStore(tmp_path / "layouts.json")
+    config = ModeConfig(mode="file", path=str(recording_path), recording_dir=str(tmp_path))
+    window = _window(qtbot, config, store, restore_last=False)
+    window.table.select_cells([(8, 0)])
+    plot = window.plot_selection()
+    model = window.table_model
+    mime = model.mimeData([model.index(12, 1), model.index(4, 4)])  # pitch, acc x
+    assert _drop(plot, mime)
+    names = [c.name() for c in plot.curves]
+    assert names[0] == "Spine roll [deg]" and len(names) == 3
+    assert sorted(names[1:]) == ["Left Leg pitch [deg]", "Right Arm acc x [m/s²]"]
+    units = sorted(p.getAxis("left").labelText for p in plot.plots)
+    assert units == ["[deg]", "[m/s²]"]  # one y axis per unit
+    # the error column is not plottable: a drag of it carries nothing
+    assert not _drop(plot, model.mimeData([model.index(2, 3)]))
+    # onto empty space: a new plot
+    before = len(window.plot_windows)
+    assert _drop(window.drop_area, model.mimeData([model.index(17, 2)]))
+    assert len(window.plot_windows) == before + 1
+    assert window.plot_windows[-1].curves[0].name() == "Head yaw [deg]"
+    # joint names from the joint-angle list: onto the plot, and onto empty space
+    jm = window.joint_model
+    assert jm.data(jm.index(10, 0)) == "Right hip abduction"
+    assert _drop(plot, jm.mimeData([jm.index(10, 0), jm.index(10, 1)]))
+    assert plot.curves[-1].name() == "Right hip abduction [deg]" and len(plot.curves) == 4
+    assert plot.description()["joints"] == [10]
+    before = len(window.plot_windows)
+    assert _drop(window.drop_area, jm.mimeData([jm.index(0, 0), jm.index(2, 0)]))
+    assert len(window.plot_windows) == before + 1
+    assert [c.name() for c in window.plot_windows[-1].curves] == [
+        "Right elbow flexion [deg]", "Right knee flexion [deg]"]
+    # play: the dropped curves get data
+    window.set_data(True)
+    qtbot.waitUntil(lambda: len(plot.buffer) > 20, timeout=15000)
+    for curve in (plot.curves[2], plot.curves[3]):
+        _x, y = curve.getData()
+        assert np.isfinite(y[-5:]).all()
+    window.set_data(False)
+    window.close()
+
+
+def _send_frames(forwarder: UdpForwarder, frames: list[bytes], state: dict) -> None:
+    k = state["k"]
+    forwarder.send_frame(frames[k % len(frames)], k * 0.02)
+    state["k"] = k + 1
+    state["last"] = time.monotonic()
+
+
+def test_health_light_goes_red_and_udp_client_leaves_streaming_within_a_second(
+        qtbot, tmp_path, recording_path):
+    from bpms.io.rawfile import read_raw
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    store = LayoutStore(tmp_path / "layouts.json")
+    window = _window(qtbot, ModeConfig(mode="udp", listen=f"127.0.0.1:{port}"), store)
+    window.set_data(True)
+    raw = read_raw(recording_path).frames.tobytes()
+    frames = [raw[i:i + 340] for i in range(0, len(raw), 340)]
+    forwarder = UdpForwarder([f"127.0.0.1:{port}"])
+    state = {"k": 0, "last": 0.0}
+    timer = QTimer()
+    timer.timeout.connect(lambda: _send_frames(forwarder, frames, state))
+    timer.start(20)
+    try:
+        qtbot.waitUntil(lambda: window.health_panel.colour in ("green", "amber")
+                        and state["k"] > 60, timeout=15000)
+    finally:
+        timer.stop()
+        forwarder.close()
+    silent_since = state["last"]
+    # red within 1.2 s of the last datagram, and the state no longer says "streaming"
+    qtbot.waitUntil(lambda: window.health_panel.colour == "red", timeout=1200)
+    assert time.monotonic() - silent_since < 1.2 + 0.5  # (the wait's own slack under load)
+    assert "streaming" not in window.status_panel.labels["state"].text()
+    assert window.health_panel.state_label.text() == "no data"
+    assert any(t.startswith("link lost") for t in window.event_log.texts())
+    window.close()
+
+
+def test_simulated_source_is_unmistakable_and_stop_start_is_not_a_link_loss(qtbot, tmp_path):
+    store = LayoutStore(tmp_path / "layouts.json")
+    window = _window(qtbot, ModeConfig(mode="sim", recording_dir=str(tmp_path)), store)
+    assert "SIMULATED" in window.windowTitle()
+    assert window.health_panel.simulated_label.isVisible()
+    assert window.health_panel.simulated_label.text() == "SIMULATED"
+    window.set_data(True)
+    qtbot.waitUntil(lambda: window.health_panel.colour == "green", timeout=15000)
+    assert window.health_panel.labels["battery"].text() == "3.35 V"  # above the warning
+    window.set_data(False)
+    assert window.health_panel.colour in ("grey", "green")
+    qtbot.waitUntil(lambda: window.health_panel.colour == "grey", timeout=2000)
+    window.set_data(True)  # a quick Stop → Start
+    qtbot.waitUntil(lambda: window.health_panel.colour == "green", timeout=15000)
+    qtbot.wait(1300)  # longer than the 1 s silence rule
+    assert window.health_panel.colour == "green"
+    texts = window.event_log.texts()
+    assert "data stopped" in texts and texts.count("data started") == 2
+    assert not any("link lost" in t for t in texts)
+    # Reset Zero and logging are logged, with the REC indicator while recording
+    window.reset_zero()
+    window.file_panel.name_edit.setText("evlog")
+    window.file_panel.toggle_logging()
+    qtbot.waitUntil(lambda: "REC" in window.health_panel.recording_text, timeout=5000)
+    assert "Raw_evlog_1.bpmsraw" in window.health_panel.recording_text
+    assert str(tmp_path) in window.health_panel.recording_text
+    window.file_panel.toggle_logging()
+    qtbot.waitUntil(lambda: not window.file_panel.busy and window.file_panel.last_recording
+                    is not None, timeout=15000)
+    qtbot.waitUntil(lambda: window.health_panel.recording_text == "", timeout=3000)
+    texts = window.event_log.texts()
+    assert "Reset Zero" in texts
+    assert any(t.startswith("logging started") for t in texts)
+    assert any(t.startswith("logging stopped: Raw_evlog_1.bpmsraw") for t in texts)
+    window.close()
+
+
+def test_reset_zero_warns_when_the_subject_moved_during_its_window(qtbot, tmp_path,
+                                                                 recording_path):
+    from scipy.spatial.transform import Rotation
+
+    store = LayoutStore(tmp_path / "layouts.json")
+    config = ModeConfig(mode="file", path=str(recording_path), recording_dir=str(tmp_path))
+    window = _window(qtbot, config, store, restore_last=False)
+    window.set_data(True)  # (Reset Zero is enabled while data run)
+    qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)
+    # still: every IMU's filter DCM constant over the window (no event loop runs between
+    # setting the window's recent DCMs and pressing Reset Zero)
+    still = np.broadcast_to(np.eye(3), (18, 3, 3))
+    window._recent_R = [still.copy() for _ in range(25)]
+    window.reset_zero()
+    assert not any("moved" in t for t in window.event_log.texts())
+    # IMU 4 (right arm) turns 12° about one axis during the window
+    turned = []
+    for k in range(25):
+        R = still.copy()
+        R[4] = Rotation.from_euler("z", 12.0 * k / 24, degrees=True).as_matrix()
+        turned.append(R)
+    window._recent_R = turned
+    window.reset_zero()
+    warning = [t for t in window.event_log.texts() if "moved" in t]
+    assert len(warning) == 1 and "12°" in warning[0] and "IMU 4" in warning[0]
+    window.set_data(False)
+    window.close()
+
+
+def test_a_truncated_recording_is_a_file_warning_in_the_event_log(qtbot, tmp_path,
+                                                                   recording_path):
+    torn = tmp_path / "Raw_torn_1.bpmsraw"
+    data = recording_path.read_bytes()
+    torn.write_bytes(data[:-100])  # the last record cut short, as by a crash
+    store = LayoutStore(tmp_path / "layouts.json")
+    window = _window(qtbot, ModeConfig(mode="file", path=str(torn),
+                                       recording_dir=str(tmp_path)), store)
+    warnings = [text for when, level, text in window.event_log.entries if level == "warning"]
+    assert any(t.startswith("file warning:") and "incomplete" in t for t in warnings), warnings
+    window.close()
