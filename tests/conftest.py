@@ -43,3 +43,25 @@ def _filters_compiled():
     from bpms.filter.warmup import ensure_kernels
 
     ensure_kernels(stream=io.StringIO())
+
+
+@pytest.fixture(autouse=True)
+def _no_modal_question_blocks(monkeypatch):
+    """A static ``QMessageBox.question`` (e.g. "Logging is on. Stop logging and close?" when a
+    failed test leaves a window logging) would wait for a click forever under the offscreen
+    platform: it answers Yes and is recorded instead, so a failure stays a failure, not a
+    hang. Only patched where a test already imported Qt."""
+    import sys
+
+    widgets = sys.modules.get("PyQt6.QtWidgets")
+    if widgets is None:
+        yield
+        return
+    asked: list[str] = []
+
+    def question(parent, title, text, *args, **kwargs):
+        asked.append(text)
+        return widgets.QMessageBox.StandardButton.Yes
+
+    monkeypatch.setattr(widgets.QMessageBox, "question", staticmethod(question))
+    yield

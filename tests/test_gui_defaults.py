@@ -47,15 +47,18 @@ def test_save_as_default_then_restart_records_with_it(qtbot, tmp_path):
     assert second.options.filter.kp_yaw == 1.7
     second.select_mode("sim")
     window = _go(qtbot, second)
-    window.status_panel.data_button.click()
+    if not window.runner.data_on:  # the simulated suit streams from GO on
+        window.status_panel.data_button.click()
     qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)
     panel = window.file_panel
     panel.name_edit.setText("after")
     panel.raw_box.setChecked(True)
     panel.log_button.click()
-    qtbot.waitUntil(lambda: (window.runner.session.status().recording.raw_records or 0) > 20,
+    # > 40 records at 50 Hz: past the 0.5 s in which a second click is ignored
+    qtbot.waitUntil(lambda: (window.runner.session.status().recording.raw_records or 0) > 40,
                     timeout=15000)
     panel.log_button.click()
+    qtbot.waitUntil(lambda: not panel.logging, timeout=15000)
     raw_path = next((tmp_path / "rec").glob("*after*.bpmsraw"))
     window.close()
     header = read_raw(raw_path).header
