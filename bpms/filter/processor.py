@@ -50,7 +50,7 @@ from bpms.filter.rotations import dcm_to_quaternion
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, load_options
-from bpms.io.recordings import open_recording
+from bpms.io.timebase import stream_times
 
 #: Seconds the filters settle after the stream starts before the automatic Reset Zero window.
 SETTLE_S = 0.5
@@ -65,6 +65,8 @@ class Result:
     C: ``[N, 18, 3, 3]`` segment orientations after Reset Zero (NaN before the first capture);
     joint_angles: ``[N, 28]``; joint_positions: ``[N, 21, 3]``; NaN where an IMU involved is
     not initialised. held_count: ``[18, 3]`` filter steps so far that used a held value.
+    calibration_source / options_source: which calibration and options were used (whole
+    recordings opened through :mod:`bpms.filter.door`).
     """
 
     t: np.ndarray
@@ -75,6 +77,9 @@ class Result:
     held_count: np.ndarray = field(default_factory=lambda: np.zeros((N_IMUS, 3), np.int64))
     zeros: list[Zero] = field(default_factory=list, repr=False)
     problems: list[str] = field(default_factory=list)
+    #: Where the calibration / options came from (set by the one door, bpms.filter.door).
+    calibration_source: str = field(default="", repr=False)
+    options_source: str = field(default="", repr=False)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -135,6 +140,8 @@ class BodyPoseProcessor:
 
     def __init__(self, calibration: str | Path | CalibrationTable | None = None,
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
+        # What the caller chose (None = not given): process_file's precedence starts here.
+        self._given = (calibration, options)
         self.table = _load_table(calibration)
         self.options = _load_options(options)
         ellipsoids = {}
@@ -210,7 +217,7 @@ class BodyPoseProcessor:
         return outs
     def _result(self, n: int, R: np.ndarray, euler: np.ndarray, C: np.ndarray,
                 captures_before: int) -> Result:
-        t = (self.frames + np.arange(n)) * self.options.filter.dt
+        t = stream_times(self.frames, n, self.options.filter.dt)
         self.frames += n
         return Result(t=t, R=R, euler=euler, C=C, body=self.options.body,
                       held_count=self.bank.held_count, zeros=self.pose.captures[captures_before:])
@@ -238,12 +245,18 @@ class BodyPoseProcessor:
         return self._result(1, out.R[None], out.euler[None], C, before)
 
     def process_file(self, path: str | Path, zero_at: list[int] | tuple[int, ...] = ()) -> Result:
-        """Filter a whole raw recording — native (:func:`bpms.io.rawfile.read_raw`) or a
-        legacy pickled raw file (read without executing code) — as one new stream. Raises
+        """Filter a whole recording (native raw, legacy pickled raw, or a filtered CSV) as one
+        new stream, through the one door (:func:`bpms.filter.door.open_for_processing`): the
+        calibration and options given to this processor's constructor, else the recording's
+        header, else the user's default, else factory. The result says which in
+        ``calibration_source`` / ``options_source``; this processor becomes the one the door
+        built (its state continues that stream). Raises
         :class:`bpms.io.rawfile.RawFileError` for an unreadable file."""
-        recording = open_recording(path)
-        decoded = recording.decode()
-        self.restart()
-        result = self.process(decoded.raw, decoded.errors, zero_at)
-        result.problems.extend(recording.problems)
+        from bpms.filter.door import open_for_processing
+
+        opened = open_for_processing(path, *self._given, auto_zero=self.pose.auto)
+        result = opened.result(zero_at_frames=zero_at)
+        given = self._given
+        self.__dict__.update(opened.processor.__dict__)
+        self._given = given
         return result
