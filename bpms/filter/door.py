@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.processor import BodyPoseProcessor, Result
-from bpms.io.calib_file import CalibrationTable, load_calibration
+from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import decode_frames
 from bpms.io.options import Options, load_options, options_from_dict
 from bpms.io.rawfile import MAGIC, RECORD_DTYPE, RECORD_SIZE, RawFileError, RawRecording

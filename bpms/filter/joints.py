@@ -52,10 +52,10 @@ BALL_COMPONENTS = ("abduction", "flexion", "rotation")  # roll, pitch, yaw (Tabl
 
 #: Column names of :func:`joint_angles`, in order (defined in :mod:`bpms.io.names`, which the
 #: file readers use; the joint tables here must give the same names).
-assert JOINT_ANGLE_NAMES == (
+assert (
     *(f"{j.name}.flexion" for j in HINGE_JOINTS),
     *(f"{j.name}.{c}" for j in BALL_JOINTS for c in BALL_COMPONENTS),
-), "bpms.io.names.JOINT_ANGLE_NAMES disagrees with the joint tables"
+) == JOINT_ANGLE_NAMES, "bpms.io.names.JOINT_ANGLE_NAMES disagrees with the joint tables"
 
 
 _HINGE_PROXIMAL = np.array([j.proximal for j in HINGE_JOINTS])
