@@ -31,7 +31,7 @@ import numpy as np
 
 from bpms.filter.processor import BodyPoseProcessor, Result
 from bpms.io.calib_file import CalibrationTable
-from bpms.io.frames import decode_frames
+from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import Options, load_options, options_from_dict
 from bpms.io.rawfile import MAGIC, RECORD_DTYPE, RECORD_SIZE, RawFileError, RawRecording
 
@@ -172,6 +172,15 @@ class OpenedRecording:
             if progress:
                 progress(label, chunk.start + len(chunk), self.n_frames)
         self.problems.extend(p for p in self.processor.problems if p not in self.problems)
+
+    def raw_chunks(self, chunk_frames: int = CHUNK_FRAMES
+                   ) -> Iterator[tuple[int, np.ndarray, DecodedFrames]]:
+        """The raw frames without filtering: (first index, host times ``[n]`` s since the
+        epoch, decoded frames) per chunk. Raises ValueError for a filtered file."""
+        if not self.has_raw:
+            raise ValueError(f"{self.path}: a filtered file holds no raw frames")
+        for lo, host, frames in self._raw_records(chunk_frames):
+            yield lo, host, decode_frames(frames)
 
     def _frames_in(self, zero: list[int], lo: int, n: int) -> list[int]:
         return [k - lo for k in zero if lo <= k < lo + n]
