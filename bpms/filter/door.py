@@ -353,15 +353,17 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
                            "original suite's raw file, nor a filtered .csv file)")
     opts, options_source = resolve_options(options, header if kind != "filtered" else None,
                                            str(path))
-    if algorithm is not None or heading is not None:
-        opts = dataclasses.replace(opts) if opts is options else opts
-        opts.filter = dataclasses.replace(opts.filter,
-                                          algorithm=algorithm or opts.filter.algorithm)
+    changes = []
+    if algorithm is not None and algorithm != opts.filter.algorithm:
+        changes.append(f"filter {algorithm}")
+    if heading is not None and heading != opts.pose.heading_reference:
+        changes.append(f"heading {heading}")
+    if changes:
+        opts = dataclasses.replace(opts)  # never change the caller's object
+        opts.filter = dataclasses.replace(opts.filter, algorithm=algorithm or opts.filter.algorithm)
         opts.pose = dataclasses.replace(opts.pose,
                                         heading_reference=heading or opts.pose.heading_reference)
-        options_source += " with " + ", ".join(
-            s for s in (f"filter {algorithm}" if algorithm else "",
-                        f"heading {heading}" if heading else "") if s)
+        options_source += " with " + ", ".join(changes)
     if kind == "filtered":
         cal: str | Path | CalibrationTable | None = None
         calibration_source = "not used (filtered file: angles as logged)"

@@ -83,6 +83,13 @@ class SessionRunner:
         self.sim: SimulatedSuit | None = None
         self._data_on = False
         self._udp_stopped = False
+        # Playback opens the recording through the one door (bpms.filter.door): these
+        # explicit choices win, else the recording's header, else the user's default.
+        self.playback_calibration: CalibrationTable | str | None = None
+        self.playback_options: Options | str | None = None
+        #: Where the calibration / options in force came from (for the data panel).
+        self.calibration_source = getattr(calibration, "source", "factory")
+        self.options_source = getattr(options, "source", "factory")
 
     @property
     def mode(self) -> str:
@@ -93,8 +100,9 @@ class SessionRunner:
         """Start Data pressed and not stopped since."""
         return self._data_on
 
-    def _new_session(self, source) -> LiveSession:
-        processor = BodyPoseProcessor(calibration=self.calibration, options=self.options)
+    def _new_session(self, source, processor: BodyPoseProcessor | None = None) -> LiveSession:
+        processor = processor or BodyPoseProcessor(calibration=self.calibration,
+                                                   options=self.options)
         return LiveSession(source, self.options, processor,
                            recording_dir=self.config.recording_dir,
                            notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
@@ -111,8 +119,19 @@ class SessionRunner:
                 raise ModeError(f"cannot play {cfg.path}: {exc}") from None
             if len(recording) == 0:
                 raise ModeError(f"{cfg.path} holds no frames")
+            from bpms.filter.door import open_for_processing
+
+            try:
+                # the filter chosen in the GUI is an explicit run-time choice (like --filter)
+                opened = open_for_processing(cfg.path, self.playback_calibration,
+                                             self.playback_options,
+                                             algorithm=self.options.filter.algorithm)
+            except (RawFileError, OSError) as exc:
+                raise ModeError(f"cannot play {cfg.path}: {exc}") from None
+            self.calibration_source = opened.calibration_source
+            self.options_source = opened.options_source
             self.replay = ReplaySource(recording, speed=1.0, autoplay=False)
-            self.session = self._new_session(self.replay)
+            self.session = self._new_session(self.replay, opened.processor)
         elif cfg.mode == "udp":
             self.session = self._new_session(self._udp_source())
         else:
