@@ -54,7 +54,8 @@ def _interrupt(signum, frame) -> None:
 
 
 def status_line(status: LiveStatus, elapsed: float) -> str:
-    """One status line: state, rate (Hz), frames, recording size, errors, link events."""
+    """One status line: state, rate (Hz), frames, recording size, errors, link events, frames
+    not filtered and the processing backlog (bpms.pipeline.health)."""
     src = status.source
     rec = status.recording
     raw = (f"raw {rec.raw_bytes / 1e3:8.1f} kB {rec.raw_path.name}"
@@ -63,7 +64,7 @@ def status_line(status: LiveStatus, elapsed: float) -> str:
     return (f"t {elapsed:7.1f} s  {src.state:<10}  {status.rate_hz:5.1f} Hz  "
             f"frames {status.frames:7d}  {raw}  error bits {status.error_bits:5d}  "
             f"resyncs {src.resyncs:3d}  links lost {src.counters.get('links_lost', 0)}  "
-            f"battery {battery}")
+            f"battery {battery}  {status.health_line()}")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -389,13 +389,20 @@ def _count_rows(path: Path) -> int:
     return count - header
 
 
-def filtered_layout(result: Result, joints: bool = True) -> tuple[list[str], str]:
-    """(column groups, ``euler`` kind) of a filtered file for results like ``result``:
-    ``euler`` is what ``Result.euler`` holds; when the Result also carries uncorrected
-    ``euler_sensor`` angles, ``euler`` holds segment angles and ``euler_sensor`` is added."""
+def filtered_layout(result: Result | type[Result] = Result,
+                    joints: bool = True) -> tuple[list[str], str]:
+    """(column groups, ``euler`` kind) of a filtered file for results like ``result`` (an
+    instance or the class): ``euler`` is what ``Result.euler`` holds; when Results also carry
+    uncorrected ``euler_sensor`` angles, ``euler`` holds segment angles and ``euler_sensor``
+    is added."""
     groups = ["euler"]
     kind = "sensor"
-    if getattr(result, "euler_sensor", None) is not None:
+    if isinstance(result, type):
+        has_sensor = (hasattr(result, "euler_sensor")
+                      or "euler_sensor" in getattr(result, "__dataclass_fields__", {}))
+    else:
+        has_sensor = getattr(result, "euler_sensor", None) is not None
+    if has_sensor:
         groups.append("euler_sensor")
         kind = "segment"
     if joints:
