@@ -47,7 +47,7 @@ class MatlabCsvWriter:
             n, N_IMUS * 7)
         data = np.concatenate([np.asarray(t)[:, None], per_imu, joint_angles * self.scale],
                               axis=1)
-        write_rows(self._file, data, "%.8g", ",", "")
+        write_rows(self._file, data, "%.10g", ",", "")
         self.rows += n
 
     def close(self) -> None:
