@@ -37,7 +37,7 @@ from bpms.io.rawfile import MAGIC, RECORD_DTYPE, RECORD_SIZE, RawFileError, RawR
 
 log = logging.getLogger(__name__)
 
-CHUNK_FRAMES = 15_000  # 5 min at 50 Hz per filter call: ~150 MB of intermediate arrays at most
+CHUNK_FRAMES = 5_000  # 100 s at 50 Hz per filter call: ~50 MB of intermediate arrays at most
 Progress = Callable[[str, int, int], None]
 FILTERED_SUFFIXES = (".csv", ".txt")
 
