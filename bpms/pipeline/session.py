@@ -47,6 +47,7 @@ from bpms.pipeline.health import (
     write_with_holes,
 )
 from bpms.pipeline.rate import RateMeter
+from bpms.pipeline.steady import prepare_live_path
 
 log = logging.getLogger(__name__)
 _STOP = object()
@@ -335,6 +336,10 @@ class LiveSession:
 
     # -- threads ----------------------------------------------------------------------------
     def _acquire(self) -> None:
+        try:  # kernels loaded and the heap frozen before the first frame is accepted
+            prepare_live_path(self.processor)
+        except Exception as exc:  # a failed warm-up only costs latency later
+            self.note(f"warm-up failed: {exc}")
         while not self._stop.is_set():
             try:
                 events = self.source.read(0.1)
