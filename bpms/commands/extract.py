@@ -91,12 +91,13 @@ def run(args: argparse.Namespace) -> int:
         if args.kind == "raw":
             ids = parse_imu_ids(args.imu)
             columns, data, opened = raw_rows(args.input, ids, args.calibrated, args.calibration)
-            if args.calibrated:
-                print(f"bpms extract: {opened.sources_line()}", file=sys.stderr)
+            print(f"bpms extract: {opened.sources_line()}", file=sys.stderr)
             problems = opened.problems
         elif args.kind == "filtered":
             ids = parse_imu_ids(args.imu)
             columns, data, problems = filtered_rows(args.input, ids, args.degrees)
+            print("bpms extract: calibration: not used (filtered file: angles as logged); "
+                  "options: not used", file=sys.stderr)
         else:
             reader = read_vicon if args.kind == "vicon" else read_qualisys
             columns, data = body_table(reader(args.input).body(args.body))
