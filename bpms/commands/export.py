@@ -52,7 +52,7 @@ def _target(path: Path, force: bool) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import open_recording_for, stream
+    from bpms.commands._analysis import open_recording_for, stream
 
     t_start = time.perf_counter()
     raw = Path(args.raw_file)

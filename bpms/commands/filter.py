@@ -49,7 +49,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import open_recording_for, stream
+    from bpms.commands._analysis import open_recording_for, stream
     from bpms.filter.door import filtered_arrays, filtered_layout
     from bpms.io.filtered_file import FilteredWriter, default_output_path
 

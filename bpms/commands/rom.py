@@ -41,8 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import open_recording_for, stream
     from bpms.analysis.rom import RomAccumulator, markdown, write_csv
+    from bpms.commands._analysis import open_recording_for, stream
 
     if args.t0 is not None and args.t1 is not None and args.t1 <= args.t0:
         raise CliError(f"--to ({args.t1} s) must be after --from ({args.t0} s)")

@@ -45,8 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import open_recording_for, stream
     from bpms.analysis.track import FOOT_IMUS, TrackAccumulator
+    from bpms.commands._analysis import open_recording_for, stream
 
     opened = open_recording_for("track", args.raw_file, args.calibration, args.options,
                                 args.filter_name, args.heading)
