@@ -347,6 +347,9 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         header, n = recording.header, len(recording)
         problems.extend(recording.problems)
     elif path.suffix.lower() in FILTERED_SUFFIXES:
+        from bpms.io.filtered_file import FilteredReader
+
+        FilteredReader(path).close()  # a file that is not a filtered file fails here
         kind, header, n = "filtered", {}, _count_rows(path)
     else:
         raise RawFileError(f"{path}: not a BPMS recording (neither a raw recording, the "
