@@ -126,3 +126,33 @@ def test_gui_playback_uses_the_header_and_says_so(site, tmp_path):
     data = read_filtered(status.filtered_path)
     assert len(data.t) == len(rec.raw) and not data.hole.any()
     _close(data.euler, data.joint_angles, explicit)
+
+
+def test_gui_window_playback_uses_the_header(site, qtbot, tmp_path):
+    """The same through the GUI's widgets (pytest-qt): file mode, filtered recording during
+    playback at maximum speed from the first frame."""
+    from bpms.gui.startup import StartupWindow
+
+    rec, raw, _, explicit, _ = site
+    startup = StartupWindow(recording_dir=str(tmp_path))
+    qtbot.addWidget(startup)
+    startup.select_mode("file")
+    startup.file_edit.setText(str(raw))
+    with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
+        startup.go_button.click()
+    window = blocker.args[0]
+    qtbot.addWidget(window)
+    assert window.runner.calibration_source == "recording header"
+    window.playback_panel.speed_combo.setCurrentIndex(6)  # as fast as possible
+    panel = window.file_panel
+    panel.filtered_box.setChecked(True)
+    panel.name_edit.setText("door")
+    panel.log_button.click()
+    window.status_panel.data_button.click()  # play
+    session = window.runner.session
+    qtbot.waitUntil(lambda: session.status().processed >= len(rec.raw), timeout=60000)
+    panel.log_button.click()
+    data = read_filtered(panel.last_recording.filtered_path)
+    window.close()
+    assert len(data.t) == len(rec.raw)
+    _close(data.euler, data.joint_angles, explicit)
