@@ -224,8 +224,9 @@ class FilteredWriter:
                 block[:, col:col + w] = np.asarray(groups[g], dtype=np.float64).reshape(n, w)
             col += w
         block *= self._scale
-        if n:
-            np.savetxt(self._file, block, fmt=self._fmt)
+        if n:  # one format string per row: half the cost of numpy.savetxt for live rows
+            fmt = self._fmt
+            self._file.write("\n".join([fmt % tuple(r) for r in block.tolist()]) + "\n")
         self.rows += n
         self.holes += int(block[:, 2].sum()) if n else 0
 
