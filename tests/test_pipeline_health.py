@@ -45,13 +45,14 @@ def test_live_source_at_8000_fps_shows_and_marks_every_lost_frame(tmp_path):
         rec = session.start_logging(raw=True, filtered=True, name="overload")
         lines = []
         session.start()
-        assert wait_until(lambda: session.status().frames >= 16_000, 60)
+        assert wait_until(lambda: session.status().frames >= 8_000, 60)
         status = session.status()
         lines.append(status.health_line())
         session.source.stop_stream()
         assert wait_until(lambda: arbiter.stats.stops == 1, 10)
         assert wait_until(lambda: session.status().processing_backlog == 0, 20)
         session.stop()
+    assert wait_until(lambda: not session.running, 30)
     final = session.status()
     raw = read_raw(rec.raw_path)
     assert len(raw) == final.frames  # the raw file holds every frame received
