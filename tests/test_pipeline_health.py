@@ -37,10 +37,10 @@ def test_merge_places_holes_between_processed_frames():
 def test_live_source_at_8000_fps_shows_and_marks_every_lost_frame(tmp_path):
     arbiter = FastArbiter(MotionSource.simulated(seed=5, duration_s=20.0))
     with TcpServer(arbiter) as server:
-        # A short processing queue (64 frames instead of 3,000) so that this machine, however
+        # A short processing queue (8 frames instead of 3,000) so that this machine, however
         # fast, cannot filter every frame of a burst: frames must be lost, and counted.
         session = LiveSession(SuitFrameSource(server.url, SerialOptions()),
-                              recording_dir=tmp_path, max_backlog=64)
+                              recording_dir=tmp_path, max_backlog=8)
         session.source.connect()
         rec = session.start_logging(raw=True, filtered=True, name="overload")
         lines = []
