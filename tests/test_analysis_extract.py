@@ -66,11 +66,12 @@ def test_extract_filtered_equals_the_api(recording, tmp_path):
     assert main(["extract", "filtered", str(filtered), "--imu", "6,17", "--degrees",
                  "-o", str(out)]) == 0
     cols, data = read_csv(out)
-    assert cols == ["time_s", "imu6_hip_roll_deg", "imu6_hip_pitch_deg", "imu6_hip_yaw_deg",
-                    "imu17_head_roll_deg", "imu17_head_pitch_deg", "imu17_head_yaw_deg"]
-    np.testing.assert_allclose(data[:, 1:4], np.degrees(res.euler[:, 6]), rtol=1e-8,
+    assert cols == ["time_s", "host_time_s", "imu6_hip_roll_deg", "imu6_hip_pitch_deg",
+                    "imu6_hip_yaw_deg", "imu17_head_roll_deg", "imu17_head_pitch_deg",
+                    "imu17_head_yaw_deg"]
+    np.testing.assert_allclose(data[:, 2:5], np.degrees(res.euler[:, 6]), rtol=1e-8,
                                equal_nan=True)
-    np.testing.assert_allclose(data[:, 4:7], np.degrees(res.euler[:, 17]), rtol=1e-8,
+    np.testing.assert_allclose(data[:, 5:8], np.degrees(res.euler[:, 17]), rtol=1e-8,
                                equal_nan=True)
 
 

@@ -31,12 +31,12 @@ def recording(tmp_path_factory):
 
 def test_columns_name_every_value_with_its_unit():
     cols = filtered_columns()
-    assert len(cols) == 55 and cols[0] == "time_s"
-    assert cols[1:4] == ["imu0_right_leg_roll_rad", "imu0_right_leg_pitch_rad",
+    assert len(cols) == 3 + 54 and cols[:3] == ["time_s", "host_time_s", "hole"]
+    assert cols[3:6] == ["imu0_right_leg_roll_rad", "imu0_right_leg_pitch_rad",
                          "imu0_right_leg_yaw_rad"]
     assert cols[-1] == "imu17_head_yaw_rad"
     deg = filtered_columns(degrees=True, joints=True)
-    assert len(deg) == 55 + 28 and deg[-1].endswith("_deg") and "joint_knee_r_flexion_deg" in deg
+    assert len(deg) == 57 + 28 and deg[-1].endswith("_deg") and "joint_knee_r_flexion_deg" in deg
 
 
 def test_writer_reader_round_trip(tmp_path):

@@ -18,6 +18,7 @@ from waiting import wait_until
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
 from bpms.firmware.sim.server import PtyServer
+from bpms.io.filtered_file import read_filtered
 from bpms.io.options import Options, SerialOptions
 from bpms.io.rawfile import read_raw
 from bpms.pipeline.session import LiveSession
@@ -138,8 +139,9 @@ def test_record_cli_ctrl_c_closes_cleanly(tmp_path):
     assert lines and "Hz" in lines[-1] and "streaming" in lines[-1]
     recording = read_raw(tmp_path / "Raw_ctrlc_1.bpmsraw")
     assert recording.problems == [] and len(recording) >= 100
-    rows = (tmp_path / "Filtered_ctrlc_1.csv").read_text().splitlines()
-    assert len(rows) - 1 == len(recording)
+    assert "not filtered 0" in lines[-1] and "backlog" in lines[-1]
+    filtered = read_filtered(tmp_path / "Filtered_ctrlc_1.csv")
+    assert len(filtered.t) == len(recording) and not filtered.hole.any()
 
 
 def test_record_cli_port_that_does_not_exist(tmp_path):

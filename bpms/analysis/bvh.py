@@ -57,19 +57,13 @@ def zxy_angles(R: np.ndarray) -> np.ndarray:
     return np.degrees(np.stack([z, x, y], axis=-1))
 
 
-def write_bvh(path: str | Path, C: np.ndarray, pelvis: np.ndarray,
-              body: BodyOptions | None = None, frame_time_s: float = 0.02) -> int:
-    """Write segment orientations ``C[N, 18, 3, 3]`` (segment → NED) and the pelvis position
-    ``pelvis[N, 3]`` (m, NED) as a BVH file. Returns the number of frames."""
+def hierarchy(body: BodyOptions | None = None) -> tuple[list[str], list[tuple[int, int]]]:
+    """The HIERARCHY lines and the (imu of joint, imu of parent joint) order of the motion
+    channels after the root's."""
     body = body or BodyOptions()
-    C = np.array(C, dtype=np.float64)
-    bad = ~np.isfinite(C).all(axis=(-1, -2, -3))
-    C[bad] = np.eye(3)
-    pelvis = np.where(np.isfinite(pelvis), pelvis, 0.0)
-    G = NED_TO_BVH @ C @ NED_TO_BVH.T  # global rotations in BVH axes
     children = _children()
     lines: list[str] = ["HIERARCHY"]
-    order: list[tuple[int, int]] = []  # (imu of this joint, imu of the parent joint)
+    order: list[tuple[int, int]] = []
 
     def fmt(v: np.ndarray) -> str:
         return " ".join(f"{c:.6f}" for c in v)
@@ -96,14 +90,65 @@ def write_bvh(path: str | Path, C: np.ndarray, pelvis: np.ndarray,
     for k in children["pelvis"]:
         emit(k, ROOT_IMU, np.zeros(3), 1)
     lines.append("}")
-    n = len(C)
+    return lines, order
+
+
+def motion_rows(C: np.ndarray, pelvis: np.ndarray, order: list[tuple[int, int]]) -> np.ndarray:
+    """``[N, channels]`` motion values of ``C[N, 18, 3, 3]`` and ``pelvis[N, 3]`` (m, NED);
+    frames without a figure (NaN) in the rest pose."""
+    C = np.array(C, dtype=np.float64)
+    bad = ~np.isfinite(C).all(axis=(-1, -2, -3))
+    C[bad] = np.eye(3)
+    pelvis = np.where(np.isfinite(pelvis), pelvis, 0.0)
+    G = NED_TO_BVH @ C @ NED_TO_BVH.T  # global rotations in BVH axes
     columns = [(pelvis @ NED_TO_BVH.T) * CM_PER_M, zxy_angles(G[:, ROOT_IMU])]
     for imu, parent in order:
         local = np.swapaxes(G[:, parent], -1, -2) @ G[:, imu]
         columns.append(zxy_angles(local))
-    motion = np.concatenate(columns, axis=1)
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write("\n".join(lines) + "\n")
-        f.write(f"MOTION\nFrames: {n}\nFrame Time: {frame_time_s:.6f}\n")
-        write_rows(f, motion, "%.5f", " ", f"writing {Path(path).name}")
-    return n
+    return np.concatenate(columns, axis=1)
+
+
+_FRAMES_FIELD = 12  # digits reserved for the frame count, patched when the file is closed
+
+
+class BvhWriter:
+    """A BVH file written block by block (constant memory): the frame count is patched in
+    when the file is closed."""
+
+    def __init__(self, path: str | Path, body: BodyOptions | None = None,
+                 frame_time_s: float = 0.02) -> None:
+        lines, self.order = hierarchy(body)
+        self.path = Path(path)
+        self.frames = 0
+        self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+        self._file.write("\n".join(lines) + "\nMOTION\n")
+        self._count_at = self._file.tell()
+        self._file.write(f"Frames: {0:<{_FRAMES_FIELD}d}\nFrame Time: {frame_time_s:.6f}\n")
+
+    def write(self, C: np.ndarray, pelvis: np.ndarray) -> None:
+        """Frames ``C[N, 18, 3, 3]`` (segment → NED) and ``pelvis[N, 3]`` (m, NED)."""
+        if len(C):
+            write_rows(self._file, motion_rows(C, pelvis, self.order), "%.5f", " ", "")
+        self.frames += len(C)
+
+    def close(self) -> None:
+        if self._file.closed:
+            return
+        self._file.seek(self._count_at)
+        self._file.write(f"Frames: {self.frames:<{_FRAMES_FIELD}d}")
+        self._file.close()
+
+    def __enter__(self) -> BvhWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def write_bvh(path: str | Path, C: np.ndarray, pelvis: np.ndarray,
+              body: BodyOptions | None = None, frame_time_s: float = 0.02) -> int:
+    """Write segment orientations ``C[N, 18, 3, 3]`` (segment → NED) and the pelvis position
+    ``pelvis[N, 3]`` (m, NED) as a BVH file. Returns the number of frames."""
+    with BvhWriter(path, body, frame_time_s) as w:
+        w.write(C, pelvis)
+        return w.frames

@@ -4,21 +4,18 @@ header row names every column with its unit."""
 
 from __future__ import annotations
 
-import re
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from bpms.analysis.textout import write_rows
-from bpms.filter.calibration import SensorCalibration
-from bpms.io.calib_file import load_calibration
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file import iter_filtered
 from bpms.io.frames import CHANNEL_NAMES, IMU_NAMES, N_IMUS
-from bpms.io.options import load_options
-from bpms.io.recordings import open_recording
+from bpms.io.names import slug
 
 _FMT = "%.10g"
+_HOST_FMT = "%.6f"
 #: Units of the calibrated channels (``SensorCalibration.physical_units``, signed board axes).
 CALIBRATED_UNITS = ("m_s2",) * 3 + ("gauss",) * 3 + ("rad_s",) * 3
 
@@ -27,9 +24,6 @@ class ExtractError(Exception):
     """A request that cannot be met (unknown IMU id, unknown body, ...): one line."""
 
 
-def slug(text: str) -> str:
-    """``"Right Leg"`` → ``"right_leg"``."""
-    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
 
 
 def available_imus() -> str:
@@ -58,67 +52,106 @@ def parse_imu_ids(specs: Sequence[str]) -> list[int]:
     return list(dict.fromkeys(ids))
 
 
-def write_csv(path: str | Path, columns: Sequence[str], data: np.ndarray) -> None:
-    """A header row, then one row per sample (``nan`` for missing values). Columns named
-    ``*_counts`` are written as integers (half the formatting time of floats)."""
-    fmt = ["%d" if c.endswith("_counts") else _FMT for c in columns]
+def _formats(columns: Sequence[str]) -> list[str]:
+    return ["%d" if c.endswith("_counts") else _HOST_FMT if c == "host_time_s" else _FMT
+            for c in columns]
+
+
+def write_csv(path: str | Path, columns: Sequence[str], data: np.ndarray | Iterable[np.ndarray]
+              ) -> int:
+    """A header row, then one row per sample (``nan`` for missing values); ``data`` an array
+    or an iterable of row blocks (written as they come). Columns named ``*_counts`` are
+    written as integers, ``host_time_s`` to the microsecond. Returns the rows written."""
+    fmt = _formats(columns)
+    blocks = [data] if isinstance(data, np.ndarray) else data
+    rows = 0
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(",".join(columns) + "\n")
-        write_rows(f, data, fmt, ",", f"writing {Path(path).name}")
+        for block in blocks:
+            write_rows(f, block, fmt, ",", f"writing {Path(path).name}" if isinstance(
+                data, np.ndarray) else "")
+            rows += len(block)
+    return rows
 
 
-def raw_table(raw_path: str | Path, ids: Sequence[int], calibrated: bool = False,
-              calibration: str | Path | None = None) -> tuple[list[str], np.ndarray]:
-    """Columns and rows of ``bpms extract raw``.
+def raw_rows(raw_path: str | Path, ids: Sequence[int], calibrated: bool = False,
+             calibration: str | Path | None = None
+             ) -> tuple[list[str], Iterator[np.ndarray], object]:
+    """Columns and row blocks (streamed, chunk by chunk) of ``bpms extract raw``, and the
+    opened recording (:class:`bpms.filter.door.OpenedRecording`, its sources).
 
-    ``time_s`` (frame index × 0.02 s, the fixed filter clock), ``host_time_s`` (receive time
-    since the first frame), then per IMU its 9 channels: raw counts (``imu0_right_leg_ax_counts``)
+    ``time_s`` (stream time, :mod:`bpms.io.timebase`), ``host_time_s`` (receive time, s since
+    the epoch, UTC), then per IMU its 9 channels: raw counts (``imu0_right_leg_ax_counts``)
     or, with ``calibrated``, accel m/s², mag gauss, gyro rad/s in signed board axes
-    (:meth:`SensorCalibration.physical_units`, the calibration stored in the recording unless
-    ``calibration`` names a Calib.cfg).
+    (:meth:`SensorCalibration.physical_units`; the calibration by the one door's precedence:
+    ``calibration`` > the recording's header > the user's default > factory).
     """
-    from bpms.analysis.source import header_calibration, header_options
+    from bpms.filter.door import open_for_processing
+    from bpms.io.timebase import stream_times
 
-    recording = open_recording(raw_path)
-    decoded = recording.decode()
-    n = len(decoded.raw)
-    if n == 0:
+    opened = open_for_processing(raw_path, calibration)
+    if opened.n_frames == 0:
         raise ExtractError(f"{raw_path}: the recording holds no frames")
-    t = np.arange(n) * 0.02
-    host = recording.times - recording.times[0] if n else np.zeros(0)
-    if calibrated:
-        table = load_calibration(calibration) if calibration else header_calibration(recording)
-        if table is None:
-            table = load_calibration(None)
-        opts = header_options(recording) or load_options(None)
-        cal = SensorCalibration.from_table(table, opts.sensors)
-        acc, mag, gyr = cal.physical_units(decoded.raw)
-        values = np.concatenate([acc, mag, gyr], axis=-1)
-        units = CALIBRATED_UNITS
-    else:
-        values = decoded.raw.astype(np.float64)
-        units = ("counts",) * 9
+    cal = opened.processor.sensor_calibration
+    dt = opened.processor.options.filter.dt
+    units = CALIBRATED_UNITS if calibrated else ("counts",) * 9
     columns = ["time_s", "host_time_s"]
     for i in ids:
         stem = f"imu{i}_{slug(IMU_NAMES[i])}"
         columns += [f"{stem}_{c}_{u}" for c, u in zip(CHANNEL_NAMES, units, strict=True)]
-    data = np.concatenate([t[:, None], host[:, None], values[:, ids, :].reshape(n, -1)], axis=1)
-    return columns, data
+
+    def blocks() -> Iterator[np.ndarray]:
+        for lo, host, decoded in opened.raw_chunks():
+            n = len(host)
+            if calibrated:
+                acc, mag, gyr = cal.physical_units(decoded.raw)
+                values = np.concatenate([acc, mag, gyr], axis=-1)
+            else:
+                values = decoded.raw.astype(np.float64)
+            yield np.concatenate([stream_times(lo, n, dt)[:, None], host[:, None],
+                                  values[:, ids, :].reshape(n, -1)], axis=1)
+
+    return columns, blocks(), opened
+
+
+def raw_table(raw_path: str | Path, ids: Sequence[int], calibrated: bool = False,
+              calibration: str | Path | None = None) -> tuple[list[str], np.ndarray]:
+    """:func:`raw_rows` as one array."""
+    columns, blocks, _ = raw_rows(raw_path, ids, calibrated, calibration)
+    parts = list(blocks)
+    return columns, np.concatenate(parts) if parts else np.zeros((0, len(columns)))
+
+
+def filtered_rows(filtered_path: str | Path, ids: Sequence[int], degrees: bool = False
+                  ) -> tuple[list[str], Iterator[np.ndarray], list[str]]:
+    """Columns, row blocks (streamed) and reader problems (filled while streaming) of ``bpms
+    extract filtered``: ``time_s`` (s since the start), ``host_time_s`` (s since the epoch,
+    UTC; ``nan`` when the file has none), then roll, pitch, yaw of each IMU in rad (deg with
+    ``degrees``). Reads every version of the filtered file, the original suite's included.
+    Raises :class:`bpms.io.filtered_file.FilteredFileError` for a file that is not one."""
+    info, blocks, problems = iter_filtered(filtered_path)
+    name = "euler" if "euler" in info.groups else "euler_sensor"
+    unit = "deg" if degrees else "rad"
+    columns = ["time_s", "host_time_s"]
+    for i in ids:
+        columns += [f"imu{i}_{slug(IMU_NAMES[i])}_{e}_{unit}" for e in ("roll", "pitch", "yaw")]
+
+    def rows() -> Iterator[np.ndarray]:
+        for block in blocks:
+            angles = block.groups[name][:, ids, :].reshape(len(block), -1)
+            if degrees:
+                angles = np.degrees(angles)
+            yield np.concatenate([block.t[:, None], block.host_time[:, None], angles], axis=1)
+
+    return columns, rows(), problems
 
 
 def filtered_table(filtered_path: str | Path, ids: Sequence[int],
                    degrees: bool = False) -> tuple[list[str], np.ndarray, list[str]]:
-    """Columns, rows and reader problems of ``bpms extract filtered``: ``time_s`` then roll,
-    pitch, yaw of each IMU in rad (deg with ``degrees``). Raises
-    :class:`bpms.io.filtered_file.FilteredFileError` for a file that is not a filtered file."""
-    data = read_filtered(filtered_path)
-    if len(data.t) == 0:
+    """:func:`filtered_rows` as one array."""
+    columns, blocks, problems = filtered_rows(filtered_path, ids, degrees)
+    parts = list(blocks)
+    data = np.concatenate(parts) if parts else np.zeros((0, len(columns)))
+    if len(data) == 0:
         raise ExtractError(f"{filtered_path}: the file holds no rows of data")
-    unit = "deg" if degrees else "rad"
-    columns = ["time_s"]
-    for i in ids:
-        columns += [f"imu{i}_{slug(IMU_NAMES[i])}_{e}_{unit}" for e in ("roll", "pitch", "yaw")]
-    angles = data.euler[:, ids, :].reshape(len(data.t), -1)
-    if degrees:
-        angles = np.degrees(angles)
-    return columns, np.concatenate([data.t[:, None], angles], axis=1), data.problems
+    return columns, data, problems

@@ -12,10 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.analysis.extract import slug
 from bpms.analysis.textout import write_rows
-from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.io.frames import IMU_NAMES, N_IMUS
+from bpms.io.names import JOINT_ANGLE_NAMES, slug
 
 
 def matlab_columns(degrees: bool = True) -> list[str]:
@@ -29,15 +28,42 @@ def matlab_columns(degrees: bool = True) -> list[str]:
     return cols
 
 
+class MatlabCsvWriter:
+    """The MATLAB CSV written block by block (constant memory); ``rows`` written so far."""
+
+    def __init__(self, path: str | Path, degrees: bool = True) -> None:
+        self.path = Path(path)
+        self.scale = np.degrees(1.0) if degrees else 1.0
+        self.rows = 0
+        self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+        self._file.write(",".join(matlab_columns(degrees)) + "\n")
+
+    def write(self, t: np.ndarray, quaternions: np.ndarray, euler: np.ndarray,
+              joint_angles: np.ndarray) -> None:
+        """``t[N]`` s, ``quaternions[N, 18, 4]``, ``euler[N, 18, 3]`` rad,
+        ``joint_angles[N, 28]`` rad."""
+        n = len(t)
+        per_imu = np.concatenate([quaternions, euler * self.scale], axis=-1).reshape(
+            n, N_IMUS * 7)
+        data = np.concatenate([np.asarray(t)[:, None], per_imu, joint_angles * self.scale],
+                              axis=1)
+        write_rows(self._file, data, "%.10g", ",", "")
+        self.rows += n
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> MatlabCsvWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def write_matlab_csv(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
                      euler: np.ndarray, joint_angles: np.ndarray, degrees: bool = True) -> int:
     """``t[N]`` s, ``quaternions[N, 18, 4]``, ``euler[N, 18, 3]`` rad, ``joint_angles[N, 28]``
     rad → the CSV. Returns the number of rows."""
-    n = len(t)
-    scale = np.degrees(1.0) if degrees else 1.0
-    per_imu = np.concatenate([quaternions, euler * scale], axis=-1).reshape(n, N_IMUS * 7)
-    data = np.concatenate([np.asarray(t)[:, None], per_imu, joint_angles * scale], axis=1)
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write(",".join(matlab_columns(degrees)) + "\n")
-        write_rows(f, data, "%.8g", ",", f"writing {Path(path).name}")
-    return n
+    with MatlabCsvWriter(path, degrees) as w:
+        w.write(t, quaternions, euler, joint_angles)
+        return w.rows

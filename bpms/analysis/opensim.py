@@ -47,28 +47,54 @@ def imu_columns(head_neck: bool = False) -> dict[int, str]:
     return {**OPENSIM_IMUS, **(OPENSIM_HEAD_IMUS if head_neck else {})}
 
 
+class OrientationsWriter:
+    """An OpenSense orientations file written block by block (constant memory).
+
+    ``write(t[N], quaternions[N, 18, 4])``: rows where a mapped IMU has no orientation (NaN)
+    are skipped; each quaternion is normalised. ``rows``: rows written so far."""
+
+    def __init__(self, path: str | Path, rate_hz: float = 50.0, head_neck: bool = False,
+                 opensim_version: str = "4.5") -> None:
+        cols = imu_columns(head_neck)
+        self.ids = list(cols)
+        self.path = Path(path)
+        self.rows = 0
+        self._row = "\t".join(["%.6f", *(["%.8f,%.8f,%.8f,%.8f"] * len(self.ids))])
+        self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+        self._file.write(f"DataRate={rate_hz:.6f}\nDataType=Quaternion\nversion=3\n"
+                         f"OpenSimVersion={opensim_version}\nendheader\n")
+        self._file.write("\t".join(["time", *(cols[i] for i in self.ids)]) + "\n")
+
+    def write(self, t: np.ndarray, quaternions: np.ndarray) -> int:
+        q = np.asarray(quaternions, dtype=np.float64)[:, self.ids, :]
+        keep = np.isfinite(q).all(axis=(1, 2))
+        q = q[keep]
+        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+        times = np.asarray(t, dtype=np.float64)[keep]
+        if len(times):
+            write_rows(self._file, np.concatenate([times[:, None], q.reshape(len(q), -1)],
+                                                  axis=1), self._row, "\t", "")
+        self.rows += len(times)
+        return len(times)
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> OrientationsWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def write_orientations(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
                        rate_hz: float = 50.0, head_neck: bool = False,
                        opensim_version: str = "4.5") -> int:
     """Write ``quaternions[N, 18, 4]`` (w, x, y, z) at times ``t[N]`` s as an OpenSense
     orientations file; rows where a mapped IMU has no orientation (NaN) are skipped.
     Returns the number of rows written. Each quaternion is normalised."""
-    cols = imu_columns(head_neck)
-    ids = list(cols)
-    q = np.asarray(quaternions, dtype=np.float64)[:, ids, :]
-    keep = np.isfinite(q).all(axis=(1, 2))
-    q = q[keep]
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    times = np.asarray(t, dtype=np.float64)[keep]
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write(f"DataRate={rate_hz:.6f}\nDataType=Quaternion\nversion=3\n"
-                f"OpenSimVersion={opensim_version}\nendheader\n")
-        f.write("\t".join(["time", *(cols[i] for i in ids)]) + "\n")
-        if len(times):
-            row = "\t".join(["%.6f", *(["%.8f,%.8f,%.8f,%.8f"] * len(ids))])
-            write_rows(f, np.concatenate([times[:, None], q.reshape(len(q), -1)], axis=1),
-                       row, "\t", f"writing {Path(path).name}")
-    return int(keep.sum())
+    with OrientationsWriter(path, rate_hz, head_neck, opensim_version) as w:
+        return w.write(t, quaternions)
 
 
 def calibration_window(settle_frames: int, window_frames: int, n: int) -> tuple[int, int]:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.joints import JOINT_ANGLE_NAMES
+from bpms.io.names import JOINT_ANGLE_NAMES
 
 
 @dataclass
@@ -31,15 +31,54 @@ def range_of_motion(label: str, t: np.ndarray, joint_angles: np.ndarray,
                     t0: float | None = None, t1: float | None = None) -> RomTable:
     """Min/max (deg) of ``joint_angles[N, 28]`` (rad) over ``t0 <= t <= t1`` (s); NaN rows
     (before the first Reset Zero) are ignored. Raises ValueError for an empty window."""
-    lo = t[0] if t0 is None else t0
-    hi = t[-1] if t1 is None else t1
-    mask = (t >= lo - 1e-9) & (t <= hi + 1e-9) & np.isfinite(joint_angles).all(axis=1)
-    if not mask.any():
-        raise ValueError(f"{label}: no filtered frame between {lo:.2f} s and {hi:.2f} s "
-                         f"(the recording spans 0–{t[-1] if len(t) else 0:.2f} s)")
-    deg = np.degrees(joint_angles[mask])
-    return RomTable(label, float(t[mask][0]), float(t[mask][-1]), deg.min(axis=0),
-                    deg.max(axis=0))
+    acc = RomAccumulator(label, t0, t1)
+    acc.add(np.asarray(t), np.asarray(joint_angles))
+    return acc.table()
+
+
+class RomAccumulator:
+    """:func:`range_of_motion` reduced on the fly, chunk by chunk (constant memory): feed
+    ``add(t[N], joint_angles[N, 28])`` in time order, then :meth:`table`. Gives the same
+    numbers as :func:`range_of_motion` over the whole arrays."""
+
+    def __init__(self, label: str, t0: float | None = None, t1: float | None = None) -> None:
+        self.label, self.t0, self.t1 = label, t0, t1
+        n = len(JOINT_ANGLE_NAMES)
+        self._min = np.full(n, np.inf)
+        self._max = np.full(n, -np.inf)
+        self._first: float | None = None
+        self._last: float | None = None
+        self._t_start: float | None = None
+        self._t_end = 0.0
+
+    def add(self, t: np.ndarray, joint_angles: np.ndarray) -> None:
+        if not len(t):
+            return
+        if self._t_start is None:
+            self._t_start = float(t[0])
+        self._t_end = float(t[-1])
+        lo = -np.inf if self.t0 is None else self.t0
+        hi = np.inf if self.t1 is None else self.t1
+        mask = (t >= lo - 1e-9) & (t <= hi + 1e-9) & np.isfinite(joint_angles).all(axis=1)
+        if not mask.any():
+            return
+        deg = np.degrees(joint_angles[mask])
+        np.minimum(self._min, deg.min(axis=0), out=self._min)
+        np.maximum(self._max, deg.max(axis=0), out=self._max)
+        tm = t[mask]
+        if self._first is None:
+            self._first = float(tm[0])
+        self._last = float(tm[-1])
+
+    def table(self) -> RomTable:
+        """The trial's table. Raises ValueError for an empty window."""
+        if self._first is None or self._last is None:
+            lo = self._t_start if self.t0 is None else self.t0
+            hi = self._t_end if self.t1 is None else self.t1
+            raise ValueError(f"{self.label}: no filtered frame between {lo or 0.0:.2f} s and "
+                             f"{hi:.2f} s (the recording spans 0–{self._t_end:.2f} s)")
+        return RomTable(self.label, self._first, self._last, self._min.copy(),
+                        self._max.copy())
 
 
 def joint_groups() -> dict[str, list[int]]:

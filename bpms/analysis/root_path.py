@@ -41,3 +41,26 @@ def walked_root(processed) -> np.ndarray:
     track = walked_path(res.t, accel_g, res.joint_positions, opts.heel_strike_g,
                         opts.min_step_interval_s, opts.declination_deg)
     return root_trajectory(res.t, pelvis, track.times, track.positions)
+
+
+def walked_steps(opened, zero_at_s=()) -> tuple[np.ndarray, np.ndarray]:
+    """Heel-strike times ``[K]`` s and running positions ``[K, 3]`` m of a recording opened
+    through the one door (:func:`bpms.filter.door.open_for_processing`), streamed chunk by
+    chunk in constant memory; empty for a filtered file (no accelerometers)."""
+    from bpms.analysis.track import TrackAccumulator
+
+    if not opened.has_raw:
+        return np.zeros(0), np.zeros((0, 3))
+    proc = opened.processor
+    opts = proc.options.track
+    gravity = proc.sensor_calibration.gravity
+    acc_track = TrackAccumulator(opts.heel_strike_g, opts.min_step_interval_s,
+                                 opts.declination_deg)
+    for chunk in opened.chunks(zero_at_s):
+        acc, _, _ = proc.calibrate(chunk.raw)
+        accel_g = {side: np.linalg.norm(acc[:, i], axis=-1) / gravity[i]
+                   for side, i in FOOT_IMUS.items()}
+        acc_track.add(chunk.result.t, accel_g, chunk.result.joint_positions)
+    track = acc_track.track()
+    return np.asarray(track.times, dtype=np.float64), np.asarray(track.positions,
+                                                                 dtype=np.float64).reshape(-1, 3)

@@ -98,3 +98,68 @@ def walked_path(t: np.ndarray, accel_g: dict[str, np.ndarray], joint_positions: 
     steps = np.where(lead_right, right - left, left - right).reshape(-1, 3)
     steps = np.nan_to_num(steps) @ rot_z(np.radians(declination_deg)).T
     return Track(t[idx], sides, peaks, steps, np.cumsum(steps, axis=0))
+
+
+class TrackAccumulator:
+    """:func:`walked_path` computed chunk by chunk (constant memory, the same numbers):
+    feed consecutive chunks with :meth:`add`, then :meth:`track`. Only the candidate heel
+    strikes and two frames of history are kept between chunks."""
+
+    def __init__(self, threshold_g: float = 2.0, min_interval_s: float = 0.4,
+                 declination_deg: float = 0.0, include_hips: bool = False) -> None:
+        self.threshold_g = threshold_g
+        self.min_interval_s = min_interval_s
+        self.declination_deg = declination_deg
+        self.include_hips = include_hips
+        self._next = 0  # global index of the next frame
+        self._tail_t = np.zeros(0)
+        self._tail_mag: dict[str, np.ndarray] = {}
+        self._tail_pos = np.zeros((0, len(POINT_INDEX), 3))
+        # kept strikes: (frame, side, peak g, time s, joint positions [21, 3])
+        self._kept: list[tuple[int, str, float, float, np.ndarray]] = []
+
+    def add(self, t: np.ndarray, accel_g: dict[str, np.ndarray],
+            joint_positions: np.ndarray) -> None:
+        """The next chunk: ``t[N]`` s, feet accelerometer magnitudes ``{"right": [N],
+        "left": [N]}`` g, ``joint_positions[N, 21, 3]`` m NED."""
+        n = len(t)
+        if n == 0:
+            return
+        tail = len(self._tail_t)
+        base = self._next - tail
+        t_ext = np.concatenate([self._tail_t, t])
+        pos_ext = np.concatenate([self._tail_pos, joint_positions])
+        cand = []
+        for side, mag in accel_g.items():
+            m = np.concatenate([self._tail_mag.get(side, np.zeros(0)), np.nan_to_num(mag)])
+            for k in _peaks(m, self.threshold_g):
+                cand.append((int(base + k), side, float(m[k]), float(t_ext[k]),
+                             pos_ext[k].copy()))
+            self._tail_mag[side] = m[-2:]
+        cand.sort(key=lambda c: (c[0], c[1], c[2]))
+        kept = self._kept
+        for c in cand:
+            if kept and (c[3] - kept[-1][3] < self.min_interval_s or c[1] == kept[-1][1]):
+                if c[2] > kept[-1][2]:
+                    kept[-1] = c
+                continue
+            kept.append(c)
+        self._tail_t = t_ext[-2:].copy()
+        self._tail_pos = pos_ext[-2:].copy()
+        self._next += n
+
+    def track(self) -> Track:
+        """The walked path so far."""
+        kept = self._kept
+        sides = [c[1] for c in kept]
+        pos = (np.array([c[4] for c in kept]) if kept
+               else np.zeros((0, len(POINT_INDEX), 3)))
+        origin_r = "pelvis" if self.include_hips else "hip_r"
+        origin_l = "pelvis" if self.include_hips else "hip_l"
+        right = pos[:, POINT_INDEX["ankle_r"]] - pos[:, POINT_INDEX[origin_r]]
+        left = pos[:, POINT_INDEX["ankle_l"]] - pos[:, POINT_INDEX[origin_l]]
+        lead_right = np.array([s == "right" for s in sides], dtype=bool)[:, None]
+        steps = np.where(lead_right, right - left, left - right).reshape(-1, 3)
+        steps = np.nan_to_num(steps) @ rot_z(np.radians(self.declination_deg)).T
+        return Track(np.array([c[3] for c in kept]), sides, np.array([c[2] for c in kept]),
+                     steps, np.cumsum(steps, axis=0))

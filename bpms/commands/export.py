@@ -36,9 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="opensim: add head_imu and neck_imu (models with a head)")
     parser.add_argument("--radians", action="store_true", help="matlab: angles in radians")
     parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the one stored in the recording)")
+                        help="calibration file (default: the recording's, else your default)")
     parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the options stored in the recording)")
+                        help="options file (default: the recording's, else your default)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     add_filter_option(parser)
     parser.set_defaults(run=run)
@@ -52,53 +52,81 @@ def _target(path: Path, force: bool) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import processed
+    from bpms.commands._analysis import open_recording_for, stream
 
     t_start = time.perf_counter()
     raw = Path(args.raw_file)
     out = Path(args.output) if args.output else raw.with_suffix("")
-    p = processed("export", args.raw_file, args.calibration, args.options, args.reset_at,
-                  algorithm=args.filter_name,
-                  heading=args.heading)
-    res = p.result
-    dt = p.processor.options.filter.dt
+    opened = open_recording_for("export", args.raw_file, args.calibration, args.options,
+                                args.filter_name, args.heading)
+    proc = opened.processor
+    dt = proc.options.filter.dt
     written: list[str] = []
+    n = 0
+    writers: list = []
     try:
         if args.format == "opensim":
-            from bpms.analysis.opensim import calibration_window, write_orientations
+            from bpms.analysis.opensim import OrientationsWriter, calibration_window
 
             stem = str(out.with_suffix("")) if out.suffix == ".sto" else str(out)
-            whole = _target(Path(f"{stem}_orientations.sto"), args.force)
-            calib = _target(Path(f"{stem}_calibration.sto"), args.force)
-            q = res.segment_quaternions
-            rows = write_orientations(whole, res.t, q, 1.0 / dt, args.head_neck)
-            lo, hi = calibration_window(p.processor.pose.settle, p.processor.pose.window,
-                                        len(res))
-            rows_c = write_orientations(calib, res.t[lo:hi], q[lo:hi], 1.0 / dt, args.head_neck)
-            written += [f"{whole} ({rows} rows)",
-                        f"{calib} ({rows_c} rows, {lo * dt:.2f}–{hi * dt:.2f} s)"]
+            whole_path = _target(Path(f"{stem}_orientations.sto"), args.force)
+            calib_path = _target(Path(f"{stem}_calibration.sto"), args.force)
+            whole = OrientationsWriter(whole_path, 1.0 / dt, args.head_neck)
+            calib = OrientationsWriter(calib_path, 1.0 / dt, args.head_neck)
+            writers += [whole, calib]
+            lo, hi = calibration_window(proc.pose.settle, proc.pose.window, opened.n_frames)
+            for chunk in stream("export", opened, args.reset_at):
+                res = chunk.result
+                q = res.segment_quaternions
+                whole.write(res.t, q)
+                a, b = max(lo - chunk.start, 0), min(hi - chunk.start, len(res))
+                if a < b:
+                    calib.write(res.t[a:b], q[a:b])
+                n += len(res)
+            written += [f"{whole_path} ({whole.rows} rows)",
+                        f"{calib_path} ({calib.rows} rows, {lo * dt:.2f}–{hi * dt:.2f} s)"]
         elif args.format == "bvh":
-            from bpms.analysis.bvh import write_bvh
+            from bpms.analysis.bvh import BvhWriter
+            from bpms.filter.body_model import POINT_INDEX
 
             path = _target(out if out.suffix == ".bvh" else out.with_name(out.name + ".bvh"),
                            args.force)
-            from bpms.analysis.root_path import walked_root  # i16: the walked path
+            from bpms.analysis.root_path import root_trajectory, walked_steps
+            from bpms.filter.door import open_for_processing
 
-            n = write_bvh(path, res.C, walked_root(p), p.processor.options.body, dt)
-            written.append(f"{path} ({n} frames, cm, y up)")
+            # the root walks the heel-strike path: a first pass finds the steps (constant
+            # memory), the second writes the frames
+            steps = walked_steps(open_for_processing(args.raw_file, args.calibration,
+                                                     args.options, args.filter_name,
+                                                     args.heading), args.reset_at)
+            bvh = BvhWriter(path, proc.options.body, dt)
+            writers.append(bvh)
+            for chunk in stream("export", opened, args.reset_at):
+                res = chunk.result
+                bvh.write(res.C, root_trajectory(res.t, res.joint_positions[:, POINT_INDEX[
+                    "pelvis"]], *steps))
+                n += len(res)
+            written.append(f"{path} ({bvh.frames} frames, cm, y up)")
         else:
-            from bpms.analysis.matlab import write_matlab_csv
+            from bpms.analysis.matlab import MatlabCsvWriter
 
             path = _target(out if out.suffix == ".csv" else out.with_name(out.name
                                                                           + "_matlab.csv"),
                            args.force)
-            n = write_matlab_csv(path, res.t, res.quaternions, res.euler, res.joint_angles,
-                                 degrees=not args.radians)
-            written.append(f"{path} ({n} rows)")
+            mat = MatlabCsvWriter(path, degrees=not args.radians)
+            writers.append(mat)
+            for chunk in stream("export", opened, args.reset_at):
+                res = chunk.result
+                mat.write(res.t, res.quaternions, res.euler, res.joint_angles)
+                n += len(res)
+            written.append(f"{path} ({mat.rows} rows)")
     except OSError as exc:
         raise CliError(f"cannot write: {exc.strerror or exc} ({exc.filename})") from exc
+    finally:
+        for w in writers:
+            w.close()
     for w in written:
         print(w, file=sys.stderr)
-    print(f"bpms export: {len(res)} frames in {time.perf_counter() - t_start:.1f} s",
+    print(f"bpms export: {n} frames in {time.perf_counter() - t_start:.1f} s",
           file=sys.stderr)
     return 0

@@ -55,9 +55,9 @@ def _ask(args: argparse.Namespace, name: str, prompt: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from bpms.analysis.extract import (
         ExtractError,
-        filtered_table,
+        filtered_rows,
         parse_imu_ids,
-        raw_table,
+        raw_rows,
         write_csv,
     )
     from bpms.analysis.mocap_import import (
@@ -86,26 +86,37 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.exists() and not args.force:
         raise CliError(f"{out} exists (use --force to overwrite)")
+    problems: list[str] = []
     try:
         if args.kind == "raw":
             ids = parse_imu_ids(args.imu)
-            columns, data = raw_table(args.input, ids, args.calibrated, args.calibration)
+            columns, data, opened = raw_rows(args.input, ids, args.calibrated, args.calibration)
+            print(f"bpms extract: {opened.sources_line()}", file=sys.stderr)
+            problems = opened.problems
         elif args.kind == "filtered":
             ids = parse_imu_ids(args.imu)
-            columns, data, problems = filtered_table(args.input, ids, args.degrees)
-            for p in problems:
-                print(f"bpms extract: warning: {p}", file=sys.stderr)
+            columns, data, problems = filtered_rows(args.input, ids, args.degrees)
+            print("bpms extract: calibration: not used (filtered file: angles as logged); "
+                  "options: not used", file=sys.stderr)
         else:
             reader = read_vicon if args.kind == "vicon" else read_qualisys
             columns, data = body_table(reader(args.input).body(args.body))
+        try:
+            rows = write_csv(out, columns, data)
+        except OSError as exc:
+            out.unlink(missing_ok=True)
+            if exc.filename and str(exc.filename) == str(out):
+                raise CliError(f"cannot write {out}: {exc.strerror or exc}") from exc
+            raise
     except (ExtractError, MocapFormatError, UnknownBodyError, FilteredFileError,
             RawFileError) as exc:
         raise CliError(str(exc)) from exc
     except OSError as exc:
         raise CliError(f"{args.input}: {exc.strerror or exc}") from exc
-    try:
-        write_csv(out, columns, data)
-    except OSError as exc:
-        raise CliError(f"cannot write {out}: {exc.strerror or exc}") from exc
-    print(f"{out}: {len(data)} rows × {len(columns)} columns", file=sys.stderr)
+    for p in problems:
+        print(f"bpms extract: warning: {p}", file=sys.stderr)
+    if rows == 0 and args.kind == "filtered":
+        out.unlink(missing_ok=True)
+        raise CliError(f"{args.input}: the file holds no rows of data")
+    print(f"{out}: {rows} rows × {len(columns)} columns", file=sys.stderr)
     return 0

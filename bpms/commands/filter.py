@@ -1,11 +1,12 @@
 """``bpms filter RAW_FILE``: filter a whole raw recording as fast as the machine allows.
 
-Writes the filtered CSV file (:mod:`bpms.io.filtered_file`): time, then roll, pitch, yaw of
-IMU 0..17, radians (``--degrees`` for degrees), plus the 28 joint angles with ``--joints``.
-The calibration and options stored in the recording's header are used unless ``--calibration``
-/ ``--options`` name files (legacy pickled raw files carry none: factory values). Reads native
-recordings and the original suite's pickled raw files (never executing code). Progress goes
-to stderr for long files.
+Writes the filtered CSV file (:mod:`bpms.io.filtered_file`, docs/filtered-file.md): time since
+the start, host time, then roll, pitch, yaw of IMU 0..17, radians (``--degrees`` for degrees),
+plus the 28 joint angles with ``--joints``. The recording is opened through the one door
+(:mod:`bpms.filter.door`): ``--calibration`` / ``--options`` > the recording's header > the
+user's default > factory; the line ``calibration: …; options: …`` on stderr says which. Reads
+native recordings and the original suite's pickled raw files (never executing code), chunk by
+chunk (memory stays flat). Progress goes to stderr for long files.
 """
 
 from __future__ import annotations
@@ -16,19 +17,9 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from bpms.commands import CliError
-from bpms.io.calib_file import CalibrationTable, load_calibration
-from bpms.io.filtered_file import FilteredWriter, default_output_path
-from bpms.io.frames import decode_frames
-from bpms.io.options import FilterOptions, Options, load_options, options_from_dict
-from bpms.io.rawfile import RawFileError
-from bpms.io.recordings import open_recording
-from bpms.progress import write_progress
+from bpms.io.options import FilterOptions
 
-CHUNK_FRAMES = 15_000  # 5 min of recording per kernel call (keeps memory flat)
-PROGRESS_ABOVE_FRAMES = 30_000
 FILTER_CHOICES = tuple(next(f for f in dataclasses.fields(FilterOptions)
                             if f.name == "algorithm").metadata["choices"])
 
@@ -37,7 +28,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "filter", help="filter a raw recording into a filtered CSV file",
         description="Filter a raw recording (no real-time pacing) into a filtered CSV file: "
-                    "time, then roll, pitch, yaw of IMU 0..17.")
+                    "time, host time, then roll, pitch, yaw of IMU 0..17.")
     parser.add_argument("raw_file", metavar="RAW_FILE",
                         help="raw recording (.bpmsraw, or the original suite's pickled .txt)")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
@@ -45,9 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--degrees", action="store_true", help="angles in degrees (default rad)")
     parser.add_argument("--joints", action="store_true", help="add the 28 joint-angle columns")
     parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the one stored in the recording)")
+                        help="calibration file (default: the recording's, else your default)")
     parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the options stored in the recording)")
+                        help="options file (default: the recording's, else your default)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     parser.add_argument("--filter", metavar="NAME",
                         help="attitude filter for all 18 IMUs: " + ", ".join(FILTER_CHOICES)
@@ -57,77 +48,44 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return parser
 
 
-def _calibration(args: argparse.Namespace, header: dict) -> CalibrationTable | None:
-    if args.calibration:
-        return load_calibration(args.calibration)
-    values = header.get("calibration")
-    if values is not None:
-        try:
-            return CalibrationTable(np.asarray(values, dtype=np.float64),
-                                    source=f"{args.raw_file} header")
-        except (ValueError, TypeError):
-            print(f"bpms filter: warning: the calibration in {args.raw_file} is unusable; "
-                  "factory calibration used", file=sys.stderr)
-    return None
-
-
-def _options(args: argparse.Namespace, header: dict) -> Options | None:
-    if args.options:
-        return load_options(args.options)
-    stored = header.get("options")
-    if isinstance(stored, dict) and stored:
-        return options_from_dict(stored, f"{args.raw_file} header")
-    return None
-
-
 def run(args: argparse.Namespace) -> int:
+    from bpms.commands._analysis import open_recording_for, stream
+    from bpms.filter.door import filtered_arrays, filtered_layout
+    from bpms.io.filtered_file import FilteredWriter, default_output_path
+
     t_start = time.perf_counter()
-    try:
-        recording = open_recording(args.raw_file)
-    except RawFileError as exc:
-        raise CliError(str(exc)) from exc
-    for problem in recording.problems:
-        print(f"bpms filter: warning: {problem}", file=sys.stderr)
-    n = len(recording)
-    if n == 0:
-        raise CliError(f"{args.raw_file}: the recording holds no frames")
     if args.filter is not None and args.filter not in FILTER_CHOICES:
         raise CliError(f"unknown filter '{args.filter}' (choose {', '.join(FILTER_CHOICES)})")
     out_path = Path(args.output) if args.output else default_output_path(args.raw_file)
     if out_path.exists() and not args.force:
         raise CliError(f"{out_path} exists (use --force to overwrite)")
-    from bpms.filter.processor import BodyPoseProcessor  # numba: only when filtering
-    from bpms.filter.vqf_filter import VqfMissingError
-
-    options = _options(args, recording.header)
-    if args.filter:
-        options = options or Options()
-        options.filter.algorithm = args.filter
-    try:
-        proc = BodyPoseProcessor(_calibration(args, recording.header), options)
-    except VqfMissingError as exc:
-        raise CliError(str(exc)) from exc
-    for problem in proc.problems:
-        print(f"bpms filter: warning: {problem}", file=sys.stderr)
-    show = n > PROGRESS_ABOVE_FRAMES
+    opened = open_recording_for("filter", args.raw_file, args.calibration, args.options,
+                                args.filter)
+    if opened.kind == "filtered":
+        raise CliError(f"{args.raw_file}: is a filtered file already; give a raw recording")
+    n = 0
+    writer = None
     try:
         if args.force:
             out_path.unlink(missing_ok=True)
-        with FilteredWriter(out_path, degrees=args.degrees, joints=args.joints) as writer:
-            for lo in range(0, n, CHUNK_FRAMES):
-                hi = min(n, lo + CHUNK_FRAMES)
-                decoded = decode_frames(recording.frames[lo:hi].tobytes())
-                result = proc.process(decoded.raw, decoded.errors)
-                writer.write_block(result.t, result.euler,
-                                   result.joint_angles if args.joints else None)
-                if show:
-                    write_progress(f"filtering {args.raw_file}: {100 * hi // n:3d}% "
-                                   f"({hi}/{n} frames)", sys.stderr, final=hi >= n)
+        for chunk in stream("filter", opened):
+            res = chunk.result
+            if writer is None:
+                groups, kind = filtered_layout(res, args.joints)
+                writer = FilteredWriter(out_path, degrees=args.degrees, groups=groups,
+                                        euler=kind, meta={"source": Path(args.raw_file).name})
+            writer.write_block(res.t, host_time=chunk.host_time, hole=chunk.hole,
+                               **filtered_arrays(res, writer.groups))
+            n += len(res)
     except OSError as exc:
         raise CliError(f"cannot write {out_path}: {exc.strerror or exc}") from exc
+    finally:
+        if writer is not None:
+            writer.close()
+    if n == 0:
+        raise CliError(f"{args.raw_file}: the recording holds no frames")
     elapsed = time.perf_counter() - t_start
     print(f"{out_path}: {n} frames filtered in {elapsed:.1f} s "
           f"({n * 18 / max(elapsed, 1e-9) / 1e6:.2f} M IMU updates/s incl. file I/O)",
           file=sys.stderr)
     return 0
-

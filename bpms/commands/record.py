@@ -62,8 +62,9 @@ def _interrupt(signum, frame) -> None:
 
 
 def status_line(status: LiveStatus, elapsed: float) -> str:
-    """One status line: state, rate (Hz), frames, recording size, errors, link events; then
-    why the link is down, a write error and SIMULATED, whenever they apply."""
+    """One status line: state, rate (Hz), frames, recording size, errors, link events, frames
+    not filtered and the processing backlog (bpms.pipeline.health); then why the link is down,
+    a write error and SIMULATED, whenever they apply."""
     src = status.source
     rec = status.recording
     raw = (f"raw {rec.raw_bytes / 1e3:8.1f} kB {rec.raw_path.name}"
@@ -72,7 +73,7 @@ def status_line(status: LiveStatus, elapsed: float) -> str:
     line = (f"t {elapsed:7.1f} s  {src.state:<10}  {status.rate_hz:5.1f} Hz  "
             f"frames {status.frames:7d}  {raw}  error bits {status.error_bits:5d}  "
             f"resyncs {src.resyncs:3d}  links lost {src.counters.get('links_lost', 0)}  "
-            f"battery {battery}")
+            f"battery {battery}  {status.health_line()}")
     if status.reinit_count:
         line += f"  filter re-inits {status.reinit_count}"
     if src.state != "streaming" and src.reason:

@@ -31,9 +31,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="folder for rom.csv, rom.md and rom_<group>.png (default: .)")
     parser.add_argument("--name", default="rom", help="file name stem of the outputs")
     parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the one stored in each recording)")
+                        help="calibration file (default: each recording's, else your default)")
     parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the options stored in each recording)")
+                        help="options file (default: each recording's, else your default)")
     parser.add_argument("--no-figures", action="store_true", help="tables only")
     add_filter_option(parser)
     parser.set_defaults(run=run)
@@ -41,8 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import processed
-    from bpms.analysis.rom import markdown, range_of_motion, write_csv
+    from bpms.analysis.rom import RomAccumulator, markdown, write_csv
+    from bpms.commands._analysis import open_recording_for, stream
 
     if args.t0 is not None and args.t1 is not None and args.t1 <= args.t0:
         raise CliError(f"--to ({args.t1} s) must be after --from ({args.t0} s)")
@@ -51,12 +51,13 @@ def run(args: argparse.Namespace) -> int:
     labels = args.label or [Path(f).stem for f in args.raw_files]
     tables = []
     for path, label in zip(args.raw_files, labels, strict=True):
-        p = processed("rom", path, args.calibration, args.options, args.reset_at,
-                      algorithm=args.filter_name,
-                      heading=args.heading)
+        opened = open_recording_for("rom", path, args.calibration, args.options,
+                                    args.filter_name, args.heading)
+        acc = RomAccumulator(label, args.t0, args.t1)
+        for chunk in stream("rom", opened, args.reset_at):
+            acc.add(chunk.result.t, chunk.result.joint_angles)
         try:
-            tables.append(range_of_motion(label, p.result.t, p.result.joint_angles, args.t0,
-                                          args.t1))
+            tables.append(acc.table())
         except ValueError as exc:
             raise CliError(str(exc)) from exc
     out = Path(args.output_dir)

@@ -35,9 +35,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="track CSV (default: <raw stem>_track.csv); the PNG beside it")
     parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the one stored in the recording)")
+                        help="calibration file (default: the recording's, else your default)")
     parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the options stored in the recording)")
+                        help="options file (default: the recording's, else your default)")
     parser.add_argument("--no-figure", action="store_true", help="CSV only")
     add_filter_option(parser)
     parser.set_defaults(run=run)
@@ -45,31 +45,33 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import processed
-    from bpms.analysis.track import FOOT_IMUS, walked_path
+    from bpms.analysis.track import FOOT_IMUS, TrackAccumulator
+    from bpms.commands._analysis import open_recording_for, stream
 
-    p = processed("track", args.raw_file, args.calibration, args.options,
-                  algorithm=args.filter_name,
-                  heading=args.heading)
-    if p.raw is None:
+    opened = open_recording_for("track", args.raw_file, args.calibration, args.options,
+                                args.filter_name, args.heading)
+    if not opened.has_raw:
         raise CliError(f"{args.raw_file}: heel strikes need the foot accelerometers: give the "
                        "raw recording, not a filtered file")
-    opts = p.processor.options.track
+    proc = opened.processor
+    opts = proc.options.track
     threshold = opts.heel_strike_g if args.threshold_g is None else args.threshold_g
     interval = opts.min_step_interval_s if args.min_interval is None else args.min_interval
     declination = opts.declination_deg if args.declination is None else args.declination
-    res = p.result
-    acc, _, _ = p.processor.calibrate(p.raw)
-    gravity = p.processor.sensor_calibration.gravity
-    window = np.ones(len(res), dtype=bool)
-    if args.t0 is not None:
-        window &= res.t >= args.t0
-    if args.t1 is not None:
-        window &= res.t <= args.t1
-    accel_g = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i], 0.0)
-               for side, i in FOOT_IMUS.items()}
-    track = walked_path(res.t, accel_g, res.joint_positions, threshold, interval, declination,
-                        args.include_hips)
+    gravity = proc.sensor_calibration.gravity
+    acc_track = TrackAccumulator(threshold, interval, declination, args.include_hips)
+    for chunk in stream("track", opened):
+        res = chunk.result
+        acc, _, _ = proc.calibrate(chunk.raw)
+        window = np.ones(len(res), dtype=bool)
+        if args.t0 is not None:
+            window &= res.t >= args.t0
+        if args.t1 is not None:
+            window &= res.t <= args.t1
+        accel_g = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i], 0.0)
+                   for side, i in FOOT_IMUS.items()}
+        acc_track.add(res.t, accel_g, res.joint_positions)
+    track = acc_track.track()
     out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")
     out = out if out.suffix == ".csv" else out.with_name(out.name + "_track.csv")
     try:

@@ -25,6 +25,7 @@ import numpy as np
 
 from bpms.filter.body_model import SEGMENT_AXIS
 from bpms.filter.rotations import dcm_to_euler
+from bpms.io.names import JOINT_ANGLE_NAMES
 
 
 @dataclass(frozen=True)
@@ -59,11 +60,12 @@ BALL_JOINTS: tuple[BallJoint, ...] = (
 )
 BALL_COMPONENTS = ("abduction", "flexion", "rotation")  # roll, pitch, yaw (Table 3.1)
 
-#: Column names of :func:`joint_angles`, in order.
-JOINT_ANGLE_NAMES: tuple[str, ...] = (
+#: Column names of :func:`joint_angles`, in order (defined in :mod:`bpms.io.names`, which the
+#: file readers use; the joint tables here must give the same names).
+assert (
     *(f"{j.name}.flexion" for j in HINGE_JOINTS),
     *(f"{j.name}.{c}" for j in BALL_JOINTS for c in BALL_COMPONENTS),
-)
+) == JOINT_ANGLE_NAMES, "bpms.io.names.JOINT_ANGLE_NAMES disagrees with the joint tables"
 
 
 _HINGE_PROXIMAL = np.array([j.proximal for j in HINGE_JOINTS])

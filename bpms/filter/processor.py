@@ -62,10 +62,14 @@ from bpms.filter.warmup import PATHS, ensure_kernels
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, check_option, load_options
-from bpms.io.recordings import open_recording
+from bpms.io.timebase import stream_times
 
 #: Seconds the filters settle after the stream starts before the automatic Reset Zero window.
 SETTLE_S = 0.5
+
+
+#: Result fields that are running totals (the last part's value stands for the whole stream).
+_RUNNING_FIELDS = frozenset({"held_count", "reinit_count"})
 
 
 @dataclass
@@ -84,6 +88,8 @@ class Result:
     (its outputs are NaN in that frame only); reinit_count: ``[18]`` re-initialisations so far.
     corrected: ``[N]`` bool, :attr:`euler_output` holds segment angles at that frame (the
     corrected output is switched on and a Reset Zero capture exists).
+    calibration_source / options_source: which calibration and options were used (whole
+    recordings opened through :mod:`bpms.filter.door`).
     """
 
     t: np.ndarray
@@ -112,32 +118,38 @@ class Result:
         if self.corrected is None:
             self.corrected = np.zeros(n, dtype=np.bool_)
     convention: str = "isb"  # joint-angle signs, bpms.filter.joints.CONVENTIONS
+    #: Where the calibration / options came from (set by the one door, bpms.filter.door).
+    calibration_source: str = field(default="", repr=False)
+    options_source: str = field(default="", repr=False)
 
     def __len__(self) -> int:
         return len(self.t)
 
     @staticmethod
     def concat(parts: list[Result]) -> Result:
-        """One Result of consecutive parts of a stream (frame arrays joined, the last part's
-        counts, every part's zeros and problems)."""
-        def join(name: str):
-            values = [getattr(p, name) for p in parts]
-            return None if any(v is None for v in values) else np.concatenate(values)
-
-        dist = None
-        if all(p.disturbance is not None for p in parts):
-            dist = dataclasses.replace(parts[0].disturbance, **{
-                f.name: np.concatenate([getattr(p.disturbance, f.name) for p in parts])
-                for f in dataclasses.fields(parts[0].disturbance)})
+        """One Result of consecutive parts of a stream: per-frame arrays (and the disturbance
+        record's) joined, running counters and single values from the last part, lists of
+        every part (zeros, problems)."""
+        if len(parts) == 1:
+            return parts[0]
         last = parts[-1]
-        return Result(t=join("t"), R=join("R"), euler=join("euler"), C=join("C"),
-                      body=last.body, held_count=last.held_count,
-                      zeros=[z for p in parts for z in p.zeros],
-                      problems=[x for p in parts for x in p.problems],
-                      gyro_bias=join("gyro_bias"), body_acc=join("body_acc"),
-                      disturbance=dist, reinitialised=join("reinitialised"),
-                      reinit_count=last.reinit_count, corrected=join("corrected"),
-                      convention=last.convention)
+        values = {}
+        for f in dataclasses.fields(Result):
+            items = [getattr(p, f.name) for p in parts]
+            if f.name in _RUNNING_FIELDS or not isinstance(items[0], np.ndarray | list
+                                                             | Disturbance):
+                values[f.name] = getattr(last, f.name)
+            elif any(v is None for v in items):
+                values[f.name] = None
+            elif isinstance(items[0], list):
+                values[f.name] = [x for v in items for x in v]
+            elif isinstance(items[0], Disturbance):
+                values[f.name] = dataclasses.replace(items[0], **{
+                    g.name: np.concatenate([getattr(v, g.name) for v in items])
+                    for g in dataclasses.fields(items[0])})
+            else:
+                values[f.name] = np.concatenate(items)
+        return Result(**values)
 
     @property
     def euler_sensor(self) -> np.ndarray:
@@ -226,6 +238,8 @@ class BodyPoseProcessor:
 
     def __init__(self, calibration: str | Path | CalibrationTable | None = None,
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
+        # What the caller chose (None = not given): process_file's precedence starts here.
+        self._given = (calibration, options)
         # None: the user's default when one is saved (read as a path, so its ellipsoid fits
         # come along), else the factory table
         user_default = calibration is None and _default_path().is_file()
@@ -342,7 +356,7 @@ class BodyPoseProcessor:
     def _result(self, n: int, out: BankOutput, C: np.ndarray, captures_before: int,
                 acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None, reinitialised: np.ndarray) -> Result:
-        t = (self.frames + np.arange(n)) * self.options.filter.dt
+        t = stream_times(self.frames, n, self.options.filter.dt)
         self.frames += n
         bias = out.gyro_bias
         if bias is None and out.w_i is not None:
@@ -390,12 +404,18 @@ class BodyPoseProcessor:
                             None if errors is None else np.asarray(errors)[None], reinit[None])
 
     def process_file(self, path: str | Path, zero_at: list[int] | tuple[int, ...] = ()) -> Result:
-        """Filter a whole raw recording — native (:func:`bpms.io.rawfile.read_raw`) or a
-        legacy pickled raw file (read without executing code) — as one new stream. Raises
+        """Filter a whole recording (native raw, legacy pickled raw, or a filtered CSV) as one
+        new stream, through the one door (:func:`bpms.filter.door.open_for_processing`): the
+        calibration and options given to this processor's constructor, else the recording's
+        header, else the user's default, else factory. The result says which in
+        ``calibration_source`` / ``options_source``; this processor becomes the one the door
+        built (its state continues that stream). Raises
         :class:`bpms.io.rawfile.RawFileError` for an unreadable file."""
-        recording = open_recording(path)
-        decoded = recording.decode()
-        self.restart()
-        result = self.process(decoded.raw, decoded.errors, zero_at)
-        result.problems.extend(recording.problems)
+        from bpms.filter.door import open_for_processing
+
+        opened = open_for_processing(path, *self._given, auto_zero=self.pose.auto)
+        result = opened.result(zero_at_frames=zero_at)
+        given = self._given
+        self.__dict__.update(opened.processor.__dict__)
+        self._given = given
         return result

@@ -24,6 +24,7 @@ from bpms.io.replay import ReplaySource
 from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
 
 if TYPE_CHECKING:  # the filter (numba) loads when a session is built, not with the window
+    from bpms.filter.processor import BodyPoseProcessor
     from bpms.pipeline.session import LiveSession
 
 MODES = ("suit", "udp", "file", "sim")
@@ -88,6 +89,13 @@ class SessionRunner:
         self._lsl = None  # i16: LslBridge while LSL streaming is on (set_lsl)
         self._mvn: list = []  # i16: MvnBridges to the options' mvn.targets
         self.problems: list[str] = []  # warnings about the source (e.g. a truncated file)
+        # Playback opens the recording through the one door (bpms.filter.door): these
+        # explicit choices win, else the recording's header, else the user's default.
+        self.playback_calibration: CalibrationTable | str | None = None
+        self.playback_options: Options | str | None = None
+        #: Where the calibration / options in force came from (for the data panel).
+        self.calibration_source = getattr(calibration, "source", "factory")
+        self.options_source = getattr(options, "source", "factory")
 
     @property
     def mode(self) -> str:
@@ -98,11 +106,12 @@ class SessionRunner:
         """Start Data pressed and not stopped since."""
         return self._data_on
 
-    def _new_session(self, source) -> LiveSession:
+    def _new_session(self, source, processor: BodyPoseProcessor | None = None) -> LiveSession:
         from bpms.filter.processor import BodyPoseProcessor
         from bpms.pipeline.session import LiveSession
 
-        processor = BodyPoseProcessor(calibration=self.calibration, options=self.options)
+        processor = processor or BodyPoseProcessor(calibration=self.calibration,
+                                                   options=self.options)
         session = LiveSession(source, self.options, processor,
                               recording_dir=self.config.recording_dir,
                               notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
@@ -154,8 +163,19 @@ class SessionRunner:
             self.problems = list(getattr(recording, "problems", []) or [])
             if len(recording) == 0:
                 raise ModeError(f"{cfg.path} holds no frames")
+            from bpms.filter.door import open_for_processing
+
+            try:
+                # the filter chosen in the GUI is an explicit run-time choice (like --filter)
+                opened = open_for_processing(cfg.path, self.playback_calibration,
+                                             self.playback_options,
+                                             algorithm=self.options.filter.algorithm)
+            except (RawFileError, OSError) as exc:
+                raise ModeError(f"cannot play {cfg.path}: {exc}") from None
+            self.calibration_source = opened.calibration_source
+            self.options_source = opened.options_source
             self.replay = ReplaySource(recording, speed=1.0, autoplay=False)
-            self.session = self._new_session(self.replay)
+            self.session = self._new_session(self.replay, opened.processor)
         elif cfg.mode == "udp":
             self.session = self._new_session(self._udp_source())
         else:

@@ -1,92 +1,246 @@
-"""The filtered file (docs/filter.md): CSV text, one row per frame.
+"""The filtered file: CSV text, one row per frame (docs/filtered-file.md).
 
-Columns: ``time_s`` (seconds since the stream started, on the fixed 50 Hz filter clock), then
-roll, pitch, yaw of IMU 0..17 (``imu0_right_leg_roll_rad``, ...), then optionally the 28 joint
-angles (``joint_knee_r_flexion_rad``, ...). Angles are radians by default, degrees when the
-names end in ``_deg``. The first row names every column with its unit. NaN (an IMU not yet
-initialised) is written ``nan``.
+Version 2 (written now)::
 
-The reader also accepts the legacy header-less layout of the original suite: 55 comma-separated
-numbers per line, time then roll, pitch, yaw in radians for IMU 0..17.
+    # bpms-filtered-file 2
+    # euler: sensor
+    # convention: ...
+    # groups: euler,joints
+    time_s,host_time_s,hole,imu0_right_leg_roll_rad,...,joint_elbow_r_flexion_rad,...
+
+- ``#`` lines: the header, ``key: value``. ``euler`` says which Euler angles the ``euler``
+  group holds: ``sensor`` (each IMU's filter orientation, filter frame → NED) or ``segment``
+  (segment orientations corrected by Reset Zero); ``groups`` lists the column groups in order.
+- Fixed columns: ``time_s`` (s since the stream started, fixed filter clock,
+  :mod:`bpms.io.timebase`), ``host_time_s`` (s since the epoch, UTC, when the host received the
+  frame; ``nan`` when unknown) and ``hole`` (1 for a frame that was received but not filtered:
+  its values are ``nan``; 0 otherwise).
+- Then the column groups (:func:`register_column_group`), each a fixed set of named columns;
+  angular groups are radians (``_rad``) or degrees (``_deg``) for the whole file.
+
+One reader, :func:`iter_filtered` (streaming, block by block) / :func:`read_filtered` (whole
+file), reads every version:
+
+- version 2 (above), with column groups it does not know kept by name in ``extra``;
+- version 1, this project's earlier layout: one header row ``time_s,imu0_..._roll_rad,...``
+  (+ joint columns), no host time, no holes;
+- version 0, the original suite's file: no header, one line per frame, ``time.time()`` epoch
+  seconds then roll, pitch, yaw (rad) of IMU 0..17, each value followed by a comma (a trailing
+  comma ends the line). Its absolute time becomes ``host_time`` (float64, to the millisecond
+  and better) and ``time_s`` counts from its first row.
 """
 
 from __future__ import annotations
 
-import re
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
-from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.io.frames import IMU_NAMES, N_IMUS
+from bpms.io.names import JOINT_ANGLE_NAMES, slug
 
+FORMAT_NAME = "bpms-filtered-file"
+FORMAT_VERSION = 2
 EULER_NAMES = ("roll", "pitch", "yaw")
+FIXED_COLUMNS = ("time_s", "host_time_s", "hole")
 N_LEGACY_COLUMNS = 1 + 3 * N_IMUS
+#: The first column of a version-0 file is absolute epoch time when above this (s; 1973).
+EPOCH_THRESHOLD_S = 1e8
+BLOCK_ROWS = 10_000
 _FMT = "%.10g"
+_HOST_FMT = "%.6f"
+_DEFAULT_CONVENTION = ("Euler roll, pitch, yaw (R = Rz Ry Rx), frame -> NED; joint angles as "
+                       "docs/filter.md")
 
 
 class FilteredFileError(Exception):
     """A file that cannot be read as a filtered file (message says why)."""
 
 
-def _slug(text: str) -> str:
-    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
+# -- column groups ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ColumnGroup:
+    """A named set of columns of the filtered file.
+
+    name: the group's name (the ``groups`` header line, keyword of :meth:`FilteredWriter.
+    write_block`); names: ``names(unit)`` → the column names, where ``unit`` is the file's
+    angle unit ``"rad"``/``"deg"``; shape: the per-frame array shape the writer takes and the
+    reader returns (its product = the number of columns); angular: values are angles in rad,
+    written in the file's unit; fmt: ``printf`` format of a value; description: one line for
+    docs.
+    """
+
+    name: str
+    names: Callable[[str], list[str]]
+    shape: tuple[int, ...]
+    angular: bool = False
+    fmt: str = _FMT
+    description: str = ""
+
+    @property
+    def width(self) -> int:
+        return int(np.prod(self.shape))
 
 
-def filtered_columns(degrees: bool = False, joints: bool = False) -> list[str]:
-    """Column names of a filtered file."""
+_GROUPS: dict[str, ColumnGroup] = {}
+
+
+def register_column_group(group: ColumnGroup) -> ColumnGroup:
+    """Add a column group (one call, at import of the module that owns the data). Registering
+    the same name again with the same columns is allowed (module re-import). Raises ValueError
+    for a name or a column name already used by another group."""
+    old = _GROUPS.get(group.name)
+    if old is not None and old.names("rad") != group.names("rad"):
+        raise ValueError(f"column group {group.name!r} is already registered")
+    if len(group.names("rad")) != group.width:
+        raise ValueError(f"column group {group.name!r}: {len(group.names('rad'))} names for "
+                         f"shape {group.shape}")
+    taken = {c for g in _GROUPS.values() if g.name != group.name for u in ("rad", "deg")
+             for c in g.names(u)} | set(FIXED_COLUMNS)
+    clash = [c for u in ("rad", "deg") for c in group.names(u) if c in taken]
+    if clash:
+        raise ValueError(f"column group {group.name!r}: column {clash[0]!r} already exists")
+    _GROUPS[group.name] = group
+    return group
+
+
+def column_groups() -> dict[str, ColumnGroup]:
+    """The registered column groups by name (registration order)."""
+    return dict(_GROUPS)
+
+
+def _imu_euler_names(infix: str) -> Callable[[str], list[str]]:
+    def names(unit: str) -> list[str]:
+        return [f"imu{i}_{slug(n)}_{infix}{e}_{unit}" for i, n in enumerate(IMU_NAMES)
+                for e in EULER_NAMES]
+    return names
+
+
+register_column_group(ColumnGroup(
+    "euler", _imu_euler_names(""), (N_IMUS, 3), angular=True,
+    description="roll, pitch, yaw of IMU 0..17 (which ones: the 'euler' header line)"))
+register_column_group(ColumnGroup(
+    "euler_sensor", _imu_euler_names("sensor_"), (N_IMUS, 3), angular=True,
+    description="each IMU's uncorrected filter roll, pitch, yaw, when 'euler' holds the "
+                "Reset-Zero-corrected segment angles"))
+register_column_group(ColumnGroup(
+    "joints", lambda unit: [f"joint_{slug(j)}_{unit}" for j in JOINT_ANGLE_NAMES],
+    (len(JOINT_ANGLE_NAMES),), angular=True, description="the 28 joint angles"))
+
+
+def filtered_columns(degrees: bool = False, joints: bool = False,
+                     groups: Sequence[str] | None = None) -> list[str]:
+    """Column names of a version-2 filtered file: the fixed columns, then the groups
+    (default ``euler``, plus ``joints`` with ``joints``)."""
     unit = "deg" if degrees else "rad"
-    cols = ["time_s"]
-    for i, name in enumerate(IMU_NAMES):
-        cols += [f"imu{i}_{_slug(name)}_{e}_{unit}" for e in EULER_NAMES]
-    if joints:
-        cols += [f"joint_{_slug(j)}_{unit}" for j in JOINT_ANGLE_NAMES]
+    cols = list(FIXED_COLUMNS)
+    for g in _group_list(groups, joints):
+        cols += _GROUPS[g].names(unit)
     return cols
 
 
-class FilteredWriter:
-    """Writes a filtered file row by row or in blocks (live logging or whole files).
+def _group_list(groups: Sequence[str] | None, joints: bool) -> list[str]:
+    if groups is None:
+        groups = ["euler", *(["joints"] if joints else [])]
+    unknown = [g for g in groups if g not in _GROUPS]
+    if unknown:
+        raise ValueError(f"unknown column group {unknown[0]!r} (known: {', '.join(_GROUPS)})")
+    return list(dict.fromkeys(groups))
 
-    Angles are given in radians; with ``degrees`` they are written in degrees.
+
+# -- writing ------------------------------------------------------------------------------
+class FilteredWriter:
+    """Writes a version-2 filtered file block by block (live logging or whole files).
+
+    degrees: angles written in degrees (given in radians); joints: add the ``joints`` group;
+    groups: the column groups, in order (overrides ``joints``); euler: ``"sensor"`` or
+    ``"segment"``, what the ``euler`` group holds; meta: extra ``key: value`` header lines.
     """
 
     def __init__(self, path: str | Path | TextIO, degrees: bool = False,
-                 joints: bool = False) -> None:
+                 joints: bool = False, groups: Sequence[str] | None = None,
+                 euler: str = "sensor", convention: str = _DEFAULT_CONVENTION,
+                 meta: Mapping[str, str] | None = None) -> None:
+        if euler not in ("sensor", "segment"):
+            raise ValueError(f"euler must be 'sensor' or 'segment', not {euler!r}")
         self.degrees = degrees
-        self.joints = joints
-        self.columns = filtered_columns(degrees, joints)
+        self.groups = _group_list(groups, joints)
+        self.joints = "joints" in self.groups
+        self.columns = filtered_columns(degrees, groups=self.groups)
         self.rows = 0
+        self.holes = 0
+        unit = "deg" if degrees else "rad"
+        fmts = [_FMT, _HOST_FMT, "%d"]
+        for g in self.groups:
+            fmts += [_GROUPS[g].fmt] * _GROUPS[g].width
+        self._fmt = ",".join(fmts)
+        self._scale = np.ones(len(self.columns))
+        col = len(FIXED_COLUMNS)
+        for g in self.groups:
+            w = _GROUPS[g].width
+            if degrees and _GROUPS[g].angular:
+                self._scale[col:col + w] = np.degrees(1.0)
+            col += w
         if isinstance(path, str | Path):
             self.path: Path | None = Path(path)
             self._file: TextIO = open(self.path, "x", encoding="utf-8", newline="\n")  # noqa: SIM115
             self._owns = True
         else:
             self.path, self._file, self._owns = None, path, False
-        self._file.write(",".join(self.columns) + "\n")
+        header = {"euler": euler, "convention": convention, "angles": unit,
+                  "groups": ",".join(self.groups), **(meta or {})}
+        lines = [f"# {FORMAT_NAME} {FORMAT_VERSION}"]
+        lines += [f"# {k}: {str(v).replace(chr(10), ' ')}" for k, v in header.items()]
+        self._file.write("\n".join(lines) + "\n" + ",".join(self.columns) + "\n")
 
-    def write_block(self, t: np.ndarray, euler: np.ndarray,
-                    joint_angles: np.ndarray | None = None) -> None:
-        """``t[N]`` s, ``euler[N, 18, 3]`` rad, ``joint_angles[N, 28]`` rad (with ``joints``)."""
+    def write_block(self, t: np.ndarray, euler: np.ndarray | None = None,
+                    joint_angles: np.ndarray | None = None, *,
+                    host_time: np.ndarray | None = None, hole: np.ndarray | None = None,
+                    **groups: np.ndarray) -> None:
+        """N rows: ``t[N]`` s since the start, ``euler[N, 18, 3]`` rad, ``joint_angles[N, 28]``
+        rad (the ``joints`` group), ``host_time[N]`` s since the epoch (NaN unknown),
+        ``hole[N]`` bool, other groups by name (``[N, *shape]``). A group of the file that is
+        not given is written as NaN."""
         t = np.asarray(t, dtype=np.float64).reshape(-1)
         n = len(t)
-        parts = [t[:, None], np.asarray(euler, dtype=np.float64).reshape(n, 3 * N_IMUS)]
-        if self.joints:
-            if joint_angles is None:
-                raise ValueError("this file has joint-angle columns: give joint_angles")
-            parts.append(np.asarray(joint_angles, dtype=np.float64).reshape(n, -1))
-        block = np.concatenate(parts, axis=1)
-        if self.degrees:
-            block[:, 1:] = np.degrees(block[:, 1:])
-        if n:
-            np.savetxt(self._file, block, fmt=_FMT, delimiter=",")
+        if euler is not None:
+            groups["euler"] = euler
+        if joint_angles is not None:
+            groups["joints"] = joint_angles
+        elif self.joints and "joints" not in groups and euler is not None:
+            raise ValueError("this file has joint-angle columns: give joint_angles")
+        block = np.full((n, len(self.columns)), np.nan)
+        block[:, 0] = t
+        if host_time is not None:
+            block[:, 1] = np.asarray(host_time, dtype=np.float64).reshape(-1)
+        block[:, 2] = 0 if hole is None else np.asarray(hole, dtype=bool).reshape(-1)
+        col = len(FIXED_COLUMNS)
+        for g in self.groups:
+            w = _GROUPS[g].width
+            if g in groups and groups[g] is not None:
+                block[:, col:col + w] = np.asarray(groups[g], dtype=np.float64).reshape(n, w)
+            col += w
+        block *= self._scale
+        if n:  # one format string per row: half the cost of numpy.savetxt for live rows
+            fmt = self._fmt
+            self._file.write("\n".join([fmt % tuple(r) for r in block.tolist()]) + "\n")
         self.rows += n
+        self.holes += int(block[:, 2].sum()) if n else 0
 
-    def write(self, t: float, euler: np.ndarray, joint_angles: np.ndarray | None = None) -> None:
+    def write(self, t: float, euler: np.ndarray, joint_angles: np.ndarray | None = None,
+              host_time: float | None = None) -> None:
         """One row: ``euler[18, 3]`` rad, ``joint_angles[28]`` rad."""
         self.write_block(np.array([t]), np.asarray(euler)[None],
-                         None if joint_angles is None else np.asarray(joint_angles)[None])
+                         None if joint_angles is None else np.asarray(joint_angles)[None],
+                         host_time=None if host_time is None else np.array([host_time]))
+
+    def write_holes(self, t: np.ndarray, host_time: np.ndarray | None = None) -> None:
+        """Rows for frames received but not filtered: ``hole`` = 1, values NaN."""
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        self.write_block(t, host_time=host_time, hole=np.ones(len(t), dtype=bool))
 
     def flush(self) -> None:
         self._file.flush()
@@ -102,13 +256,57 @@ class FilteredWriter:
         self.close()
 
 
+# -- reading ------------------------------------------------------------------------------
+@dataclass
+class FilteredInfo:
+    """What a filtered file's header says.
+
+    version: 0 (original suite), 1 or 2; columns: as in the file (version 0: the standard
+    names); unit "rad"/"deg"; meta: the ``key: value`` header lines (version 2); groups: the
+    known column groups present, in order; extra: column names of unknown groups.
+    """
+
+    path: Path
+    version: int
+    columns: list[str]
+    unit: str
+    meta: dict[str, str] = field(default_factory=dict)
+    groups: list[str] = field(default_factory=list)
+    extra: list[str] = field(default_factory=list)
+
+    @property
+    def legacy(self) -> bool:
+        return self.version == 0
+
+    @property
+    def euler_kind(self) -> str:
+        """``"sensor"`` or ``"segment"``: what the ``euler`` group holds."""
+        return self.meta.get("euler", "sensor")
+
+
+@dataclass
+class FilteredBlock:
+    """Rows of a filtered file; angles in radians. t ``[N]`` s since the start; host_time
+    ``[N]`` s since the epoch (NaN unknown); hole ``[N]`` bool; groups by name
+    (``euler`` ``[N, 18, 3]``, ``joints`` ``[N, 28]`` ...); extra: unknown columns ``[N]``."""
+
+    t: np.ndarray
+    host_time: np.ndarray
+    hole: np.ndarray
+    groups: dict[str, np.ndarray]
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
 @dataclass
 class FilteredData:
-    """A filtered file read back; angles always in radians.
+    """A whole filtered file read back (:func:`read_filtered`); angles in radians.
 
-    t ``[N]`` s; euler ``[N, 18, 3]``; joint_angles ``[N, 28]`` or None; columns as in the
-    file (legacy files get the standard radian names); unit of the file ("rad"/"deg");
-    legacy: the file had no header.
+    t ``[N]`` s; euler ``[N, 18, 3]``; joint_angles ``[N, 28]`` or None; host_time ``[N]`` s
+    since the epoch (NaN unknown); hole ``[N]`` bool; groups by name; columns and unit of the
+    file; legacy: an original-suite file (version 0); info: the header.
     """
 
     t: np.ndarray
@@ -118,6 +316,15 @@ class FilteredData:
     unit: str
     legacy: bool
     problems: list[str] = field(default_factory=list)
+    host_time: np.ndarray | None = None
+    hole: np.ndarray | None = None
+    groups: dict[str, np.ndarray] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    info: FilteredInfo | None = None
+
+    @property
+    def version(self) -> int:
+        return self.info.version if self.info else (0 if self.legacy else 1)
 
 
 def _is_number(text: str) -> bool:
@@ -128,53 +335,222 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def read_filtered(path: str | Path) -> FilteredData:
-    """Read a filtered file (this suite's, or the legacy header-less layout).
+def _cells(line: str, version: int) -> list[str]:
+    cells = line.rstrip("\r\n").split(",")
+    if version == 0 and len(cells) > 1 and cells[-1].strip() == "":
+        cells.pop()  # the original's trailing comma
+    return cells
 
-    Raises :class:`FilteredFileError` with a one-line reason for anything else.
+
+class FilteredReader:
+    """Streams a filtered file of any version (see the module docstring).
+
+    ``info`` is read on construction; :meth:`blocks` yields :class:`FilteredBlock` of at most
+    ``block_rows`` rows; bad lines are skipped and described in ``problems``. Raises
+    :class:`FilteredFileError` with a one-line reason for a file that is not a filtered file.
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FilteredFileError(f"{path}: cannot be read ({exc})") from exc
-    lines = [ln for ln in text.splitlines() if ln.strip()]
-    if not lines:
-        raise FilteredFileError(f"{path}: empty file, not a filtered file")
-    first = [c.strip() for c in lines[0].split(",")]
-    legacy = all(_is_number(c) for c in first)
-    if legacy:
-        if len(first) != N_LEGACY_COLUMNS:
-            raise FilteredFileError(f"{path}: not a filtered file ({len(first)} numbers per line, "
-                                    f"the legacy layout has {N_LEGACY_COLUMNS})")
-        columns, body = filtered_columns(), lines
-    else:
-        columns, body = first, lines[1:]
-    if columns[0] != "time_s" or len(columns) < N_LEGACY_COLUMNS:
-        raise FilteredFileError(f"{path}: not a filtered file (header {lines[0][:60]!r})")
-    unit = "deg" if columns[1].endswith("_deg") else "rad"
-    expected = filtered_columns(unit == "deg", joints=len(columns) > N_LEGACY_COLUMNS)
-    if columns != expected:
-        raise FilteredFileError(f"{path}: unexpected columns (e.g. {columns[1]!r})")
-    problems = []
-    rows = []
-    for number, line in enumerate(body, start=1 if legacy else 2):
-        cells = line.split(",")
-        if len(cells) != len(columns):
-            problems.append(f"{path}: line {number} has {len(cells)} values, expected "
-                            f"{len(columns)}: skipped")
-            continue
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.problems: list[str] = []
         try:
-            rows.append([float(c) for c in cells])
+            self._file: TextIO = open(self.path, encoding="utf-8", newline="")  # noqa: SIM115
+            self._header()
+        except (OSError, UnicodeDecodeError) as exc:
+            self.close()
+            raise FilteredFileError(f"{self.path}: cannot be read ({exc})") from exc
+        except FilteredFileError:
+            self.close()
+            raise
+
+    def _header(self) -> None:
+        path = self.path
+        meta: dict[str, str] = {}
+        version = 1
+        first = ""
+        self._line_no = 0
+        while True:
+            line = self._file.readline()
+            if not line:
+                break
+            self._line_no += 1
+            if not line.strip():
+                continue
+            if line.startswith("#"):
+                text = line[1:].strip()
+                if text.startswith(FORMAT_NAME):
+                    try:
+                        version = int(text.split()[1])
+                    except (IndexError, ValueError):
+                        raise FilteredFileError(f"{path}: damaged header line {text[:60]!r}")\
+                            from None
+                    if version > FORMAT_VERSION:
+                        raise FilteredFileError(
+                            f"{path}: filtered file version {version} is newer than this "
+                            f"software ({FORMAT_VERSION}); update BPMS Suite")
+                elif ":" in text:
+                    key, _, value = text.partition(":")
+                    meta[key.strip()] = value.strip()
+                continue
+            first = line
+            break
+        if not first:
+            raise FilteredFileError(f"{path}: empty file, not a filtered file")
+        cells = [c.strip() for c in _cells(first, 0)]
+        self._pending: str | None = None
+        if all(_is_number(c) for c in cells) and not meta:
+            version = 0
+            if len(cells) != N_LEGACY_COLUMNS:
+                raise FilteredFileError(
+                    f"{path}: not a filtered file ({len(cells)} numbers per line, the original "
+                    f"layout has {N_LEGACY_COLUMNS})")
+            columns = ["time_s", *_GROUPS["euler"].names("rad")]
+            self._pending = first
+            self._first_line_no = self._line_no
+        else:
+            columns = [c.strip() for c in first.rstrip("\r\n").split(",")]
+            self._first_line_no = self._line_no + 1
+        if columns[0] != "time_s":
+            raise FilteredFileError(f"{path}: not a filtered file (header {first[:60]!r})")
+        angular = [c for c in columns if c.endswith(("_rad", "_deg"))]
+        unit = meta.get("angles") or ("deg" if angular and angular[0].endswith("_deg")
+                                      else "rad")
+        index = {c: k for k, c in enumerate(columns)}
+        if len(index) != len(columns):
+            raise FilteredFileError(f"{path}: a column name appears twice")
+        groups: list[str] = []
+        self._slices: dict[str, list[int]] = {}
+        used = {c for c in FIXED_COLUMNS if c in index}
+        for name, group in _GROUPS.items():
+            names = group.names(unit)
+            present = [c in index for c in names]
+            if all(present):
+                groups.append(name)
+                self._slices[name] = [index[c] for c in names]
+                used.update(names)
+            elif any(present):
+                missing = names[present.index(False)]
+                raise FilteredFileError(f"{path}: column group {name!r} is incomplete "
+                                        f"(no {missing!r})")
+        if "euler" not in groups and "euler_sensor" not in groups:
+            raise FilteredFileError(f"{path}: not a filtered file (no Euler-angle columns, e.g. "
+                                    f"{columns[1] if len(columns) > 1 else ''!r})")
+        extra = [c for c in columns if c not in used]
+        self._index = index
+        self.info = FilteredInfo(path, version, columns, unit, meta, groups, extra)
+        self._t0: float | None = None
+
+    def _parse(self, lines: list[tuple[int, str]]) -> np.ndarray:
+        n_cols = len(self.info.columns)
+        version = self.info.version
+        texts = [",".join(_cells(s, version)) for _, s in lines]
+        try:
+            data = np.loadtxt(texts, delimiter=",", dtype=np.float64, ndmin=2)
+            if data.shape[1] == n_cols or not len(texts):
+                return data.reshape(-1, n_cols)
         except ValueError:
-            problems.append(f"{path}: line {number} holds a value that is not a number: skipped")
-    data = np.array(rows, dtype=np.float64).reshape(-1, len(columns))
-    angles = data[:, 1:]
-    if unit == "deg":
-        angles = np.radians(angles)
-    euler = angles[:, : 3 * N_IMUS].reshape(-1, N_IMUS, 3)
-    joints = angles[:, 3 * N_IMUS:] if len(columns) > N_LEGACY_COLUMNS else None
-    return FilteredData(data[:, 0].copy(), euler, joints, columns, unit, legacy, problems)
+            pass
+        rows = []
+        for number, line in lines:
+            cells = _cells(line, version)
+            if len(cells) != n_cols:
+                self.problems.append(f"{self.path}: line {number} has {len(cells)} values, "
+                                     f"expected {n_cols}: skipped")
+                continue
+            try:
+                rows.append([float(c) for c in cells])
+            except ValueError:
+                self.problems.append(f"{self.path}: line {number} holds a value that is not "
+                                     "a number: skipped")
+        return np.array(rows, dtype=np.float64).reshape(-1, n_cols)
+
+    def blocks(self, block_rows: int = BLOCK_ROWS) -> Iterator[FilteredBlock]:
+        """The file's rows, block by block."""
+        number = self._first_line_no
+        batch: list[tuple[int, str]] = []
+        if self._pending is not None:
+            batch.append((number, self._pending))
+            number += 1
+            self._pending = None
+        for line in self._file:
+            if line.strip():
+                batch.append((number, line))
+            number += 1
+            if len(batch) >= block_rows:
+                yield self._block(self._parse(batch))
+                batch = []
+        if batch:
+            yield self._block(self._parse(batch))
+
+    def _block(self, data: np.ndarray) -> FilteredBlock:
+        info = self.info
+        n = len(data)
+        col = data[:, 0]
+        if info.version == 0 and n and (self._t0 is not None or col[0] > EPOCH_THRESHOLD_S):
+            # The original wrote time.time(): absolute epoch seconds.
+            if self._t0 is None:
+                self._t0 = float(col[0])
+            host, t = col.copy(), col - self._t0
+        else:
+            t = col.copy()
+            host = (data[:, self._index["host_time_s"]].copy() if "host_time_s" in self._index
+                    else np.full(n, np.nan))
+        hole = (data[:, self._index["hole"]] != 0 if "hole" in self._index
+                else np.zeros(n, dtype=bool))
+        scale = np.radians(1.0) if info.unit == "deg" else 1.0
+        groups = {}
+        for name in info.groups:
+            g = _GROUPS[name]
+            values = data[:, self._slices[name]]
+            if g.angular and scale != 1.0:
+                values = values * scale
+            groups[name] = values.reshape(n, *g.shape)
+        extra = {c: data[:, self._index[c]].copy() for c in info.extra}
+        return FilteredBlock(t, host, hole, groups, extra)
+
+    def close(self) -> None:
+        f = getattr(self, "_file", None)
+        if f is not None:
+            f.close()
+
+    def __enter__(self) -> FilteredReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def iter_filtered(path: str | Path, block_rows: int = BLOCK_ROWS
+                  ) -> tuple[FilteredInfo, Iterator[FilteredBlock], list[str]]:
+    """(header, block iterator, problems list filled while iterating). The file is closed
+    when the iterator is exhausted. Raises :class:`FilteredFileError`."""
+    reader = FilteredReader(path)
+
+    def run() -> Iterator[FilteredBlock]:
+        with reader:
+            yield from reader.blocks(block_rows)
+
+    return reader.info, run(), reader.problems
+
+
+def read_filtered(path: str | Path) -> FilteredData:
+    """Read a whole filtered file of any version. Raises :class:`FilteredFileError` with a
+    one-line reason for a file that is not a filtered file."""
+    info, blocks, problems = iter_filtered(path)
+    parts = list(blocks)
+    euler_name = "euler" if "euler" in info.groups else "euler_sensor"
+
+    def cat(get: Callable[[FilteredBlock], np.ndarray], shape: tuple[int, ...]) -> np.ndarray:
+        return (np.concatenate([get(b) for b in parts]) if parts
+                else np.zeros((0, *shape)))
+
+    groups = {g: cat(lambda b, g=g: b.groups[g], _GROUPS[g].shape) for g in info.groups}
+    return FilteredData(
+        t=cat(lambda b: b.t, ()), euler=groups[euler_name],
+        joint_angles=groups.get("joints"), columns=info.columns, unit=info.unit,
+        legacy=info.legacy, problems=list(problems), host_time=cat(lambda b: b.host_time, ()),
+        hole=cat(lambda b: b.hole, ()).astype(bool), groups=groups,
+        extra={c: cat(lambda b, c=c: b.extra[c], ()) for c in info.extra}, info=info)
 
 
 def default_output_path(raw_path: str | Path) -> Path:
@@ -185,5 +561,6 @@ def default_output_path(raw_path: str | Path) -> Path:
     return raw_path.with_name(name + ".csv")
 
 
-__all__ = ["FilteredData", "FilteredFileError", "FilteredWriter", "default_output_path",
-           "filtered_columns", "read_filtered"]
+__all__ = ["ColumnGroup", "FilteredBlock", "FilteredData", "FilteredFileError", "FilteredInfo",
+           "FilteredReader", "FilteredWriter", "column_groups", "default_output_path",
+           "filtered_columns", "iter_filtered", "read_filtered", "register_column_group"]

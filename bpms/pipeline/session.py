@@ -38,10 +38,18 @@ from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
 from bpms.io.udp import UdpForwarder, key_from_env
 from bpms.pipeline.fanout import Fanout, Subscription
+from bpms.pipeline.health import (
+    MAX_BACKLOG_FRAMES,
+    PipelineHealth,
+    health_text,
+    write_trailing_holes,
+    write_with_holes,
+)
 from bpms.pipeline.rate import RateMeter
 from bpms.pipeline.raw_logger import STOP as RAW_STOP
 from bpms.pipeline.raw_logger import RawLogger
 from bpms.pipeline.settings_queue import SettingsQueue
+from bpms.pipeline.steady import prepare_live_path
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
     from bpms.filter.processor import BodyPoseProcessor
@@ -103,8 +111,8 @@ class LiveStatus:
     frames: int
     processed: int
     error_bits: int
-    dropped: int  # deliveries dropped to slow subscribers
-    processing_backlog: int
+    dropped: int  # display_skipped + not_filtered (both kinds of loss; see below)
+    processing_backlog: int  # frames waiting for the processing thread
     recording: RecordingStatus | None
     forwarding: list[str] = field(default_factory=list)
     forwarded: int = 0
@@ -112,6 +120,16 @@ class LiveStatus:
     latency_p99_ms: float = 0.0
     events: list[str] = field(default_factory=list)  # recent notable events, newest last
     reinit_count: int = 0  # filter re-initialisations by the state guard (all IMUs)
+    # bpms.pipeline.health: frames received (recorded raw) but never filtered (holes in the
+    # filtered file, each marked), and processed samples a slow display did not take.
+    not_filtered: int = 0
+    display_skipped: int = 0
+    holes_marked: int = 0
+
+    def health_line(self) -> str:
+        """``not filtered N  backlog B  display skipped M`` (capitals when frames are lost)."""
+        return health_text(self.not_filtered, self.processing_backlog, self.display_skipped)
+
 
 
 class LiveSession:
@@ -125,7 +143,8 @@ class LiveSession:
 
     def __init__(self, source: FrameSource, options: Options | None = None,
                  processor: BodyPoseProcessor | None = None, *,
-                 recording_dir: str | Path | None = None, notes: str = "") -> None:
+                 recording_dir: str | Path | None = None, notes: str = "",
+                 max_backlog: int = MAX_BACKLOG_FRAMES) -> None:
         self.source = source
         if options is None:
             from bpms.io.defaults import default_options
@@ -146,7 +165,9 @@ class LiveSession:
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
-        self._proc_queue: queue.Queue[FrameEvent | object] = queue.Queue(maxsize=3000)
+        self._proc_queue: queue.Queue[FrameEvent | object] = queue.Queue(maxsize=max_backlog)
+        self.health = PipelineHealth()
+        self._holes: list = []  # holes after the last processed frame, not yet written
         self._commands: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -155,7 +176,6 @@ class LiveSession:
         self._frames = 0
         self._processed = 0
         self._error_bits = 0
-        self._overflow = 0
         self._latencies: list[float] = []
         self._events: list[str] = []
         self._raw_logger: RawLogger | None = None
@@ -256,8 +276,12 @@ class LiveSession:
             status.raw_path = raw_path
             self._raw_logger = logger
         if filtered:
+            from bpms.filter.door import filtered_layout  # loaded with the filter, not the GUI
+
             try:
-                writer = FilteredWriter(filtered_path, degrees=degrees, joints=True)
+                groups, kind = filtered_layout()
+                writer = FilteredWriter(filtered_path, degrees=degrees, groups=groups,
+                                        euler=kind)
             except OSError as exc:
                 self.note(f"filtered recording not started: cannot create {filtered_path}: {exc}")
             else:
@@ -281,7 +305,12 @@ class LiveSession:
         def close_filtered() -> None:
             writer, self._filtered = self._filtered, None
             if writer is not None:
-                writer.close()
+                holes, self._holes = [*self._holes, *self.health.take_holes()], []
+                try:
+                    self.health.holes_marked += write_trailing_holes(
+                        writer, holes, self.processor.options.filter.dt)
+                finally:
+                    writer.close()
             done.set()
 
         if self.running:
@@ -313,16 +342,22 @@ class LiveSession:
         return LiveStatus(
             source=self.source.status(), running=self.running, rate_hz=self._rate.rate_hz(),
             frames=self._frames, processed=self._processed, error_bits=self._error_bits,
-            dropped=self._fanout.dropped + self._overflow,
+            dropped=self._fanout.dropped + self.health.not_filtered,
             processing_backlog=self._proc_queue.qsize(), recording=self._recording,
             forwarding=[f"{h}:{p}" for h, p in fwd.targets] if fwd else [],
             forwarded=fstats.sent if fstats else 0,
             forward_errors=fstats.errors if fstats else 0,
             latency_p99_ms=1e3 * lat[int(0.99 * (len(lat) - 1))] if lat else 0.0,
-            events=events, reinit_count=self._reinit_seen)
+            events=events, reinit_count=self._reinit_seen,
+            not_filtered=self.health.not_filtered,
+            display_skipped=self._fanout.dropped, holes_marked=self.health.holes_marked)
 
     # -- threads ----------------------------------------------------------------------------
     def _acquire(self) -> None:
+        try:  # kernels loaded and the heap frozen before the first frame is accepted
+            prepare_live_path(self.processor)
+        except Exception as exc:  # a failed warm-up only costs latency later
+            self.note(f"warm-up failed: {exc}")
         while not self._stop.is_set():
             try:
                 events = self.source.read(0.1)
@@ -360,7 +395,7 @@ class LiveSession:
         try:
             self._proc_queue.put_nowait(event)
         except queue.Full:
-            self._overflow += 1
+            self.health.not_filtered_frame(event.index, event.host_time)
 
     def _process_loop(self) -> None:
         """Takes frames one by one at 50 Hz; when behind (replay at full speed, a Bluetooth
@@ -439,7 +474,7 @@ class LiveSession:
             self.markers.publish(("reset zero", head.index + z.frame - first))
         self._processed += len(events)
         self._error_bits += int(decoded.errors.sum())
-        self._log_filtered(events, result.euler, angles)
+        self._log_filtered(events, result)
         forwarder = self._forwarder
         if forwarder is not None:
             quats = result.segment_quaternions.astype(np.float32)
@@ -472,17 +507,24 @@ class LiveSession:
             self._reinit_noted = now
             self._reinit_imus.clear()
 
-    def _log_filtered(self, events: list[FrameEvent], euler: np.ndarray,
-                      angles: np.ndarray) -> None:
+    def _log_filtered(self, events: list[FrameEvent], result) -> None:
+        """Write the processed rows and a marked row for every frame that skipped processing,
+        in frame order (:mod:`bpms.pipeline.health`)."""
+        from bpms.filter.door import filtered_arrays  # loaded with the filter, not the GUI
+
+        holes = [*self._holes, *self.health.take_holes()]
         writer = self._filtered
         if writer is None:
+            self._holes = []
             return
         try:
-            # Time column: s since the start of the source (file position on replay).
-            t = np.array([max(e.index, 0) for e in events]) * FRAME_PERIOD_S
-            writer.write_block(t, euler, angles)
+            rows, marked, self._holes = write_with_holes(
+                writer, np.array([e.index for e in events], dtype=np.int64),
+                np.array([e.host_time for e in events]), filtered_arrays(result, writer.groups),
+                holes, self.processor.options.filter.dt)
+            self.health.holes_marked += marked
             if self._recording is not None:
-                self._recording.filtered_rows += len(events)
+                self._recording.filtered_rows += rows
             now = time.monotonic()
             if now - self._filtered_flushed >= self.options.logging.flush_interval_s:
                 writer.flush()

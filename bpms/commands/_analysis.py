@@ -1,0 +1,77 @@
+"""Shared by the analysis commands (not a command: the leading underscore): open a recording
+through the one door (:func:`bpms.filter.door.open_for_processing`) and stream it, with CLI
+error handling."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator, Sequence
+
+from bpms.analysis.cli_support import add_filter_option
+from bpms.commands import CliError
+
+__all__ = ["add_filter_option", "open_recording_for", "processed", "stream"]
+
+
+def open_recording_for(command: str, path: str, calibration: str | None = None,
+                       options: str | None = None, algorithm: str | None = None,
+                       heading: str | None = None):
+    """The door, with one-line errors; prints ``calibration: …; options: …`` and the
+    warnings so far on stderr. Returns the :class:`bpms.filter.door.OpenedRecording`."""
+    from bpms.filter.door import open_for_processing
+    from bpms.filter.vqf_filter import VqfMissingError
+    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.rawfile import RawFileError
+
+    try:
+        opened = open_for_processing(path, calibration, options, algorithm, heading)
+    except (RawFileError, FilteredFileError, VqfMissingError) as exc:
+        raise CliError(str(exc)) from exc
+    except OSError as exc:
+        raise CliError(f"{path}: {exc.strerror or exc}") from exc
+    print(f"bpms {command}: {opened.sources_line()}", file=sys.stderr)
+    for problem in opened.problems:
+        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    if opened.n_frames == 0:
+        raise CliError(f"{path}: the recording holds no frames")
+    opened.problems.clear()
+    return opened
+
+
+def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
+    """The recording's chunks (:class:`bpms.filter.door.Chunk`) with progress on stderr;
+    warnings met on the way are printed at the end. Raises CliError for a read error."""
+    from bpms.analysis.source import stderr_progress
+    from bpms.io.filtered_file import FilteredFileError
+
+    try:
+        yield from opened.chunks(zero_at_s, stderr_progress)
+    except FilteredFileError as exc:
+        raise CliError(str(exc)) from exc
+    except OSError as exc:
+        raise CliError(f"{opened.path}: {exc.strerror or exc}") from exc
+    for problem in opened.problems:
+        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+
+
+def processed(command: str, path: str, calibration: str | None = None,
+              options: str | None = None, zero_at_s: Sequence[float] = (),
+              algorithm: str | None = None, heading: str | None = None):
+    """A whole recording joined into one result (:func:`bpms.analysis.source.
+    process_recording`); for small recordings only: the commands stream."""
+    from bpms.analysis.source import process_recording
+    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.rawfile import RawFileError
+
+    try:
+        p = process_recording(path, calibration, options, zero_at_s, algorithm=algorithm,
+                              heading=heading)
+    except (RawFileError, FilteredFileError) as exc:
+        raise CliError(str(exc)) from exc
+    except OSError as exc:
+        raise CliError(f"{path}: {exc.strerror or exc}") from exc
+    if len(p.result) == 0:
+        raise CliError(f"{path}: the recording holds no frames")
+    for problem in p.result.problems:
+        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    return p

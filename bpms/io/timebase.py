@@ -1,0 +1,24 @@
+"""The one owner of a recording's time column.
+
+Every frame of a stream has two times:
+
+- **stream time**, s since the stream started, on the fixed filter clock: frame index × dt
+  (dt = ``Options.filter.dt``, 0.02 s at 50 Hz). Filter results, exports and the filtered
+  file's ``time_s`` column all come from :func:`stream_times`.
+- **host time**, s since the epoch (UTC), when the host received the frame: the raw
+  recording's ``time`` field, written beside stream time as ``host_time_s``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def stream_times(first_index: int, n: int, dt: float) -> np.ndarray:
+    """``[n]`` s: stream time of frames ``first_index .. first_index + n - 1``."""
+    return (int(first_index) + np.arange(n, dtype=np.float64)) * float(dt)
+
+
+def stream_time_of(indices: np.ndarray, dt: float) -> np.ndarray:
+    """Stream time (s) of the given frame indices (negative indices count as 0)."""
+    return np.maximum(np.asarray(indices, dtype=np.float64), 0.0) * float(dt)
