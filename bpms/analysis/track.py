@@ -117,6 +117,7 @@ class TrackAccumulator:
         self._tail_pos = np.zeros((0, len(POINT_INDEX), 3))
         # kept strikes: (frame, side, peak g, time s, joint positions [21, 3])
         self._kept: list[tuple[int, str, float, float, np.ndarray]] = []
+        self._last_of: dict[str, int] = {}  # side → index in _kept of its latest strike
 
     def add(self, t: np.ndarray, accel_g: dict[str, np.ndarray],
             joint_positions: np.ndarray) -> None:
@@ -138,11 +139,13 @@ class TrackAccumulator:
             self._tail_mag[side] = m[-2:]
         cand.sort(key=lambda c: (c[0], c[1], c[2]))
         kept = self._kept
-        for c in cand:
-            if kept and (c[3] - kept[-1][3] < self.min_interval_s or c[1] == kept[-1][1]):
-                if c[2] > kept[-1][2]:
-                    kept[-1] = c
+        for c in cand:  # the minimum gap holds per foot, as in heel_strikes
+            last = self._last_of.get(c[1])
+            if last is not None and c[3] - kept[last][3] < self.min_interval_s:
+                if c[2] > kept[last][2]:
+                    kept[last] = c
                 continue
+            self._last_of[c[1]] = len(kept)
             kept.append(c)
         self._tail_t = t_ext[-2:].copy()
         self._tail_pos = pos_ext[-2:].copy()
@@ -150,7 +153,7 @@ class TrackAccumulator:
 
     def track(self) -> Track:
         """The walked path so far."""
-        kept = self._kept
+        kept = sorted(self._kept, key=lambda c: (c[0], c[1]))
         sides = [c[1] for c in kept]
         pos = (np.array([c[4] for c in kept]) if kept
                else np.zeros((0, len(POINT_INDEX), 3)))
