@@ -148,10 +148,12 @@ def test_gui_window_playback_uses_the_header(site, qtbot, tmp_path):
     panel.filtered_box.setChecked(True)
     panel.name_edit.setText("door")
     panel.log_button.click()
-    window.status_panel.data_button.click()  # play
+    if not window.runner.data_on:
+        window.status_panel.data_button.click()  # play
     session = window.runner.session
     qtbot.waitUntil(lambda: session.status().processed >= len(rec.raw), timeout=60000)
-    panel.log_button.click()
+    panel.toggle_logging()  # stop (a click within 0.5 s of the last one would be ignored)
+    qtbot.waitUntil(lambda: panel.last_recording is not None, timeout=15000)
     data = read_filtered(panel.last_recording.filtered_path)
     window.close()
     assert len(data.t) == len(rec.raw)

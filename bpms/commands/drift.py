@@ -30,7 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.cli_support import processed
+    from bpms.commands._analysis import processed
     from bpms.analysis.drift import drift_of_result
     from bpms.io.frames import IMU_NAMES
 

@@ -79,7 +79,7 @@ def resolve_calibration(explicit: str | Path | CalibrationTable | None, header: 
         if problems is not None:
             problems.append(f"{where}: the calibration in its header is unusable; the default "
                             "is used")
-    table = default_calibration()
+    table = default_calibration(announce=False)  # the sources line says "factory"
     return table, table.source
 
 
@@ -96,7 +96,7 @@ def resolve_options(explicit: str | Path | Options | None, header: dict | None,
         stored = header_options(header, where)
         if stored is not None:
             return stored, "recording header"
-    opts = default_options()
+    opts = default_options(announce=False)
     return opts, getattr(opts, "source", "factory")
 
 
