@@ -36,7 +36,7 @@ import numpy as np
 from bpms.filter.adaptive_bank import adaptive_gains
 from bpms.filter.adaptive_observer import AdaptiveObserver
 from bpms.filter.algorithms import ALGORITHMS, observer_gains
-from bpms.filter.bank import FilterBank
+from bpms.filter.bank import MahonyBank
 from bpms.filter.observer import Observer
 from bpms.filter.rotations import dcm_to_quaternion
 from bpms.filter.vqf_filter import Q_ENU_TO_NED, VqfFilters, quat_mul
@@ -132,7 +132,7 @@ def run_filter(name: str, trial: Trial, settings: dict[str, float] | None = None
                                 ki_rollpitch=0.0012 / MAHONY_GRAVITY, kp_yaw=0.74,
                                 ki_yaw=0.0012)
     if name in ("mahony", MAHONY_TUNED):
-        bank = FilterBank(np.array([MAHONY_GRAVITY]), options)
+        bank = MahonyBank(np.array([MAHONY_GRAVITY]), options)
         out = bank.process((-trial.acc * MAHONY_GRAVITY / 9.81)[:, None],
                            (trial.mag * 2.0)[:, None], trial.gyr[:, None])
         q_ned = dcm_to_quaternion(out.R[:, 0])

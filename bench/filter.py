@@ -32,7 +32,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bpms.filter import mahony
-from bpms.filter.bank import FilterBank
+from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import STANDARD_GRAVITY
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
@@ -57,7 +57,7 @@ def session(minutes: float) -> tuple[np.ndarray, np.ndarray, BodyPoseProcessor]:
 
 def check_reference(acc, mag, gyr, gravity, frames: int = 2000) -> float:
     """Max difference of the batch kernel from the scalar reference over all IMUs."""
-    out = FilterBank(gravity).process(acc[:frames], mag[:frames], gyr[:frames], store_terms=True)
+    out = MahonyBank(gravity).process(acc[:frames], mag[:frames], gyr[:frames], store_terms=True)
     worst = 0.0
     for i in range(N_IMUS):
         ref = ReferenceMahony(gravity[i])
@@ -73,7 +73,7 @@ def bench_suite(raw, errors, proc) -> None:
     cal = proc.sensor_calibration
     acc, mag, gyr = cal.calibrate(raw)
     n = len(raw)
-    bank = FilterBank(cal.gravity)
+    bank = MahonyBank(cal.gravity)
     t0 = time.perf_counter()
     bank.process(acc, mag, gyr, errors=errors)
     print(f"suite batch kernel (calibrated in)   {_rate(n * N_IMUS, time.perf_counter() - t0)}")
@@ -86,7 +86,7 @@ def bench_suite(raw, errors, proc) -> None:
 def bench_live(raw, errors, proc, frames: int = 5000) -> None:
     cal = proc.sensor_calibration
     acc, mag, gyr = cal.calibrate(raw[:frames])
-    bank = FilterBank(cal.gravity)
+    bank = MahonyBank(cal.gravity)
     lat = np.empty(frames)
     for k in range(frames):
         t0 = time.perf_counter()
@@ -98,7 +98,7 @@ def bench_live(raw, errors, proc, frames: int = 5000) -> None:
         t0 = time.perf_counter()
         p.step(raw[k], errors[k])
         lat2[k] = time.perf_counter() - t0
-    for name, x in (("live FilterBank.step (18 IMUs)", lat),
+    for name, x in (("live MahonyBank.step (18 IMUs)", lat),
                     ("live BodyPoseProcessor.step      ", lat2)):
         us = np.percentile(x, [50, 99]) * 1e6
         print(f"{name} p50 {us[0]:7.1f} µs  p99 {us[1]:7.1f} µs  max {x.max() * 1e6:7.1f} µs")

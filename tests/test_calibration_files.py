@@ -11,7 +11,7 @@ import pytest
 from bpms.calibration.output import load_existing, save_pair
 from bpms.calibration.procedures import AccelProcedure, GyroProcedure, MagProcedure
 from bpms.calibration.result import collect
-from bpms.filter.bank import FilterBank
+from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import MagEllipsoid, SensorCalibration
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.calibration_poses import CalibrationSuit, changed_table
@@ -168,7 +168,7 @@ def test_filter_heading_with_the_ellipsoid(soft_iron_run):
 
     def heading(cal: SensorCalibration) -> float:
         acc, mag, gyr = cal.calibrate(raw)
-        out = FilterBank(cal.gravity).process(acc, mag, gyr)
+        out = MahonyBank(cal.gravity).process(acc, mag, gyr)
         return float(_heading_error(out.R, rec.truth.R, [7])[0])
 
     new = update.merge(load_factory_calibration())

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpms.filter.bank import FilterBank
+from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.rotations import dcm_to_euler
 from bpms.firmware.sim.session import simulate
@@ -85,7 +85,7 @@ def _assert_close(out, reference) -> None:
 
 def test_batch_matches_reference(data, reference):
     acc, mag, gyr, gravity = data
-    bank = FilterBank(gravity)
+    bank = MahonyBank(gravity)
     out = bank.process(acc, mag, gyr, resets=_resets(N_FRAMES), params=_params(N_FRAMES),
                        store_terms=True)
     _assert_close((out.R, out.euler, out.w_i, out.w_p), reference)
@@ -94,7 +94,7 @@ def test_batch_matches_reference(data, reference):
 def test_batch_matches_reference_on_fast_synthetic_rotations(synthetic):
     acc, mag, gyr, gravity = (v[:800] if v.ndim == 3 else v for v in synthetic)
     n = len(acc)
-    out = FilterBank(gravity).process(acc, mag, gyr, resets=_resets(N_FRAMES)[:n],
+    out = MahonyBank(gravity).process(acc, mag, gyr, resets=_resets(N_FRAMES)[:n],
                                       params=_params(N_FRAMES)[:n], store_terms=True)
     _assert_close((out.R, out.euler, out.w_i, out.w_p), _reference(acc, mag, gyr, gravity))
 
@@ -102,7 +102,7 @@ def test_batch_matches_reference_on_fast_synthetic_rotations(synthetic):
 def test_batch_in_chunks_matches_reference(data, reference):
     """The state carries over between calls; gains set on the bank apply from the next call."""
     acc, mag, gyr, gravity = data
-    bank = FilterBank(gravity)
+    bank = MahonyBank(gravity)
     parts = []
     for lo, hi in ((0, 250), (250, GAIN_CHANGE_AT), (GAIN_CHANGE_AT, RESET_AT),
                    (RESET_AT, RESET_ONE_AT), (RESET_ONE_AT, N_FRAMES)):
@@ -120,7 +120,7 @@ def test_batch_in_chunks_matches_reference(data, reference):
 
 def test_live_matches_reference(data, reference):
     acc, mag, gyr, gravity = data
-    bank = FilterBank(gravity)
+    bank = MahonyBank(gravity)
     outs = []
     for k in range(N_FRAMES):
         if k == GAIN_CHANGE_AT:
@@ -136,7 +136,7 @@ def test_live_matches_reference(data, reference):
 
 def test_first_frame_and_reset_frame_only_initialise(data):
     acc, mag, gyr, gravity = data
-    bank = FilterBank(gravity)
+    bank = MahonyBank(gravity)
     out = bank.process(acc[:3], mag[:3], gyr[:3], store_terms=True)
     assert np.all(out.w_i[0] == 0) and np.all(out.w_p[0] == 0)
     assert np.any(out.w_p[1] != 0)
@@ -150,7 +150,7 @@ def test_first_frame_and_reset_frame_only_initialise(data):
 def test_filter_converges_to_truth():
     """Self-consistency of the sign conventions: the filter tracks the true orientation."""
     acc, mag, gyr, R_true = synthetic_motion(1500, seed=5)
-    out = FilterBank(np.full(18, 256.0)).process(acc, mag, gyr)
+    out = MahonyBank(np.full(18, 256.0)).process(acc, mag, gyr)
     down_est = out.R[500:, :, 2, :]
     down_true = R_true[500:, :, 2, :]
     angle = np.degrees(np.arccos(np.clip(np.sum(down_est * down_true, -1), -1, 1)))
@@ -171,14 +171,14 @@ def test_failed_sensor_holds_last_good_value(data):
     garbage_acc[50:60, 4] = 30000.0  # what a failed read might carry
     garbage_gyr = gyr[:n].copy()
     garbage_gyr[80:85, 9] = -99.0
-    bank = FilterBank(gravity)
+    bank = MahonyBank(gravity)
     out = bank.process(garbage_acc, mag[:n], garbage_gyr, errors=errors)
     # equivalent input with the held values substituted by hand, no flags
     held_acc = acc[:n].copy()
     held_acc[50:60, 4] = acc[49, 4]
     held_gyr = gyr[:n].copy()
     held_gyr[80:85, 9] = gyr[79, 9]
-    expected = FilterBank(gravity).process(held_acc, mag[:n], held_gyr)
+    expected = MahonyBank(gravity).process(held_acc, mag[:n], held_gyr)
     np.testing.assert_allclose(out.R, expected.R, atol=1e-12)
     counts = bank.held_count
     assert counts[4, 0] == 10 and counts[9, 2] == 5 and counts.sum() == 15
@@ -188,24 +188,24 @@ def test_imu_without_good_value_stays_uninitialised(data):
     acc, mag, gyr, gravity = data
     errors = np.zeros((20, 18, 3), bool)
     errors[:10, 2, 1] = True  # IMU 2 magnetometer fails from the start for 10 frames
-    out = FilterBank(gravity).process(acc[:20], mag[:20], gyr[:20], errors=errors)
+    out = MahonyBank(gravity).process(acc[:20], mag[:20], gyr[:20], errors=errors)
     assert np.isnan(out.euler[:10, 2]).all()
     assert np.isfinite(out.euler[10:, 2]).all()
     assert np.isfinite(out.euler[:, [0, 1, 3]]).all()
     # IMU 2 initialises at frame 10 exactly as a fresh filter started there
-    fresh = FilterBank(gravity).process(acc[10:20], mag[10:20], gyr[10:20])
+    fresh = MahonyBank(gravity).process(acc[10:20], mag[10:20], gyr[10:20])
     np.testing.assert_allclose(out.R[10:, 2], fresh.R[:, 2], atol=1e-12)
 
 
 def test_reset_waits_for_a_valid_frame(data):
     acc, mag, gyr, gravity = data
-    bank = FilterBank(gravity)
+    bank = MahonyBank(gravity)
     bank.process(acc[:100], mag[:100], gyr[:100])
     bank.reset(7)
     errors = np.zeros((10, 18, 3), bool)
     errors[:3, 7, 0] = True
     out = bank.process(acc[100:110], mag[100:110], gyr[100:110], errors=errors)
     assert np.isnan(out.R[:3, 7]).all()
-    fresh = FilterBank(gravity).process(acc[103:110], mag[103:110], gyr[103:110])
+    fresh = MahonyBank(gravity).process(acc[103:110], mag[103:110], gyr[103:110])
     np.testing.assert_allclose(out.R[3:, 7], fresh.R[:, 7], atol=1e-12)
     assert np.isfinite(out.R[:, 8]).all()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from bpms.filter.algorithms import ObserverBank
-from bpms.filter.bank import FilterBank
+from bpms.filter.bank import MahonyBank
 from bpms.filter.observer import Observer, ObserverGains
 from bpms.filter.rotations import dcm_to_quaternion, inclination_error, quaternion_to_dcm
 from bpms.io.options import FilterOptions
@@ -79,7 +79,7 @@ def test_constant_body_acceleration_inclination_error_below_the_original():
     a, mm, g = _suite_units(f, m, w)
     gravity = np.array([256.0])
     obs = ObserverBank(gravity, FilterOptions()).process(a, mm, g)
-    mah = FilterBank(gravity, FilterOptions()).process(a, mm, g)
+    mah = MahonyBank(gravity, FilterOptions()).process(a, mm, g)
     k = slice(round(10 / DT), None)  # after 10 s
     err_obs = np.degrees(inclination_error(obs.R[k, 0], Rs[k]))
     err_mah = np.degrees(inclination_error(mah.R[k, 0], Rs[k]))

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bpms.filter.bank import FilterBank
+from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import SensorCalibration
 from bpms.firmware.sim.session import simulate
 
@@ -51,10 +51,10 @@ def test_batch_chunks_and_live_agree(inputs, events, failures, cuts):
             resets[k, imu] = True
         else:
             params[k:, 2] = value  # kp_yaw from frame k on
-    whole = FilterBank(gravity).process(acc, mag, gyr, errors, resets, params, store_terms=True)
+    whole = MahonyBank(gravity).process(acc, mag, gyr, errors, resets, params, store_terms=True)
 
     # chunked: events applied through the bank's controls at chunk starts or via arrays
-    bank = FilterBank(gravity)
+    bank = MahonyBank(gravity)
     parts = []
     bounds = [0, *sorted(cuts), N]
     for lo, hi in itertools.pairwise(bounds):
@@ -64,7 +64,7 @@ def test_batch_chunks_and_live_agree(inputs, events, failures, cuts):
         np.testing.assert_array_equal(np.concatenate([getattr(p, name) for p in parts]),
                                       getattr(whole, name))
 
-    live = FilterBank(gravity)
+    live = MahonyBank(gravity)
     for k in range(N):
         for kind, imu, value in by_frame.get(k, []):
             if kind == "reset_all":

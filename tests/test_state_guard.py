@@ -47,10 +47,10 @@ def _longest_nan_run(finite: np.ndarray) -> int:
 def test_the_unguarded_state_really_leaves_so3():
     # Independent of the guard: one filter step with the pinned gyro through the kernel's own
     # renormalisation leaves a DCM that is no rotation (so the guard has something to catch).
-    from bpms.filter.bank import FilterBank
+    from bpms.filter.bank import MahonyBank
     from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT
 
-    bank = FilterBank(np.full(1, 256.0))
+    bank = MahonyBank(np.full(1, 256.0))
     acc, mag = np.array([[0.0, 0.0, 256.0]]), np.array([[60.0, 0.0, 80.0]])
     bank.step(acc, mag, np.zeros((1, 3)))
     w = np.full((1, 3), FULL_SCALE * GYRO_RAD_S_PER_COUNT)
@@ -63,7 +63,7 @@ def test_fast_real_turns_are_no_event(dps):
     # The DCM filter's first-order renormalisation leaves ‖RᵀR − I‖ above 1e-3 when it turns
     # fast (3.7e-3 at 500 °/s); a fast but real motion up to the gyroscope's full scale
     # (2000 °/s) must not count as a broken state.
-    from bpms.filter.bank import FilterBank
+    from bpms.filter.bank import MahonyBank
     from bpms.filter.guard import StateGuard, guarded_process
 
     n = 200
@@ -71,10 +71,10 @@ def test_fast_real_turns_are_no_event(dps):
     mag = np.tile([60.0, 0.0, 80.0], (n, 1, 1))
     gyr = np.tile(np.radians(dps) * np.array([0.6, 0.0, 0.8]), (n, 1, 1))
     gyr[:20] = 0.0
-    plain = FilterBank(np.full(1, 256.0)).process(acc, mag, gyr)
+    plain = MahonyBank(np.full(1, 256.0)).process(acc, mag, gyr)
     assert so3_error(plain.R).max() > SO3_TOLERANCE or dps < 500
     guard = StateGuard(1)
-    out, flags = guarded_process(FilterBank(np.full(1, 256.0)), guard, acc, mag, gyr)
+    out, flags = guarded_process(MahonyBank(np.full(1, 256.0)), guard, acc, mag, gyr)
     assert not flags.any() and guard.count.sum() == 0
     np.testing.assert_array_equal(out.R, plain.R)
 

@@ -8,7 +8,7 @@ from bpms.io.events import FrameSource
 from bpms.io.frames import FRAME_SIZE, decode_frames
 
 
-def read_raw(source: FrameSource, timeout: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+def poll_raw(source: FrameSource, timeout: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """The frames available now (waiting up to ``timeout`` s) as (raw ``int16 [n, 18, 9]``
     counts, errors ``bool [n, 18, 3]``); n may be 0."""
     events = source.read(timeout)

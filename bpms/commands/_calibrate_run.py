@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.calibration.frames import read_raw
+from bpms.calibration.frames import poll_raw
 from bpms.calibration.output import load_existing, save_pair
 from bpms.calibration.procedures import (
     AXES,
@@ -119,7 +119,7 @@ class Driver:
              status: Callable[[], str], on_line: Callable[[str], bool] | None = None) -> None:
         last_frame = time.monotonic()
         while not until():
-            raw, errors = read_raw(self.source, 0.05)
+            raw, errors = poll_raw(self.source, 0.05)
             if len(raw):
                 last_frame = time.monotonic()
                 for k in range(len(raw)):

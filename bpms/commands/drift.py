@@ -30,8 +30,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.commands._analysis import processed
     from bpms.analysis.drift import drift_of_result
+    from bpms.commands._analysis import processed
     from bpms.io.frames import IMU_NAMES
 
     p = processed("drift", args.raw_file, args.calibration, args.options,

@@ -4,7 +4,7 @@ joint angles, stick figure, and the headless processor (see docs/filter.md).
 The public entry points (imported lazily, so ``bpms.filter.calibration`` & co. do not pull
 in numba)::
 
-    from bpms.filter import BodyPoseProcessor, FilterBank, PoseCalibrator, Result
+    from bpms.filter import BodyPoseProcessor, MahonyBank, PoseCalibrator, Result
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 
 _EXPORTS = {
     "BankOutput": "bpms.filter.bank",
-    "FilterBank": "bpms.filter.bank",
+    "MahonyBank": "bpms.filter.bank",
     "PoseCalibrator": "bpms.filter.pose",
     "Zero": "bpms.filter.pose",
     "average_dcm": "bpms.filter.pose",

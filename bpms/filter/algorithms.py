@@ -8,7 +8,7 @@ down, mag ±100, gyro rad/s, ``[N, n, 3]`` batch or ``[n, 3]`` live) and returns
 the first valid frame of a stream (or after :meth:`reset`) aligns the filter, a failed sensor
 holds its last good value (counted in ``held_count``), gains change from the next frame on.
 
-- ``mahony``: :class:`bpms.filter.bank.FilterBank`, the original (docs/filter.md), unchanged;
+- ``mahony``: :class:`bpms.filter.bank.MahonyBank`, the original (docs/filter.md), unchanged;
 - ``observer``: :class:`ObserverBank` over :mod:`bpms.filter.observer`;
 - ``vqf``: :class:`VqfBank` over :mod:`bpms.filter.vqf_filter` (needs the ``vqf`` package);
 - ``adaptive``: :class:`bpms.filter.adaptive_bank.AdaptiveBank` over
@@ -27,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bpms.filter.bank import BankOutput, FilterBank
+from bpms.filter.bank import BankOutput, MahonyBank
 from bpms.filter.observer import ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
 from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
@@ -73,7 +73,7 @@ def make_bank(gravity: np.ndarray, options: FilterOptions) -> AttitudeBank:
     :class:`bpms.filter.vqf_filter.VqfMissingError` when ``vqf`` is chosen but not installed."""
     name = options.algorithm
     if name == "mahony":
-        return FilterBank(gravity, options)
+        return MahonyBank(gravity, options)
     if name == "observer":
         return ObserverBank(gravity, options)
     if name == "vqf":

@@ -1,4 +1,4 @@
-"""FilterBank: 18 DCM Mahony filters (docs/filter.md) driven by the numba kernels of
+"""MahonyBank: 18 DCM Mahony filters (docs/filter.md) driven by the numba kernels of
 :mod:`bpms.filter.mahony`, with run-time gains, resets and the failed-sensor hold.
 
 Inputs are calibrated filter-frame vectors (``SensorCalibration.calibrate``): accel in Gravity
@@ -38,7 +38,7 @@ def params_from_options(options: FilterOptions) -> np.ndarray:
                      options.ki_yaw, options.dt], dtype=np.float64)
 
 
-class FilterBank:
+class MahonyBank:
     """18 (or ``n``) Mahony filters sharing gains and dt.
 
     ``gravity``: ``[n]`` accelerometer counts per g (the calibration's Gravity). Gains are read
@@ -136,4 +136,4 @@ class FilterBank:
         return BankOutput(out[0].copy(), out[1].copy(), out[2].copy(), out[3].copy())
 
 
-__all__ = ["N_IMUS", "BankOutput", "FilterBank", "params_from_options"]
+__all__ = ["N_IMUS", "BankOutput", "MahonyBank", "params_from_options"]

@@ -137,10 +137,10 @@ class StateGuard:
 
 def renorm_allowance(bank: Any) -> float:
     """``c4`` of :func:`_check` for ``bank``: ``MAHONY_RENORM_K · dt⁴`` for the Mahony DCM
-    filter (:class:`bpms.filter.bank.FilterBank`), 0 for the quaternion filters."""
-    from bpms.filter.bank import FilterBank
+    filter (:class:`bpms.filter.bank.MahonyBank`), 0 for the quaternion filters."""
+    from bpms.filter.bank import MahonyBank
 
-    if isinstance(bank, FilterBank):
+    if isinstance(bank, MahonyBank):
         return MAHONY_RENORM_K * float(bank.params[4]) ** 4
     return 0.0
 

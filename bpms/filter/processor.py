@@ -21,7 +21,7 @@ What happens, frame by frame (details in docs/filter.md):
 
 - raw counts → calibrated filter units (:class:`bpms.filter.calibration.SensorCalibration`);
 - 18 attitude filters of the kind ``Options.filter.algorithm`` selects
-  (:mod:`bpms.filter.algorithms`; default the DCM Mahony :class:`bpms.filter.bank.FilterBank`):
+  (:mod:`bpms.filter.algorithms`; default the DCM Mahony :class:`bpms.filter.bank.MahonyBank`):
   the first frame of a stream only initialises; failed sensors hold their last good value;
 - Reset Zero (:class:`bpms.filter.pose.PoseCalibrator`): a provisional one-frame capture on the
   first frame where all 18 IMUs are initialised, the automatic capture 1.0 s into the stream
@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.algorithms import make_bank
-from bpms.filter.bank import BankOutput, FilterBank
+from bpms.filter.bank import BankOutput, MahonyBank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarded_step
@@ -259,7 +259,7 @@ class BodyPoseProcessor:
             self.table.problems.extend(problems)
         self.sensor_calibration = SensorCalibration.from_table(self.table, self.options.sensors,
                                                                ellipsoids or None)
-        # options.filter.algorithm: 'mahony' (FilterBank, the original) or another filter
+        # options.filter.algorithm: 'mahony' (MahonyBank, the original) or another filter
         self.bank = make_bank(self.sensor_calibration.gravity, self.options.filter)
         cal = self.sensor_calibration
         self._cal_params = tuple(np.ascontiguousarray(v, dtype=np.float64) for v in (
@@ -382,7 +382,7 @@ class BodyPoseProcessor:
         acc, mag, gyr = self.calibrate(raw)
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
             errors = failed_inputs(acc, mag, gyr, errors)
-        terms = {"store_terms": True} if isinstance(self.bank, FilterBank) else {}
+        terms = {"store_terms": True} if isinstance(self.bank, MahonyBank) else {}
         out, reinit = guarded_process(self.bank, self.guard, acc, mag, gyr, errors, **terms)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R, zero_at)

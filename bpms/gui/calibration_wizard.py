@@ -37,7 +37,7 @@ from PyQt6.QtWidgets import (
     QWizardPage,
 )
 
-from bpms.calibration.frames import read_raw
+from bpms.calibration.frames import poll_raw
 from bpms.calibration.output import load_existing, save_pair
 from bpms.calibration.procedures import (
     AXES,
@@ -551,7 +551,7 @@ class CalibrationWizard(QWizard):
         if self.source is None:
             return
         try:
-            raw, errors = read_raw(self.source, 0.0)
+            raw, errors = poll_raw(self.source, 0.0)
         except Exception as exc:  # a broken link: say so, keep the wizard open
             self.last_error = str(exc)
             return
