@@ -5,6 +5,7 @@ filter and back; changes through one queue; [body] height honoured."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -176,3 +177,36 @@ def test_the_documented_range_table_is_the_code_s():
 
     doc = (Path(__file__).resolve().parents[1] / "docs" / "configuration.md").read_text()
     assert ranges_markdown() in doc
+
+
+def _outside(rng) -> list[float]:
+    """Values a file may not hold for a numeric range: beyond each bound, absurd, non-finite."""
+    values = [float("nan"), float("inf"), 1e308, -1e308]
+    if rng.lo is not None:
+        values.append(rng.lo - max(abs(rng.lo), 1.0))
+        if rng.lo > 0:
+            values.append(0.0)  # e.g. a body segment of length 0
+    if rng.hi is not None:
+        values.append(rng.hi + max(abs(rng.hi), 1.0))
+    return values
+
+
+@pytest.mark.parametrize("section", sorted(VALID_RANGES))
+def test_every_option_family_refuses_values_outside_its_range(section):
+    """Each family (filter, sensors, display, serial, udp, logging, pose, body, track, joints,
+    lsl): every value outside its range — or absurd, or non-finite — in a file gives one
+    warning naming the key and the factory value, never an exception."""
+    from bpms.io.options import options_from_dict
+
+    factory = getattr(Options(), section)
+    for key, rng in VALID_RANGES[section].items():
+        wrong = ["no-such-choice"] if rng.choices is not None else _outside(rng)
+        for value in wrong:
+            if isinstance(getattr(factory, key), int) and isinstance(value, float) \
+                    and math.isfinite(value) and value == int(value):
+                value = int(value)
+            options = options_from_dict({section: {key: value}}, "test.toml")
+            assert getattr(getattr(options, section), key) == getattr(factory, key), (key, value)
+            text = [str(p) for p in options.problems]
+            assert len(text) == 1 and f"{section}.{key}" in text[0] and "factory" in text[0], \
+                (key, value, text)

@@ -90,23 +90,24 @@ VALID_RANGES: dict[str, dict[str, Range]] = {
         "plot_history_s": Range(1.0, 3600.0),
     },
     "serial": {
-        "baud": Range(1200),
-        "discovery_timeout_s": Range(0.05),
-        "read_timeout_s": Range(0.001),
-        "link_lost_after_s": Range(0.1),
+        "baud": Range(1200, 4_000_000, why="serial ports and the RN-41 Bluetooth module"),
+        "discovery_timeout_s": Range(0.05, 60.0),
+        "read_timeout_s": Range(0.001, 10.0),
+        "link_lost_after_s": Range(0.1, 600.0),
     },
     "udp": {"multicast_ttl": Range(0, 255)},
-    "logging": {"flush_interval_s": Range(0.05)},
+    "logging": {"flush_interval_s": Range(0.05, 60.0, why="data on disk within a minute "
+                                                      "at the latest")},
     "pose": {
         "reset_window_s": Range(0.0, 10.0),
         "heading_reference": Range(choices=("hip", "mean")),
     },
-    "body": {name: Range(0.0, 3.0) for name in (
+    "body": {name: Range(0.01, 3.0, why="a body segment, m") for name in (
         "low_spine", "mid_spine", "neck", "head", "shoulder", "arm", "forearm", "hand", "hip",
         "thigh", "shank", "foot")} | {"height": Range(0.5, 2.5)},
     "track": {
-        "heel_strike_g": Range(0.0),
-        "min_step_interval_s": Range(0.0),
+        "heel_strike_g": Range(0.5, 16.0, why="the ADXL345's widest range is ±16 g"),
+        "min_step_interval_s": Range(0.05, 5.0),
         "declination_deg": Range(-180.0, 180.0),
     },
     "joints": {"convention": Range(choices=("isb", "original"))},
