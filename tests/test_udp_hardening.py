@@ -205,3 +205,63 @@ def test_monitor_listen_shows_the_address_and_another_sender(frames):
     lines += out.splitlines()
     assert any("WARNING: another sender (127.0.0.1:" in line for line in lines), out
     assert any(" streaming" in line and "foreign 20" in line for line in lines), out
+
+
+def test_the_key_comes_from_the_options_key_file(tmp_path, monkeypatch):
+    """udp.key_file: its text is the key (the environment variable wins); an unreadable or
+    empty key file is a one-line error, not a silent 'no key'."""
+    from bpms.io.udp import KEY_ENV, UdpKeyError, shared_key
+
+    monkeypatch.delenv(KEY_ENV, raising=False)
+    key_file = tmp_path / "udp.key"
+    key_file.write_text("  lab secret \n")
+    assert shared_key("") is None
+    assert shared_key(str(key_file)) == b"lab secret"
+    monkeypatch.setenv(KEY_ENV, "from env")
+    assert shared_key(str(key_file)) == b"from env"
+    monkeypatch.delenv(KEY_ENV)
+    with pytest.raises(UdpKeyError, match="cannot be read"):
+        shared_key(str(tmp_path / "missing.key"))
+    (tmp_path / "empty.key").write_text("\n")
+    with pytest.raises(UdpKeyError, match="is empty"):
+        shared_key(str(tmp_path / "empty.key"))
+
+
+def test_a_session_signs_with_the_key_file_and_a_keyed_receiver_accepts_it(tmp_path,
+                                                                          monkeypatch):
+    from bpms.firmware.sim.session import simulate
+    from bpms.io.options import Options
+    from bpms.io.rawfile import read_raw
+    from bpms.io.replay import ReplaySource
+    from bpms.io.udp import KEY_ENV, UdpSource
+    from bpms.pipeline.session import LiveSession
+
+    monkeypatch.delenv(KEY_ENV, raising=False)
+    key_file = tmp_path / "udp.key"
+    key_file.write_text("lab secret")
+    good = UdpSource("127.0.0.1:0", key=b"lab secret")
+    wrong = UdpSource("127.0.0.1:0", key=b"another")
+    try:
+        options = Options()
+        options.udp.key_file = str(key_file)
+        raw = simulate(duration_s=1.0, seed=4).save_raw(tmp_path / "Raw_key_1.bpmsraw")
+        session = LiveSession(ReplaySource(read_raw(raw), speed=None), options)
+        session.start_forwarding([f"127.0.0.1:{good.address[1]}",
+                                  f"127.0.0.1:{wrong.address[1]}"])
+        session.start()
+        got_good = []
+
+        def received() -> int:
+            frame = good.read(0.05)
+            if frame is not None:
+                got_good.append(frame)
+            return len(got_good)
+
+        assert wait_until(lambda: received() >= 40, 20)
+        assert wait_until(lambda: wrong.read(0.05) is None
+                          and wrong.stats.unauthenticated > 0, 10)
+        session.stop()
+        assert wrong.stats.delivered == 0
+    finally:
+        good.close()
+        wrong.close()

@@ -164,7 +164,11 @@ def _monitor_udp(args: argparse.Namespace) -> int:
     from bpms.pipeline.sources import UdpFrameSource
 
     try:
-        source = UdpFrameSource(args.listen)
+        from bpms.io.defaults import default_options
+        from bpms.io.udp import shared_key
+
+        source = UdpFrameSource(args.listen,
+                                key=shared_key(default_options(announce=False).udp.key_file))
     except (UdpConfigError, OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
     signal.signal(signal.SIGTERM, _sigterm)

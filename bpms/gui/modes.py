@@ -203,7 +203,10 @@ class SessionRunner:
 
     def _udp_source(self) -> UdpFrameSource:
         try:
-            return UdpFrameSource(self.config.listen, self.config.group or None)
+            from bpms.io.udp import shared_key
+
+            return UdpFrameSource(self.config.listen, self.config.group or None,
+                                  key=shared_key(self.options.udp.key_file))
         except (OSError, ValueError) as exc:
             raise ModeError(f"cannot listen on UDP {self.config.listen}: {exc}") from None
 

@@ -224,6 +224,9 @@ class UdpOptions:
                                  hostports=True)
     listen: str = _opt("0.0.0.0:5005", "UDP client listens on host:port", hostport=True)
     multicast_ttl: int = _opt(1, "multicast time-to-live, hops")
+    key_file: str = _opt("", "file holding the shared UDP key that signs and checks every "
+                         "datagram (docs/udp.md); empty = no key; the BPMS_UDP_KEY "
+                         "environment variable wins")
 
 
 @dataclass

@@ -46,6 +46,7 @@ from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
+from pathlib import Path
 
 import numpy as np
 
@@ -329,6 +330,27 @@ def key_from_env() -> bytes | None:
     """The shared UDP key from :data:`KEY_ENV` (UTF-8), or None when unset or empty."""
     text = os.environ.get(KEY_ENV, "")
     return text.encode("utf-8") if text else None
+
+
+class UdpKeyError(UdpConfigError):
+    """The configured key file cannot be read (one line, naming the file)."""
+
+
+def shared_key(key_file: str = "") -> bytes | None:
+    """The shared UDP key: :data:`KEY_ENV` when set, else the text of ``key_file`` (the
+    options' ``udp.key_file``; surrounding white space stripped), else None (no key). A key
+    file that is set but unreadable or empty raises :class:`UdpKeyError`: a receiver must not
+    silently accept unauthenticated datagrams because its key went missing."""
+    key = key_from_env()
+    if key is not None or not key_file:
+        return key
+    try:
+        text = Path(key_file).expanduser().read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UdpKeyError(f"the UDP key file {key_file} cannot be read ({exc})") from None
+    if not text:
+        raise UdpKeyError(f"the UDP key file {key_file} is empty")
+    return text.encode("utf-8")
 
 
 def sign_datagram(datagram: bytes, key: bytes) -> bytes:

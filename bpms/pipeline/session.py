@@ -36,7 +36,7 @@ from bpms.io.frames import FRAME_PERIOD_S, decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
-from bpms.io.udp import UdpForwarder, key_from_env
+from bpms.io.udp import UdpForwarder, shared_key
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.health import (
     MAX_BACKLOG_FRAMES,
@@ -324,7 +324,8 @@ class LiveSession:
         """Send every raw frame and pose to ``targets`` (default: the options' list)."""
         self.stop_forwarding()
         self._forwarder = UdpForwarder(targets or self.options.udp.forward_to,
-                                       self.options.udp.multicast_ttl, key=key_from_env())
+                                       self.options.udp.multicast_ttl,
+                                       key=shared_key(self.options.udp.key_file))
         return self._forwarder
 
     def stop_forwarding(self) -> None:
