@@ -32,7 +32,8 @@ def test_table_shows_raw_calibrated_euler_and_flags_with_units(qtbot):
     model.update(sample)
     header = [model.headerData(c, Qt.Orientation.Horizontal) for c in range(len(COLUMNS))]
     # what matters first: angles, error flags, calibrated, raw
-    assert header[:4] == ["roll [deg]", "pitch [deg]", "yaw [deg]", "errors"]
+    assert header[:4] == ["roll (sensor) [deg]", "pitch (sensor) [deg]", "yaw (sensor) [deg]",
+                          "errors"]
     assert header[4] == "acc x [m/s²]" and header[7] == "mag x [G]"
     assert header[10] == "gyro x [rad/s]" and header[13] == "raw acc x [counts]"
     assert model.headerData(17, Qt.Orientation.Vertical) == "17 Head"
