@@ -46,7 +46,7 @@ def test_table_shows_raw_calibrated_euler_and_flags_with_units(qtbot):
     assert model.data(model.index(4, 3)) == "mag gyro" and model.data(model.index(5, 3)) == ""
     model.set_angle_unit("rad")
     assert model.data(model.index(2, 0)) == f"{sample.euler[2, 0]:.3f}"
-    assert model.headerData(2, Qt.Orientation.Horizontal) == "yaw [rad]"
+    assert model.headerData(2, Qt.Orientation.Horizontal) == "yaw (sensor) [rad]"
     # every header fits its column (none clipped)
     metrics = table.horizontalHeader().fontMetrics()
     for c, text in enumerate(header):
