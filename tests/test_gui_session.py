@@ -89,7 +89,9 @@ def test_simulated_suit_session(qtbot, tmp_path):
     window.status_panel.reset_button.click()
     # the table shows the newest sample, units in the headers
     model = window.table_model
-    assert model.headerData(0, Qt.Orientation.Horizontal) == "roll [deg]"
+    # the output angles after Reset Zero: the segment angles, and the header says so
+    qtbot.waitUntil(lambda: model.headerData(0, Qt.Orientation.Horizontal)
+                    == "roll (segment) [deg]", timeout=10000)
     window.unit_combo.setCurrentText("rad")
     assert COLUMNS[0].label(model.angle_unit) == "roll [rad]"
     assert abs(model.value(8, 0)) < 2 * np.pi

@@ -32,7 +32,8 @@ def test_table_shows_raw_calibrated_euler_and_flags_with_units(qtbot):
     model.update(sample)
     header = [model.headerData(c, Qt.Orientation.Horizontal) for c in range(len(COLUMNS))]
     # what matters first: angles, error flags, calibrated, raw
-    assert header[:4] == ["roll [deg]", "pitch [deg]", "yaw [deg]", "errors"]
+    assert header[:4] == ["roll (sensor) [deg]", "pitch (sensor) [deg]", "yaw (sensor) [deg]",
+                          "errors"]
     assert header[4] == "acc x [m/s²]" and header[7] == "mag x [G]"
     assert header[10] == "gyro x [rad/s]" and header[13] == "raw acc x [counts]"
     assert model.headerData(17, Qt.Orientation.Vertical) == "17 Head"
@@ -45,7 +46,7 @@ def test_table_shows_raw_calibrated_euler_and_flags_with_units(qtbot):
     assert model.data(model.index(4, 3)) == "mag gyro" and model.data(model.index(5, 3)) == ""
     model.set_angle_unit("rad")
     assert model.data(model.index(2, 0)) == f"{sample.euler[2, 0]:.3f}"
-    assert model.headerData(2, Qt.Orientation.Horizontal) == "yaw [rad]"
+    assert model.headerData(2, Qt.Orientation.Horizontal) == "yaw (sensor) [rad]"
     # every header fits its column (none clipped)
     metrics = table.horizontalHeader().fontMetrics()
     for c, text in enumerate(header):

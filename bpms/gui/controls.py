@@ -79,14 +79,23 @@ class StatusPanel(QGroupBox):
         for key, title in (("source", "Source"), ("state", "Link state"),
                            ("rate", "Reception rate"), ("frames", "Frames"),
                            ("errors", "Error counter"), ("battery", "Battery"),
-                           ("dropped", "Dropped deliveries"), ("latency", "Latency p99"),
-                           ("extra", "Source counters"), ("event", "Last event")):
+                           ("dropped", "Health"), ("latency", "Latency p99"),
+                           ("extra", "Source counters"), ("event", "Last event"),
+                           ("calibration", "Calibration"), ("options", "Options")):
             label = QLabel("–")
             label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
             label.setWordWrap(True)
             self.labels[key] = label
             form.addRow(title, label)
+        self.labels["calibration"].setToolTip("Where the sensor calibration in force came from")
+        self.labels["options"].setToolTip("Where the options in force came from")
         self.streaming = False
+
+    def set_sources(self, calibration: str, options: str) -> None:
+        """Where the calibration and the options in force came from
+        (``SessionRunner.calibration_source`` / ``options_source``)."""
+        self.labels["calibration"].setText(calibration or "–")
+        self.labels["options"].setText(options or "–")
 
     def set_streaming(self, on: bool) -> None:
         self.streaming = on
@@ -108,7 +117,7 @@ class StatusPanel(QGroupBox):
             "frames": f"{st.frames} received, {st.processed} processed",
             "errors": f"{st.error_bits} sensor error flags",
             "battery": f"{src.battery_v:.2f} V" if src.battery_v is not None else "–",
-            "dropped": f"{st.dropped} (backlog {st.processing_backlog} frames)",
+            "dropped": st.health_line(),
             "latency": f"{st.latency_p99_ms:.1f} ms",
             "extra": ", ".join(f"{k} {v}" for k, v in src.counters.items())
                      + (f", resyncs {src.resyncs}" if src.resyncs else ""),

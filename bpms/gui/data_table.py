@@ -3,8 +3,11 @@
 A model/view table: :class:`ImuTableModel` keeps the newest sample's numbers in numpy arrays
 and announces one ``dataChanged`` per display tick; Qt asks for the visible cells only.
 Calibrated values are :meth:`SensorCalibration.physical_units` (accel m/s², mag gauss,
-gyro rad/s, signed board axes); Euler angles are the filter's roll, pitch, yaw in rad or deg
-(switchable live).
+gyro rad/s, signed board axes); Euler angles (rad or deg, switchable live) are by default the
+processor's output angles (``PoseSample.euler_output``: segment angles after Reset Zero), or the
+filter's sensor angles (``PoseSample.euler``) — the headers say which. The disturbance column
+marks IMUs whose magnetometer ("mag") or acceleration ("acc") is disturbed
+(:mod:`bpms.filter.disturbance`), in amber.
 """
 
 from __future__ import annotations
@@ -24,7 +27,8 @@ from bpms.pipeline.session import PoseSample
 
 @dataclass(frozen=True)
 class Column:
-    """One table column: ``group`` raw/cal/euler/errors, ``k`` the index inside the group."""
+    """One table column: ``group`` raw/cal/euler/errors/disturbance, ``k`` the index inside
+    the group."""
 
     group: str
     k: int
@@ -46,7 +50,11 @@ COLUMNS: tuple[Column, ...] = (
     Column("errors", 0, "errors", ""),
     *(Column("cal", k, c, _CAL_UNITS[k]) for k, c in enumerate(CHANNEL_LABELS)),
     *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_LABELS)),
+    # last in the model (cell indices of the others stay put), shown after "errors"
+    Column("disturbance", 0, "disturbance", ""),
 )
+#: Columns of text (not plottable).
+TEXT_GROUPS = frozenset({"errors", "disturbance"})
 assert len(CHANNEL_NAMES) == len(CHANNEL_LABELS)
 #: Error flags stay red at least this long after the last faulty frame, s.
 ERROR_HOLD_S = 2.0
@@ -72,6 +80,11 @@ def column_values(column: Column, raw: np.ndarray, cal: np.ndarray, euler: np.nd
     raise ValueError(f"column {column.name} has no numeric value")
 
 
+def disturbance_text(mag: bool, acc: bool) -> str:
+    """"", "mag", "acc" or "mag acc"."""
+    return " ".join(name for name, on in (("mag", mag), ("acc", acc)) if on)
+
+
 def error_text(flags: np.ndarray) -> str:
     """``[3]`` bool flags (accel, mag, gyro) → "" or e.g. "mag gyro"."""
     return " ".join(name for name, bad in zip(SENSOR_NAMES, flags, strict=True) if bad)
@@ -83,8 +96,21 @@ _FOREGROUND = Qt.ItemDataRole.ForegroundRole
 _RIGHT = Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter
 _BACKGROUND = Qt.ItemDataRole.BackgroundRole
 _RED = QColor("#d62728")
+_AMBER = QColor("#c77c00")  # amber, dark enough to read on white
 _FAILED_ROW = QColor("#fde0e0")
 _ERRORS_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "errors")
+DISTURBANCE_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "disturbance")
+
+
+def shown_angles(sample: PoseSample, output: bool = True) -> tuple[np.ndarray, str]:
+    """The ``[18, 3]`` angles (rad) to show and what they are: ``output`` True → the sample's
+    output angles, "segment" when they differ from the sensor angles (corrected by Reset Zero),
+    else "sensor"; ``output`` False → the sensor angles."""
+    out = sample.euler_output
+    if not output or out is None:
+        return sample.euler, "sensor"
+    same = np.array_equal(out, sample.euler, equal_nan=True)
+    return out, "sensor" if same else "segment"
 
 
 class ImuTableModel(QAbstractTableModel):
@@ -100,6 +126,12 @@ class ImuTableModel(QAbstractTableModel):
         self.euler = np.full((N_IMUS, 3), np.nan)
         self.errors = np.zeros((N_IMUS, 3), bool)
         self.error_until = np.zeros((N_IMUS, 3))  # monotonic s until which a flag stays red
+        self.mag_disturbed = np.zeros(N_IMUS, bool)
+        self.acc_disturbed = np.zeros(N_IMUS, bool)
+        #: show the output angles (segment angles after Reset Zero) rather than the sensor's
+        self.show_output = True
+        #: what the Euler columns hold now: "segment" or "sensor"
+        self.angles_kind = "sensor"
         self.has_data = False
         self._text: list[list[str]] = []
 
@@ -114,7 +146,13 @@ class ImuTableModel(QAbstractTableModel):
         self.error_until[flags] = now + ERROR_HOLD_S
         self.raw = sample.raw
         self.cal = calibrated(self.calibration, sample.raw)
-        self.euler = sample.euler
+        self.euler, kind = shown_angles(sample, self.show_output)
+        if kind != self.angles_kind:
+            self.angles_kind = kind
+            self.headerDataChanged.emit(Qt.Orientation.Horizontal, 0, len(COLUMNS) - 1)
+        none = np.zeros(N_IMUS, bool)
+        self.mag_disturbed = none if sample.mag_disturbed is None else sample.mag_disturbed
+        self.acc_disturbed = none if sample.acc_disturbed is None else sample.acc_disturbed
         self.errors = self.error_until > now
         self.has_data = True
         self._format()
@@ -131,8 +169,14 @@ class ImuTableModel(QAbstractTableModel):
             raw = [str(v) for v in self.raw[i].tolist()]
             cal = ["–" if v != v else f"{v:.3f}" for v in self.cal[i].tolist()]
             eul = ["–" if v != v else efmt.format(v) for v in euler[i].tolist()]
-            rows.append([*eul, error_text(self.errors[i]), *cal, *raw])
+            dist = disturbance_text(self.mag_disturbed[i], self.acc_disturbed[i])
+            rows.append([*eul, error_text(self.errors[i]), *cal, *raw, dist])
         self._text = rows
+
+    def set_show_output(self, on: bool) -> None:
+        """True: the output angles (after Reset Zero); False: the sensor angles (from the
+        next sample on)."""
+        self.show_output = bool(on)
 
     def set_angle_unit(self, unit: str) -> None:
         """"deg" or "rad": Euler cells and headers change at once."""
@@ -156,6 +200,8 @@ class ImuTableModel(QAbstractTableModel):
         column = COLUMNS[col]
         if column.group == "errors":
             return error_text(self.errors[row])
+        if column.group == "disturbance":
+            return disturbance_text(self.mag_disturbed[row], self.acc_disturbed[row])
         if column.group == "raw":
             return int(self.raw[row, column.k])
         if column.group == "cal":
@@ -170,13 +216,15 @@ class ImuTableModel(QAbstractTableModel):
             return _RIGHT
         if role == _FOREGROUND and index.column() == _ERRORS_COLUMN:
             return _RED
+        if role == _FOREGROUND and index.column() == DISTURBANCE_COLUMN:
+            return _AMBER
         if role == _BACKGROUND and self.errors[index.row()].any():
             return _FAILED_ROW  # a failed sensor: the IMU's whole row
         return None
 
     def flags(self, index: QModelIndex) -> Qt.ItemFlag:
         base = super().flags(index)
-        if index.isValid() and COLUMNS[index.column()].group != "errors":
+        if index.isValid() and COLUMNS[index.column()].group not in TEXT_GROUPS:
             base |= Qt.ItemFlag.ItemIsDragEnabled
         return base
 
@@ -190,7 +238,7 @@ class ImuTableModel(QAbstractTableModel):
         from bpms.gui.plots import cells_to_mime
 
         cells = sorted({(i.row(), i.column()) for i in indexes
-                        if COLUMNS[i.column()].group != "errors"})
+                        if COLUMNS[i.column()].group not in TEXT_GROUPS})
         return cells_to_mime(cells)
 
     def headerData(self, section: int, orientation: Qt.Orientation,
@@ -198,7 +246,10 @@ class ImuTableModel(QAbstractTableModel):
         if role != Qt.ItemDataRole.DisplayRole:
             return None
         if orientation == Qt.Orientation.Horizontal:
-            return COLUMNS[section].label(self.angle_unit)
+            column = COLUMNS[section]
+            if column.group == "euler":  # which angles: after Reset Zero or the sensor's
+                return f"{column.name} ({self.angles_kind}) [{self.angle_unit}]"
+            return column.label(self.angle_unit)
         return f"{section} {IMU_NAMES[section]}"
 
 
@@ -226,6 +277,7 @@ class DataTable(QTableView):
         for col in range(len(COLUMNS)):
             text = str(model.headerData(col, Qt.Orientation.Horizontal))
             header.resizeSection(col, max(70, metrics.horizontalAdvance(text) + 18))
+        header.moveSection(header.visualIndex(DISTURBANCE_COLUMN), _ERRORS_COLUMN + 1)
         self.verticalHeader().setDefaultSectionSize(22)
 
     def table_model(self) -> ImuTableModel:
@@ -236,7 +288,7 @@ class DataTable(QTableView):
     def selected_cells(self) -> list[tuple[int, int]]:
         """(row = IMU id, column) of the selected numeric cells, in table order."""
         cells = {(i.row(), i.column()) for i in self.selectionModel().selectedIndexes()}
-        return sorted(c for c in cells if COLUMNS[c[1]].group != "errors")
+        return sorted(c for c in cells if COLUMNS[c[1]].group not in TEXT_GROUPS)
 
     def select_cells(self, cells: list[tuple[int, int]]) -> None:
         """Select exactly ``cells`` (as Ctrl+clicks would)."""

@@ -15,7 +15,12 @@ since the last Start.
 
 :class:`HealthPanel` shows it: a coloured light, the time since the last frame, the rate, the
 error counter, the battery (a warning below :data:`LOW_BATTERY_V`), a red REC indicator with
-the elapsed time, file name and folder, and SIMULATED for a simulated source.
+the elapsed time, file name and folder, and SIMULATED for a simulated source. Beside them:
+frames not filtered (red when any: holes in the filtered file), the processing backlog and
+the display samples skipped, each on its own line (:mod:`bpms.pipeline.health`); a recording
+write error in red until logging stops; why the source is down (red) and its warning (amber,
+e.g. another UDP sender); the UDP client's listening address; the IMUs whose magnetometer or
+acceleration is disturbed now (amber).
 """
 
 from __future__ import annotations
@@ -39,6 +44,8 @@ ERROR_HOLD_S = 1.0
 LOW_BATTERY_V = 3.0
 
 COLOURS = {"grey": "#9e9e9e", "green": "#2e9e44", "amber": "#f0a000", "red": "#d62728"}
+RED_TEXT = "color: white; background: #d62728; font-weight: bold; padding: 1px 4px"
+AMBER_TEXT = "color: black; background: #f0a000; font-weight: bold; padding: 1px 4px"
 
 
 @dataclass(frozen=True)
@@ -121,7 +128,8 @@ class HealthPanel(QGroupBox):
     """The status area's top: link light and state, time since the last frame, rate, error
     counter, battery, REC indicator; SIMULATED for a simulated source."""
 
-    def __init__(self, simulated: bool = False, parent: QWidget | None = None) -> None:
+    def __init__(self, simulated: bool = False, parent: QWidget | None = None,
+                 listening: str | None = None) -> None:
         super().__init__("Health", parent)
         form = QFormLayout(self)
         row = QHBoxLayout()
@@ -140,10 +148,36 @@ class HealthPanel(QGroupBox):
         form.addRow(row)
         self.labels: dict[str, QLabel] = {}
         for key, title in (("since", "Last frame"), ("rate", "Rate"), ("errors", "Errors"),
-                           ("battery", "Battery")):
+                           ("battery", "Battery"), ("not_filtered", "Not filtered"),
+                           ("backlog", "Backlog"), ("skipped", "Display skipped"),
+                           ("disturbance", "Disturbed")):
             label = QLabel("–")
             self.labels[key] = label
             form.addRow(title, label)
+        self.labels["not_filtered"].setToolTip(
+            "Frames received (and recorded raw) that the filters never saw: holes in the "
+            "filtered file, each marked")
+        self.labels["backlog"].setToolTip("Frames waiting for the processing thread")
+        self.labels["skipped"].setToolTip(
+            "Processed samples the display did not take (nothing is missing from any file)")
+        self.labels["disturbance"].setToolTip(
+            "IMUs whose magnetometer (mag: field norm or dip off) or acceleration (acc: far "
+            "from 1 g for long) is disturbed now (docs/filters.md)")
+        self.listening_label = QLabel(listening or "")
+        self.listening_label.setTextInteractionFlags(
+            Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.listening_label.setToolTip("The UDP client's socket (host:port)")
+        form.addRow("Listening on" if listening else "", self.listening_label)
+        self.listening_label.setVisible(bool(listening))
+        self.source_label = QLabel("")  # why the source is down (red) / its warning (amber)
+        self.source_label.setWordWrap(True)
+        self.source_label.setVisible(False)
+        form.addRow(self.source_label)
+        self.rec_error_label = QLabel("")
+        self.rec_error_label.setWordWrap(True)
+        self.rec_error_label.setStyleSheet(RED_TEXT)
+        self.rec_error_label.setVisible(False)
+        form.addRow(self.rec_error_label)
         self.rec_label = QLabel("")
         self.rec_label.setWordWrap(True)
         self.rec_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
@@ -192,10 +226,47 @@ class HealthPanel(QGroupBox):
                       "color: white; background: #d62728; font-weight: bold")
         else:
             self._set("battery", f"{volts:.2f} V")
+        self._set("not_filtered", f"{st.not_filtered} frames"
+                  + (" — holes in the filtered file" if st.not_filtered else ""),
+                  RED_TEXT if st.not_filtered else "")
+        self._set("backlog", f"{st.processing_backlog} frames")
+        self._set("skipped", f"{st.display_skipped} samples")
+        self.show_source(st, health.colour == "red")
         self.show_recording(st, now)
+
+    def set_listening(self, address: str | None) -> None:
+        """The UDP client's listening address (host:port), when it changes (a new session)."""
+        if address and self.listening_label.text() != address:
+            self.listening_label.setText(address)
+
+    def show_disturbance(self, mag: int | None, acc: int | None) -> None:
+        """How many IMUs' magnetometer / acceleration is disturbed now (None: not known)."""
+        if mag is None or acc is None:
+            self._set("disturbance", "–")
+            return
+        self._set("disturbance", f"mag {mag} IMUs, acc {acc} IMUs",
+                  AMBER_TEXT if mag or acc else "")
+
+    def show_source(self, st: LiveStatus, down: bool) -> None:
+        """The source's reason (red) while the link is down, else its warning (amber)."""
+        src = st.source
+        if (down or src.state != "streaming") and src.reason:
+            text, style = f"{src.state}: {src.reason}", RED_TEXT
+        elif src.warning:
+            text, style = src.warning, AMBER_TEXT
+        else:
+            text, style = "", ""
+        if self.source_label.text() != text:
+            self.source_label.setText(text)
+            self.source_label.setStyleSheet(style)
+            self.source_label.setVisible(bool(text))
 
     def show_recording(self, st: LiveStatus, now: float) -> None:
         rec = st.recording
+        error = f"recording write error: {rec.error}" if rec is not None and rec.error else ""
+        if self.rec_error_label.text() != error:
+            self.rec_error_label.setText(error)
+            self.rec_error_label.setVisible(bool(error))
         if rec is None:
             self._rec_started, self._rec_key = None, None
             if self.rec_label.text():

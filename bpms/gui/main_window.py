@@ -106,6 +106,9 @@ class MainWindow(QMainWindow):
         self._counters: dict[str, int] = {}
         self._texts_at = -1e9
         self._last_state = ""
+        self._source_warning = ""
+        self._reinit_count = 0
+        self._disturbed: tuple[int, int] | None = None  # IMUs (mag, acc) disturbed now
 
         # -- the table dock ----------------------------------------------------------------
         self.table_model = ImuTableModel(calibration, self.options.display.angle_unit, self)
@@ -163,8 +166,9 @@ class MainWindow(QMainWindow):
         table_layout.addWidget(self.table_tabs)
 
         # -- side panels -------------------------------------------------------------------
-        self.health_panel = HealthPanel(self.simulated)
+        self.health_panel = HealthPanel(self.simulated, listening=self._listening())
         self.status_panel = StatusPanel()
+        self.status_panel.set_sources(runner.calibration_source, runner.options_source)
         self.status_panel.dataToggled.connect(self.set_data)
         self.status_panel.resetZeroClicked.connect(self.reset_zero)
         status_box = QWidget()
@@ -225,6 +229,12 @@ class MainWindow(QMainWindow):
         self.event_log.add(f"session opened: {MODE_LABELS[runner.mode]}"
                            + (" (SIMULATED data)" if self.simulated else ""))
 
+    def _listening(self) -> str | None:
+        """The UDP client's listening address (host:port), else None."""
+        source = self.runner.session.source if self.runner.session is not None else None
+        udp = getattr(source, "udp", None)
+        return str(udp.listening) if udp is not None and hasattr(udp, "listening") else None
+
     # -- menus and toolbar ---------------------------------------------------------------
     def _action(self, text: str, slot, keys: str | None = None, tip: str = "") -> QAction:
         action = QAction(text, self)
@@ -261,7 +271,27 @@ class MainWindow(QMainWindow):
             "step_fwd10": a("Forward 1 s", lambda: self.step_frames(50), "Ctrl+Shift+Right"),
             "save_layout": a("Save layout as…", self.save_layout_dialog, "Ctrl+Shift+S"),
             "quit": a("Close window", self.close, "Ctrl+Q"),
+            "sensor_angles": a("Sensor angles (uncorrected)", self._sensor_angles_toggled,
+                               tip="Table and plots show the sensor angles, without Reset "
+                                   "Zero (off: the segment angles after Reset Zero)"),
+            "corrected": a("Reset Zero correction of the output angles",
+                           self._corrected_toggled, "V",
+                           "The angles shown, recorded and streamed: segment angles after "
+                           "Reset Zero (on) or the sensor angles (off); v in the table"),
+            "lsl": a("Stream to LSL", self._lsl_toggled,
+                     tip="Stream the session as Lab Streaming Layer outlets (docs/lsl.md)"),
         }
+        acts = self.actions_by_name
+        acts["sensor_angles"].setCheckable(True)
+        acts["corrected"].setCheckable(True)
+        processor = getattr(self.runner.session, "processor", None)
+        acts["corrected"].setChecked(bool(getattr(processor, "corrected_output", True)))
+        # the original's v key, in the table (the 3D view keeps its own v: figure alignment)
+        self.removeAction(acts["corrected"])
+        acts["corrected"].setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
+        self.table_tabs.addAction(acts["corrected"])
+        acts["lsl"].setCheckable(True)
+        acts["lsl"].setChecked(self.runner.lsl_on)
         self.actions_by_name["view3d"].setEnabled(self.view3d_button.isEnabled())
         self.actions_by_name["browser"].setEnabled(self.browser_button.isEnabled())
         acts = self.actions_by_name
@@ -270,14 +300,14 @@ class MainWindow(QMainWindow):
         for key in ("record", "quit"):
             menu.addAction(acts[key])
         menu = bar.addMenu("&Data")
-        for key in ("data", "reset_zero"):
+        for key in ("data", "reset_zero", "corrected", "lsl"):
             menu.addAction(acts[key])
         if self.runner.replay is not None:
             menu.addSeparator()
             for key in ("step_back", "step_fwd", "step_back10", "step_fwd10"):
                 menu.addAction(acts[key])
         menu = bar.addMenu("&View")
-        for key in ("plot", "joints", "view3d", "browser", "unit"):
+        for key in ("plot", "joints", "view3d", "browser", "unit", "sensor_angles"):
             menu.addAction(acts[key])
         menu.addSeparator()
         for dock in self.docks.values():
@@ -298,6 +328,7 @@ class MainWindow(QMainWindow):
         toolbar.addAction(acts["reset_zero"])
         self.record_action = toolbar.addAction("● Record", self.file_panel.toggle_logging)
         self.record_action.setToolTip("Start/Stop Logging (Ctrl+L)")
+        toolbar.addAction(acts["lsl"])
         toolbar.addSeparator()
         self.drop_area.setMinimumWidth(300)
         toolbar.addWidget(self.drop_area)
@@ -548,6 +579,7 @@ class MainWindow(QMainWindow):
                 return
             if session is not self.model.session:
                 self.model.attach(session)
+                self.health_panel.set_listening(self._listening())
             self.health.start()
             self.event_log.add("data started")
         else:
@@ -582,6 +614,37 @@ class MainWindow(QMainWindow):
         angles = np.where(np.isfinite(angles), angles, 0.0).max(axis=0)
         k = int(np.argmax(angles))
         return float(angles[k]), k
+
+    def _sensor_angles_toggled(self) -> None:
+        """View ▸ Sensor angles (uncorrected): the table and the angle plots show ``euler``
+        (checked) or the output angles ``euler_output`` (unchecked, the default)."""
+        sensor = self.actions_by_name["sensor_angles"].isChecked()
+        self.table_model.set_show_output(not sensor)
+        self.statusBar().showMessage("angles shown: " + ("sensor angles (uncorrected)" if sensor
+                                     else "output angles (after Reset Zero)"), 3000)
+
+    def _corrected_toggled(self) -> None:
+        """The original's v key: the session's output angles corrected by Reset Zero or not
+        (what is shown, recorded and streamed), from the next frame."""
+        on = self.actions_by_name["corrected"].isChecked()
+        if self.runner.session is not None:
+            self.runner.session.set_corrected_output(on)
+        self.options.pose.corrected_output = on  # a new session (UDP restart) follows
+        self.event_log.add("Reset Zero correction of the output angles "
+                           + ("on (segment angles)" if on else "off (sensor angles)"))
+
+    def _lsl_toggled(self) -> None:
+        """Stream to LSL on/off (SessionRunner.set_lsl); the reason when it cannot start."""
+        action = self.actions_by_name["lsl"]
+        on = action.isChecked()
+        why = self.runner.set_lsl(on)
+        if why:
+            action.setChecked(False)
+            self.statusBar().showMessage(f"LSL: {why}", 10000)
+            self.event_log.add(f"LSL streaming not started: {why}", "warning")
+            return
+        action.setChecked(self.runner.lsl_on)
+        self.event_log.add("LSL streaming " + ("on" if self.runner.lsl_on else "off"))
 
     def _set_gains(self, gains: dict) -> None:
         if self.runner.session is not None:
@@ -672,7 +735,8 @@ class MainWindow(QMainWindow):
         latest = self.model.latest
         if latest is None:
             return None
-        return TickBlock.from_samples([latest], self.table_model.calibration)
+        return TickBlock.from_samples([latest], self.table_model.calibration,
+                                      self.table_model.show_output)
 
     def open_3d_view(self) -> QWidget | None:
         """A new 3D view dock (when bpms.gui.view3d is available)."""
@@ -696,14 +760,19 @@ class MainWindow(QMainWindow):
         start = time.perf_counter()
         self._prune()
         self.health.frames_arrived()
-        self.table_model.update(samples[-1], np.any([s.errors for s in samples], axis=0))
+        last = samples[-1]
+        self.table_model.update(last, np.any([s.errors for s in samples], axis=0))
+        if last.mag_disturbed is not None and last.acc_disturbed is not None:
+            self._disturbed = (int(np.count_nonzero(last.mag_disturbed)),
+                               int(np.count_nonzero(last.acc_disturbed)))
         if self.joint_table.isVisible():
             self.joint_model.update(samples[-1])
         window = max(2, round(self.options.pose.reset_window_s / FRAME_PERIOD_S))
         self._recent_R.extend(s.R for s in samples[-window:])
         del self._recent_R[:-window]
         if self.plot_windows:
-            block = TickBlock.from_samples(samples, self.table_model.calibration)
+            block = TickBlock.from_samples(samples, self.table_model.calibration,
+                                           self.table_model.show_output)
             for plot in self.plot_windows:
                 plot.append(block)
         self.tick_times_s.append(time.perf_counter() - start)
@@ -734,6 +803,7 @@ class MainWindow(QMainWindow):
         if now - self._texts_at >= TEXT_PERIOD_S or health.state != self._last_state:
             self._texts_at, self._last_state = now, health.state
             self.health_panel.show_health(health, st, now)
+            self.health_panel.show_disturbance(*(self._disturbed or (None, None)))
             self.status_panel.show_status(st, health.state if self.runner.data_on else None)
             self.file_panel.show_status(st)
         self.event_log.merge_session_events(st.events)
@@ -751,12 +821,28 @@ class MainWindow(QMainWindow):
         self._update_toolbar()
 
     def _watch_counters(self, st: LiveStatus) -> None:
-        """Counters that deserve an event when they grow (e.g. another UDP sender)."""
-        for key, value in st.source.counters.items():
-            before = self._counters.get(key, 0)
-            self._counters[key] = value
-            if value > before and ("sender" in key or "other" in key):
-                self.event_log.add(f"another UDP sender: {key} {value}", "warning")
+        """What deserves an event when it appears or grows: another UDP sender (the source's
+        warning, or its ``foreign`` counter growing while no warning is shown), each filter
+        re-initialisation by the state guard (``reinit_count``)."""
+        warning = st.source.warning
+        foreign = st.source.counters.get("foreign", 0)
+        grew = foreign > self._counters.get("foreign", 0)
+        self._counters["foreign"] = foreign
+        if warning and warning != self._source_warning:
+            self.event_log.add(f"UDP: {warning}" if "sender" in warning else warning,
+                               "warning")
+        elif grew and not warning:
+            self.event_log.add(f"UDP: another sender on this port ({foreign} datagrams "
+                               "ignored)", "warning")
+        self._source_warning = warning
+        if st.reinit_count < self._reinit_count:  # a new session (UDP client restarted)
+            self._reinit_count = 0
+        if st.reinit_count > self._reinit_count:
+            new = st.reinit_count - self._reinit_count
+            self.event_log.add(f"filter re-initialised by the state guard ({new} "
+                               f"re-initialisation{'s' if new > 1 else ''}, "
+                               f"{st.reinit_count} so far)", "warning")
+        self._reinit_count = st.reinit_count
 
     def _watch_recording(self, st: LiveStatus) -> None:
         rec = st.recording

@@ -34,7 +34,7 @@ from PyQt6.QtWidgets import (
 
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.joints import JOINT_ANGLE_NAMES
-from bpms.gui.data_table import COLUMNS, calibrated, column_values
+from bpms.gui.data_table import COLUMNS, TEXT_GROUPS, calibrated, column_values, shown_angles
 from bpms.io.frames import FRAME_PERIOD_S, FRAME_RATE_HZ, IMU_NAMES
 from bpms.pipeline.session import PoseSample
 
@@ -91,7 +91,7 @@ def cells_from_mime(mime: QMimeData | None) -> list[tuple[int, int]]:
         data = json.loads(bytes(mime.data(CELLS_MIME)).decode())
         return [(int(r), int(c)) for r, c in data
                 if 0 <= int(r) < len(IMU_NAMES) and 0 <= int(c) < len(COLUMNS)
-                and COLUMNS[int(c)].group != "errors"]
+                and COLUMNS[int(c)].group not in TEXT_GROUPS]
     except (ValueError, TypeError):
         return []
 
@@ -121,14 +121,16 @@ class TickBlock:
     joint_angles: np.ndarray
 
     @classmethod
-    def from_samples(cls, samples: Sequence[PoseSample],
-                     calibration: SensorCalibration) -> TickBlock:
+    def from_samples(cls, samples: Sequence[PoseSample], calibration: SensorCalibration,
+                     output: bool = True) -> TickBlock:
+        """``output``: Euler columns hold the output angles (after Reset Zero, the default)
+        rather than the sensor angles (:func:`bpms.gui.data_table.shown_angles`)."""
         raw = np.array([s.raw for s in samples])
         return cls(
             t=np.array([s.index for s in samples], np.float64) * FRAME_PERIOD_S,
             raw=raw,
             cal=calibrated(calibration, raw),
-            euler=np.array([s.euler for s in samples]),
+            euler=np.array([shown_angles(s, output)[0] for s in samples]),
             joint_angles=np.array([s.joint_angles for s in samples]),
         )
 
@@ -616,7 +618,7 @@ def plot_from(description: dict[str, Any], angle_unit: str = "deg",
         except (TypeError, ValueError, IndexError):
             continue
         if 0 <= r < len(IMU_NAMES) and 0 <= c < len(COLUMNS) \
-                and COLUMNS[c].group != "errors":
+                and COLUMNS[c].group not in TEXT_GROUPS:
             cells.append((r, c))
     if description.get("kind") == "joints":
         window = joint_angle_plot(angle_unit, history_s)
