@@ -105,3 +105,30 @@ def test_no_end_pause_is_one_clear_line(tmp_path, capsys):
     assert main(["drift", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no still period near the end" in err[0]
+
+
+def test_gui_drift_panel_after_playback_shows_the_hand_computed_drift(biased, tmp_path, qtbot):
+    """The panel after playback (Data ▸ Drift check…): the left thigh's drift is bias × time
+    (by hand, as above), the same figures as ``bpms drift``."""
+    from bpms.gui.main_window import MainWindow
+    from bpms.gui.modes import ModeConfig, SessionRunner
+
+    path = tmp_path / "Raw_drift_gui_001.bpmsraw"
+    biased.save_raw(path)
+    runner = SessionRunner(ModeConfig(mode="file", path=str(path)), options=_gyro_only())
+    runner.playback_options = _gyro_only()  # explicit, as the start-up window's options
+    runner.prepare()
+    window = MainWindow(runner, restore_last=False)
+    qtbot.addWidget(window)
+    panel = window.open_drift_check()
+    assert panel is not None
+    qtbot.waitUntil(lambda: panel.report is not None or "no drift" in panel.summary.text(),
+                    timeout=60000)
+    report = panel.report
+    assert report is not None and report.ok, panel.summary.text()
+    truth = np.degrees(BIAS_COUNTS * GYRO_RAD_S_PER_COUNT) * (report.t_end - report.t_start)
+    assert report.total_deg[LEFT_THIGH] == pytest.approx(truth, rel=0.05)
+    shown = float(panel.table.item(LEFT_THIGH, 1).text())
+    assert shown == pytest.approx(report.total_deg[LEFT_THIGH], abs=0.01)
+    assert "start pause ends" in panel.summary.text()
+    window.close()

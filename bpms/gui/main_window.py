@@ -278,6 +278,9 @@ class MainWindow(QMainWindow):
                            self._corrected_toggled, "V",
                            "The angles shown, recorded and streamed: segment angles after "
                            "Reset Zero (on) or the sensor angles (off); v in the table"),
+            "drift": a("Drift check…", self.open_drift_check,
+                       tip="Each segment's attitude change between the calibration pauses at "
+                           "the start and the end of the recording (playback)"),
             "lsl": a("Stream to LSL", self._lsl_toggled,
                      tip="Stream the session as Lab Streaming Layer outlets (docs/lsl.md)"),
         }
@@ -306,6 +309,8 @@ class MainWindow(QMainWindow):
             menu.addSeparator()
             for key in ("step_back", "step_fwd", "step_back10", "step_fwd10"):
                 menu.addAction(acts[key])
+            menu.addSeparator()
+            menu.addAction(acts["drift"])
         menu = bar.addMenu("&View")
         for key in ("plot", "joints", "view3d", "browser", "unit", "sensor_angles"):
             menu.addAction(acts[key])
@@ -864,6 +869,21 @@ class MainWindow(QMainWindow):
             parts.append(rec.filtered_path.name)
         self.event_log.add("logging stopped: " + ", ".join(parts))
         self._update_toolbar()
+
+    def open_drift_check(self):
+        """A dock with the drift check of the recording being played (computed in the
+        background with the playback's calibration, options and filter); None when no
+        recording is played."""
+        from bpms.gui.drift_panel import drift_dock
+
+        if self.runner.replay is None or not self.runner.config.path:
+            return None
+        dock, panel = drift_dock(self)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
+        runner = self.runner
+        panel.start(runner.config.path, runner.playback_calibration, runner.playback_options,
+                    runner.options.filter.algorithm)
+        return panel
 
     # -- closing ---------------------------------------------------------------------------
     def shutdown(self) -> None:
