@@ -276,12 +276,13 @@ class LiveSession:
             status.raw_path = raw_path
             self._raw_logger = logger
         if filtered:
-            from bpms.filter.door import filtered_layout  # loaded with the filter, not the GUI
+            from bpms.filter.door import filtered_convention, filtered_layout  # not the GUI
 
             try:
                 groups, kind = filtered_layout()
                 writer = FilteredWriter(filtered_path, degrees=degrees, groups=groups,
-                                        euler=kind)
+                                        euler=kind, convention=filtered_convention(
+                                            self.processor.options.joints.convention))
             except OSError as exc:
                 self.note(f"filtered recording not started: cannot create {filtered_path}: {exc}")
             else:
