@@ -3,12 +3,14 @@ memory for Parquet, one pass for several formats."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bpms.analysis.binary_out import ExportMeta, open_writer
 from bpms.analysis.source import CHUNK_FRAMES
+from bpms.analysis.stamp import recording_utc_start
 from bpms.io.options import Options
 
 
@@ -19,29 +21,6 @@ class ExportSummary:
     convention: str
     written: dict[str, Path] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
-
-
-def recording_utc_start(recording) -> float:
-    """UTC start (s since 1970) of a recording: the receive time of its first frame, else the
-    header's start time. ``recording``: a :class:`~bpms.io.rawfile.RawRecording` or a
-    recording opened by :func:`bpms.filter.door.open_for_processing` (its first record is read
-    from disk, nothing more)."""
-    rec = getattr(recording, "recording", recording)
-    if rec is not None and hasattr(rec, "times"):
-        if len(rec.times):
-            return float(rec.times[0])
-        return float(rec.header.get("start_time", 0.0))
-    if getattr(recording, "kind", "") == "raw" and recording.n_frames:
-        import numpy as np
-
-        from bpms.io.rawfile import RECORD_DTYPE, RECORD_SIZE
-
-        with open(recording.path, "rb") as f:
-            f.seek(recording._data_offset)
-            first = np.frombuffer(f.read(RECORD_SIZE), dtype=RECORD_DTYPE)
-        if len(first) and np.isfinite(first["time"][0]):
-            return float(first["time"][0])
-    return float(recording.header.get("start_time", 0.0))
 
 
 @dataclass
@@ -83,7 +62,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | None = None,
     if not door.has_raw:
         raise RawFileError(f"{path}: a filtered file; give a raw recording")
     proc = door.processor
-    meta = ExportMeta(recording_utc_start(door), proc.options.joints.convention,
+    start = recording_utc_start(door)
+    meta = ExportMeta(start if math.isfinite(start) else 0.0, proc.options.joints.convention,
                       1.0 / proc.options.filter.dt, str(path), n_frames=door.n_frames)
     return Opened(door, meta)
 
