@@ -86,6 +86,9 @@ class PoseSample:
     #: ``[18]`` bool: the state guard re-initialised that IMU in this frame
     reinitialised: np.ndarray | None = None
     arrival: float = 0.0  # time.perf_counter() when the host took the frame in
+    #: ``[18]`` bool: magnetometer / acceleration disturbed (bpms.filter.disturbance)
+    mag_disturbed: np.ndarray | None = None
+    acc_disturbed: np.ndarray | None = None
 
 
 @dataclass
@@ -463,11 +466,12 @@ class LiveSession:
         angles = result.joint_angles
         positions = result.joint_positions
         done = time.perf_counter()
-        output = result.euler_output
+        output, dist = result.euler_output, result.disturbance
         samples = [PoseSample(e.index, e.host_time, e.frame, decoded.raw[k], decoded.errors[k],
                               result.euler[k], result.R[k], result.C[k], angles[k],
                               positions[k], done - e.arrival, output[k],
-                              result.reinitialised[k], e.arrival)
+                              result.reinitialised[k], e.arrival,
+                              *((dist.mag[k], dist.acc[k]) if dist is not None else ()))
                    for k, e in enumerate(events)]
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
@@ -485,7 +489,8 @@ class LiveSession:
                 if finite[k]:
                     forwarder.send_pose(quats[k], angles[k].astype(np.float32),
                                         max(e.index, 0) * FRAME_PERIOD_S, positions[k],
-                                        result.convention)
+                                        result.convention,
+                                        None if dist is None else (dist.mag[k], dist.acc[k]))
         with self._lock:
             self._latencies.extend(s.latency_s for s in samples)
             if len(self._latencies) > 5000:
