@@ -137,3 +137,16 @@ def test_live_recording_writes_the_same_groups(magnet_raw, tmp_path):
     np.testing.assert_array_equal(data.groups["reinitialised"] == 1, batch.reinitialised)
     assert data.groups["mag_disturbed"][:, 5].any()  # the magnet is seen live too
     assert CONVENTION_TEXT["isb"] in data.info.meta["convention"]
+
+
+def test_batch_filtered_output_has_the_same_groups(magnet_raw, tmp_path):
+    """``bpms batch --outputs filter`` writes its filtered files through the same helpers."""
+    from bpms.analysis.batch import Job, process_one
+
+    rec, _, raw = magnet_raw
+    outcome = process_one(Job(str(raw), "S01", "magnet"), str(tmp_path), ("filter",))
+    assert outcome.error is None, outcome.error
+    data = read_filtered(tmp_path / "S01" / "magnet_filtered.csv")
+    assert {"reinitialised", "mag_disturbed", "acc_disturbed"} <= set(data.info.groups)
+    assert data.unit == "deg" and len(data.t) == len(rec)
+    assert CONVENTION_TEXT["isb"] in data.info.meta["convention"]
