@@ -14,6 +14,9 @@ import pylsl
 import pylsl.util
 
 NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Events")
+if len(sys.argv) > 3:  # a third argument: the stream names, comma-separated
+    NAMES = tuple(sys.argv[3].split(","))
+DATA_NAMES = [n for n in NAMES if n != "BPMS Events"]
 
 
 def channel_labels(info) -> list[str]:
@@ -63,9 +66,11 @@ def main() -> None:
             data[name]["stamps"] += stamps
             if name == "BPMS Events":
                 data[name]["values"] += [s[0] for s in samples]
+            elif name == "BPMS Disturbance":
+                data[name]["values"] += samples  # every sample (36 small integers)
             elif samples:
                 data[name]["values"] = samples[-1][:8]  # the last sample's first channels
-        if all(len(data[n]["stamps"]) >= frames for n in NAMES[:3] if n in data):
+        if all(len(data[n]["stamps"]) >= frames for n in DATA_NAMES if n in data):
             break
         if len(LOST) == len(inlets):
             break

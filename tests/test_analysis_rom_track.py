@@ -29,7 +29,7 @@ def script(tmp_path_factory):
 
 
 def read_rom_csv(path):
-    lines = path.read_text().splitlines()
+    lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
     cols = lines[0].split(",")
     names = [ln.split(",")[0] for ln in lines[1:]]
     values = np.array([[float(c) for c in ln.split(",")[1:]] for ln in lines[1:]])

@@ -71,7 +71,11 @@ def test_an_original_file_is_accepted_by_the_exports(tmp_path, capsys):
     out = tmp_path / "m.csv"
     assert main(["export", "matlab", str(path), "-o", str(out)]) == 0
     assert "calibration: not used" in capsys.readouterr().err
-    assert len(out.read_text().splitlines()) == 1 + 120
+    lines = out.read_text().splitlines()
+    assert len([ln for ln in lines if not ln.startswith("%")]) == 1 + 120
+    # the original's absolute time is the recording's UTC start: 1354312345.68 s as written
+    # with Python 2's 12 significant digits, by hand 2012-11-30 21:52:25.68 UTC
+    assert lines[0] == "% utc_start: 2012-11-30T21:52:25.680Z"
 
 
 def test_version_2_round_trip_with_host_time_holes_and_header(tmp_path):

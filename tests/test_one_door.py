@@ -38,7 +38,7 @@ def site(tmp_path_factory):
 
 
 def _matlab(path):
-    lines = path.read_text().splitlines()
+    lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("%")]
     cols = lines[0].split(",")
     data = np.array([[float(c) for c in ln.split(",")] for ln in lines[1:]])
     euler = np.stack([data[:, [cols.index(f"imu{i}_{n}_{e}_rad") for e in

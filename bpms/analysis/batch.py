@@ -90,11 +90,14 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
         stem = target / job.trial
         filtered = None
         if "filter" in outputs:
+            from bpms.filter.door import filtered_convention, filtered_layout
             from bpms.io.filtered_file import FilteredWriter
 
             path = stem.with_name(f"{job.trial}_filtered.csv")
             path.unlink(missing_ok=True)
-            filtered = FilteredWriter(path, degrees=True, joints=True)
+            groups, kind = filtered_layout()  # as bpms filter and the live recording write
+            filtered = FilteredWriter(path, degrees=True, groups=groups, euler=kind,
+                                      convention=filtered_convention(opened.meta.convention))
             writers.append(filtered)
             outcome.written.append(str(path))
         for kind in ("mat", "parquet"):
@@ -107,7 +110,9 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
         for result in opened.chunks():
             angles = result.joint_angles
             if filtered is not None:
-                filtered.write_block(result.t, result.euler, angles)
+                from bpms.filter.door import filtered_arrays
+
+                filtered.write_block(result.t, **filtered_arrays(result, filtered.groups))
             for w in writers:
                 if w is not filtered:
                     w.write(result)

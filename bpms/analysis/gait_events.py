@@ -64,6 +64,15 @@ def lateral_rate(C: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
+def lateral_gyro_rate(C: np.ndarray, R: np.ndarray, gyro: np.ndarray) -> np.ndarray:
+    """``[N]`` rad/s: one IMU's calibrated gyro ``gyro[N, 3]`` (filter frame) turned into its
+    segment's axes, ``(Cᵀ R ω)_y`` — the rate about the segment's right axis. C ``[N, 3, 3]``
+    segment → NED (NaN before Reset Zero: R stands in), R ``[N, 3, 3]`` filter frame → NED."""
+    C = np.where(np.isfinite(C).all(axis=(-1, -2))[:, None, None], C, R)
+    M = np.einsum("nji,njk->nik", C, R)
+    return np.einsum("nk,nk->n", M[:, 1], gyro)
+
+
 def _swing_strikes(rate: np.ndarray, t: np.ndarray, min_swing_rate: float,
                    swing_fraction: float, min_gap_s: float) -> tuple[list[int], list[float]]:
     r = np.nan_to_num(rate)
@@ -116,13 +125,12 @@ def gyro_heel_strikes(t: np.ndarray, C: np.ndarray, R: np.ndarray | None = None,
     events: list[tuple[int, str, float]] = []
     for side, imu in imus.items():
         Ci = C[:, imu]
-        if R is not None:
-            Ci = np.where(np.isfinite(Ci).all(axis=(-1, -2))[:, None, None], Ci, R[:, imu])
         if gyro is not None and R is not None:
             # segment axes: C_kᵀ R_k maps the IMU's filter frame into the segment's
-            M = np.einsum("nji,njk->nik", Ci, R[:, imu])
-            rate = np.einsum("nk,nk->n", M[:, 1], gyro[:, imu])
+            rate = lateral_gyro_rate(Ci, R[:, imu], gyro[:, imu])
         else:
+            if R is not None:
+                Ci = np.where(np.isfinite(Ci).all(axis=(-1, -2))[:, None, None], Ci, R[:, imu])
             rate = lateral_rate(Ci, dt)
         if window is not None:
             rate = np.where(window, rate, 0.0)
@@ -160,4 +168,4 @@ def accel_detector_usable(range_g: float, threshold_g: float, margin: float = 1.
 
 
 __all__ = ["LEGACY_ACCEL_RANGE_G", "SHANK_IMUS", "GaitEvents", "accel_detector_usable",
-           "accel_range_g", "gyro_heel_strikes", "lateral_rate"]
+           "accel_range_g", "gyro_heel_strikes", "lateral_gyro_rate", "lateral_rate"]

@@ -3,11 +3,14 @@
 Columns: ``time_s``; per IMU its filter orientation as a quaternion (``imu0_right_leg_qw`` ...,
 filter frame → NED, unitless) and Euler angles (``imu0_right_leg_roll_deg`` ..., docs/filter.md);
 then the 28 joint angles (``joint_knee_r_flexion_deg`` ...). Degrees (radians with
-``degrees=False``, names ending ``_rad``). Missing values are ``NaN``.
+``degrees=False``, names ending ``_rad``). Missing values are ``NaN``. Before the column row,
+``% key: value`` lines state the recording's UTC start and the joint-angle convention: read
+with ``readtable(file, 'CommentStyle', '%')``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -31,11 +34,14 @@ def matlab_columns(degrees: bool = True) -> list[str]:
 class MatlabCsvWriter:
     """The MATLAB CSV written block by block (constant memory); ``rows`` written so far."""
 
-    def __init__(self, path: str | Path, degrees: bool = True) -> None:
+    def __init__(self, path: str | Path, degrees: bool = True,
+                 meta: Sequence[tuple[str, str]] = ()) -> None:
         self.path = Path(path)
         self.scale = np.degrees(1.0) if degrees else 1.0
         self.rows = 0
         self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+        for key, value in meta:  # MATLAB comment lines (readtable 'CommentStyle', '%')
+            self._file.write(f"% {key}: {str(value).replace(chr(10), ' ')}\n")
         self._file.write(",".join(matlab_columns(degrees)) + "\n")
 
     def write(self, t: np.ndarray, quaternions: np.ndarray, euler: np.ndarray,

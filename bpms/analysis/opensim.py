@@ -11,6 +11,7 @@ Rows before the first Reset Zero capture (no segment orientation yet) are left o
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -51,10 +52,13 @@ class OrientationsWriter:
     """An OpenSense orientations file written block by block (constant memory).
 
     ``write(t[N], quaternions[N, 18, 4])``: rows where a mapped IMU has no orientation (NaN)
-    are skipped; each quaternion is normalised. ``rows``: rows written so far."""
+    are skipped; each quaternion is normalised. ``rows``: rows written so far. meta: extra
+    ``key=value`` header lines (the recording's ``utc_start`` and ``joint_angle_convention``,
+    :meth:`bpms.analysis.stamp.Stamp.items`)."""
 
     def __init__(self, path: str | Path, rate_hz: float = 50.0, head_neck: bool = False,
-                 opensim_version: str = "4.5") -> None:
+                 opensim_version: str = "4.5",
+                 meta: Sequence[tuple[str, str]] = ()) -> None:
         cols = imu_columns(head_neck)
         self.ids = list(cols)
         self.path = Path(path)
@@ -62,7 +66,10 @@ class OrientationsWriter:
         self._row = "\t".join(["%.6f", *(["%.8f,%.8f,%.8f,%.8f"] * len(self.ids))])
         self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
         self._file.write(f"DataRate={rate_hz:.6f}\nDataType=Quaternion\nversion=3\n"
-                         f"OpenSimVersion={opensim_version}\nendheader\n")
+                         f"OpenSimVersion={opensim_version}\n")
+        for key, value in meta:
+            self._file.write(f"{key}={str(value).replace(chr(10), ' ')}\n")
+        self._file.write("endheader\n")
         self._file.write("\t".join(["time", *(cols[i] for i in self.ids)]) + "\n")
 
     def write(self, t: np.ndarray, quaternions: np.ndarray) -> int:

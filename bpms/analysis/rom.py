@@ -3,7 +3,7 @@ over a time window, for one or several trials side by side."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -14,13 +14,15 @@ from bpms.io.names import JOINT_ANGLE_NAMES
 @dataclass
 class RomTable:
     """One trial's range of motion, degrees, order :data:`JOINT_ANGLE_NAMES`; ``t0``, ``t1``
-    the window actually used, s."""
+    the window actually used, s; stamp: the recording's UTC start and joint-angle convention
+    (:class:`bpms.analysis.stamp.Stamp`), when known."""
 
     label: str
     t0: float
     t1: float
     minimum: np.ndarray
     maximum: np.ndarray
+    stamp: object | None = field(default=None, compare=False)
 
     @property
     def range(self) -> np.ndarray:
@@ -91,11 +93,17 @@ def joint_groups() -> dict[str, list[int]]:
 
 
 def write_csv(path: str | Path, tables: list[RomTable]) -> None:
-    """One row per joint angle; per trial ``<label>_min_deg, _max_deg, _range_deg``."""
+    """One row per joint angle; per trial ``<label>_min_deg, _max_deg, _range_deg``. Lines
+    ``# <label>: utc_start ...; joint_angle_convention ...`` before the column row state each
+    trial's recording start (UTC) and joint-angle convention."""
     cols = ["joint_angle"]
     for tab in tables:
         cols += [f"{tab.label}_{c}_deg" for c in ("min", "max", "range")]
     with open(path, "w", encoding="utf-8", newline="\n") as f:
+        for tab in tables:
+            if tab.stamp is not None:
+                f.write(f"# {tab.label}: " + "; ".join(f"{k} {v}" for k, v in tab.stamp.items())
+                        + "\n")
         f.write(",".join(cols) + "\n")
         for k, name in enumerate(JOINT_ANGLE_NAMES):
             cells = [name]
@@ -114,4 +122,5 @@ def markdown(tables: list[RomTable]) -> str:
         rows.append(f"| {name} | " + " | ".join(
             f"{t.minimum[k]:.1f} / {t.maximum[k]:.1f} / {t.range[k]:.1f}" for t in tables)
             + " |")
-    return "\n".join(rows) + "\n"
+    notes = [f"- {t.label}: {t.stamp.line()}" for t in tables if t.stamp is not None]
+    return "\n".join(rows + (["", *notes] if notes else [])) + "\n"

@@ -3,15 +3,15 @@ memory for Parquet, one pass for several formats."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bpms.analysis.binary_out import ExportMeta, open_writer
-from bpms.analysis.source import CHUNK_FRAMES, header_calibration, header_options
-from bpms.io.calib_file import load_calibration
-from bpms.io.options import Options, load_options
-from bpms.io.recordings import open_recording
+from bpms.analysis.source import CHUNK_FRAMES
+from bpms.analysis.stamp import recording_utc_start
+from bpms.io.options import Options
 
 
 @dataclass
@@ -23,52 +23,49 @@ class ExportSummary:
     problems: list[str] = field(default_factory=list)
 
 
-def recording_utc_start(recording) -> float:
-    """UTC start (s since 1970) of a recording: the receive time of its first frame, else the
-    header's start time."""
-    if len(recording.times):
-        return float(recording.times[0])
-    return float(recording.header.get("start_time", 0.0))
-
-
 @dataclass
 class Opened:
-    """A recording ready to filter chunk by chunk (see :func:`open_for_processing`)."""
+    """A recording ready to filter chunk by chunk (see :func:`open_for_processing`).
 
-    recording: object  # RawRecording
-    decoded: object  # DecodedFrames
-    processor: object  # BodyPoseProcessor
+    door: the :class:`bpms.filter.door.OpenedRecording`; meta: what every export states."""
+
+    door: object  # OpenedRecording
     meta: ExportMeta
 
+    @property
+    def processor(self):
+        return self.door.processor
+
+    @property
+    def problems(self) -> list[str]:
+        return self.door.problems
+
     def __len__(self) -> int:
-        return len(self.decoded.raw)
+        return self.door.n_frames
 
     def chunks(self, size: int = CHUNK_FRAMES) -> Iterator:
         """The filter results of consecutive chunks (one stream, the same numbers as one
         call over the whole recording)."""
-        raw, errors = self.decoded.raw, self.decoded.errors
-        for lo in range(0, len(raw), size):
-            yield self.processor.process(raw[lo:lo + size], errors[lo:lo + size])
+        for chunk in self.door.chunks(chunk_frames=size):
+            yield chunk.result
 
 
 def open_for_processing(path: str | Path, calibration: str | Path | None = None,
                         options: str | Path | Options | None = None) -> Opened:
-    """Open a raw recording with its stored calibration and options (or the given ones).
-    Raises RawFileError for an unreadable file."""
-    from bpms.filter.processor import BodyPoseProcessor
+    """Open a raw recording through the one door (:func:`bpms.filter.door.open_for_processing`:
+    the given calibration / options, else the recording's, else the user's default, else
+    factory). Raises RawFileError for an unreadable file or a filtered file."""
+    from bpms.filter.door import open_for_processing as door_open
+    from bpms.io.rawfile import RawFileError
 
-    # one door: open the recording (and build its processor) through the single entry point
-    recording = open_recording(path)
-    decoded = recording.decode()
-    table = load_calibration(calibration) if calibration else header_calibration(recording)
-    if isinstance(options, Options):
-        opts = options
-    else:
-        opts = load_options(options) if options else (header_options(recording) or Options())
-    proc = BodyPoseProcessor(table, opts)
-    meta = ExportMeta(recording_utc_start(recording), proc.options.joints.convention,
-                      1.0 / proc.options.filter.dt, str(path), n_frames=len(decoded.raw))
-    return Opened(recording, decoded, proc, meta)
+    door = door_open(path, calibration, options)
+    if not door.has_raw:
+        raise RawFileError(f"{path}: a filtered file; give a raw recording")
+    proc = door.processor
+    start = recording_utc_start(door)
+    meta = ExportMeta(start if math.isfinite(start) else 0.0, proc.options.joints.convention,
+                      1.0 / proc.options.filter.dt, str(path), n_frames=door.n_frames)
+    return Opened(door, meta)
 
 
 def export_recording(path: str | Path, outputs: dict[str, str | Path],
@@ -95,4 +92,4 @@ def export_recording(path: str | Path, outputs: dict[str, str | Path],
             writer.close()
     return ExportSummary(n, meta.utc_iso, meta.convention,
                          {k: Path(v) for k, v in outputs.items()},
-                         [*opened.processor.problems, *opened.recording.problems])
+                         list(opened.problems))

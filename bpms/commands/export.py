@@ -52,6 +52,7 @@ def _target(path: Path, force: bool) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bpms.analysis.stamp import recording_stamp
     from bpms.commands._analysis import open_recording_for, stream
 
     t_start = time.perf_counter()
@@ -61,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
                                 args.filter_name, args.heading)
     proc = opened.processor
     dt = proc.options.filter.dt
+    stamp = recording_stamp(opened)
     written: list[str] = []
     n = 0
     writers: list = []
@@ -71,8 +73,10 @@ def run(args: argparse.Namespace) -> int:
             stem = str(out.with_suffix("")) if out.suffix == ".sto" else str(out)
             whole_path = _target(Path(f"{stem}_orientations.sto"), args.force)
             calib_path = _target(Path(f"{stem}_calibration.sto"), args.force)
-            whole = OrientationsWriter(whole_path, 1.0 / dt, args.head_neck)
-            calib = OrientationsWriter(calib_path, 1.0 / dt, args.head_neck)
+            whole = OrientationsWriter(whole_path, 1.0 / dt, args.head_neck,
+                                       meta=stamp.items())
+            calib = OrientationsWriter(calib_path, 1.0 / dt, args.head_neck,
+                                       meta=stamp.items())
             writers += [whole, calib]
             lo, hi = calibration_window(proc.pose.settle, proc.pose.window, opened.n_frames)
             for chunk in stream("export", opened, args.reset_at):
@@ -113,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
             path = _target(out if out.suffix == ".csv" else out.with_name(out.name
                                                                           + "_matlab.csv"),
                            args.force)
-            mat = MatlabCsvWriter(path, degrees=not args.radians)
+            mat = MatlabCsvWriter(path, degrees=not args.radians, meta=stamp.items())
             writers.append(mat)
             for chunk in stream("export", opened, args.reset_at):
                 res = chunk.result
@@ -127,6 +131,8 @@ def run(args: argparse.Namespace) -> int:
             w.close()
     for w in written:
         print(w, file=sys.stderr)
+    # BVH has no comment syntax: for it this line is the only statement of both
+    print(f"bpms export: {stamp.line()}", file=sys.stderr)
     print(f"bpms export: {n} frames in {time.perf_counter() - t_start:.1f} s",
           file=sys.stderr)
     return 0

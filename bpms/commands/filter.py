@@ -2,7 +2,9 @@
 
 Writes the filtered CSV file (:mod:`bpms.io.filtered_file`, docs/filtered-file.md): time since
 the start, host time, then roll, pitch, yaw of IMU 0..17, radians (``--degrees`` for degrees),
-plus the 28 joint angles with ``--joints``. The recording is opened through the one door
+plus the 28 joint angles with ``--joints``, the per-IMU re-initialisation and disturbance
+flags (``--no-flags`` leaves them out) and, with ``--estimates``, the gyro-bias and
+body-acceleration estimates. The recording is opened through the one door
 (:mod:`bpms.filter.door`): ``--calibration`` / ``--options`` > the recording's header > the
 user's default > factory; the line ``calibration: …; options: …`` on stderr says which. Reads
 native recordings and the original suite's pickled raw files (never executing code), chunk by
@@ -35,6 +37,11 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="output file (default: Filtered… beside the raw file)")
     parser.add_argument("--degrees", action="store_true", help="angles in degrees (default rad)")
     parser.add_argument("--joints", action="store_true", help="add the 28 joint-angle columns")
+    parser.add_argument("--estimates", action="store_true",
+                        help="add each IMU's gyro-bias (rad/s) and body-acceleration (m/s², "
+                             "observer/adaptive filters) estimates (docs/filtered-file.md)")
+    parser.add_argument("--no-flags", dest="flags", action="store_false",
+                        help="leave out the per-IMU re-initialisation and disturbance flags")
     parser.add_argument("--calibration", metavar="Calib.cfg",
                         help="calibration file (default: the recording's, else your default)")
     parser.add_argument("--options", metavar="options.toml",
@@ -50,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.commands._analysis import open_recording_for, stream
-    from bpms.filter.door import filtered_arrays, filtered_layout
+    from bpms.filter.door import filtered_arrays, filtered_convention, filtered_layout
     from bpms.io.filtered_file import FilteredWriter, default_output_path
 
     t_start = time.perf_counter()
@@ -71,9 +78,12 @@ def run(args: argparse.Namespace) -> int:
         for chunk in stream("filter", opened):
             res = chunk.result
             if writer is None:
-                groups, kind = filtered_layout(res, args.joints)
+                groups, kind = filtered_layout(res, args.joints, getattr(args, "flags", True),
+                                               getattr(args, "estimates", False))
                 writer = FilteredWriter(out_path, degrees=args.degrees, groups=groups,
-                                        euler=kind, meta={"source": Path(args.raw_file).name})
+                                        euler=kind, convention=filtered_convention(
+                                            res.convention),
+                                        meta={"source": Path(args.raw_file).name})
             writer.write_block(res.t, host_time=chunk.host_time, hole=chunk.hole,
                                **filtered_arrays(res, writer.groups))
             n += len(res)

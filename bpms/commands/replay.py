@@ -4,7 +4,9 @@ recording as if it were live.
 The recording runs through the same pipeline as a live suit (filters, Reset Zero, joint
 angles, body model), so every output the live path has is sent: UDP raw frames and poses
 (docs/udp.md), LSL streams (docs/lsl.md) and the MVN-compatible stream (docs/mvn.md). The
-calibration and options stored in the recording are used unless ``--options`` is given.
+calibration and options stored in the recording are used unless ``--options`` is given (the
+one door, docs/opening-recordings.md). With the shared key set (``BPMS_UDP_KEY``) every
+datagram is signed (docs/udp.md).
 """
 
 from __future__ import annotations
@@ -51,15 +53,20 @@ def load_recording(path: str) -> RawRecording:
         raise CliError(str(exc)) from None
 
 
-def _processor(recording: RawRecording, options_path: str | None):
-    from bpms.analysis.source import header_calibration, header_options
-    from bpms.filter.processor import BodyPoseProcessor
-    from bpms.io.options import Options, load_options
+def _processor(path: str, options_path: str | None):
+    """The processor and its options through the one door (:mod:`bpms.filter.door`): the
+    given options, else the recording's calibration and options, else the user's default,
+    else factory; the sources line goes to stderr."""
+    from bpms.filter.door import open_for_processing
 
-    # one door: build the processor through the recording's single entry point once it exists
-    options = load_options(options_path) if options_path else (header_options(recording)
-                                                                or Options())
-    return BodyPoseProcessor(header_calibration(recording), options), options
+    try:
+        opened = open_for_processing(path, options=options_path)
+    except (RawFileError, OSError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    if not opened.has_raw:
+        raise CliError(f"{path}: a filtered file; give a raw recording")
+    print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
+    return opened.processor, opened.processor.options
 
 
 def _wait_for_lsl(bridges: list, seconds: float) -> None:
@@ -87,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {problem}", file=sys.stderr)
     if len(recording) == 0:
         raise CliError(f"{args.raw_file}: the recording holds no frames")
-    processor, options = _processor(recording, args.options)
+    processor, options = _processor(args.raw_file, args.options)
     source = ReplaySource(recording, speed=args.speed or None, autoplay=False)
     source.seek(seconds=args.start_s)
     session = LiveSession(source, options, processor)

@@ -42,6 +42,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.analysis.rom import RomAccumulator, markdown, write_csv
+    from bpms.analysis.stamp import recording_stamp
     from bpms.commands._analysis import open_recording_for, stream
 
     if args.t0 is not None and args.t1 is not None and args.t1 <= args.t0:
@@ -57,7 +58,9 @@ def run(args: argparse.Namespace) -> int:
         for chunk in stream("rom", opened, args.reset_at):
             acc.add(chunk.result.t, chunk.result.joint_angles)
         try:
-            tables.append(acc.table())
+            table = acc.table()
+            table.stamp = recording_stamp(opened)
+            tables.append(table)
         except ValueError as exc:
             raise CliError(str(exc)) from exc
     out = Path(args.output_dir)

@@ -27,6 +27,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="heel-strike threshold, g (default: options track.heel_strike_g)")
     parser.add_argument("--min-interval", type=float, metavar="S",
                         help="minimum time between heel strikes, s (default: options)")
+    parser.add_argument("--detector", choices=("auto", "accel", "gyro"), default="auto",
+                        help="heel strikes from the feet's accelerometers or the shanks' "
+                             "gyroscopes (default auto: gyro when the recording was made at "
+                             "±2 g, where the accelerometer peaks clip; docs/analysis.md)")
     parser.add_argument("--include-hips", action="store_true",
                         help="feet measured from the pelvis centre (dissertation eq. 3.13): "
                              "the path zig-zags by the hip width")
@@ -45,7 +49,13 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.track import FOOT_IMUS, TrackAccumulator
+    from bpms.analysis.gait_events import (
+        SHANK_IMUS,
+        accel_detector_usable,
+        accel_range_g,
+        lateral_gyro_rate,
+    )
+    from bpms.analysis.track import FOOT_IMUS, GyroTrackAccumulator, TrackAccumulator
     from bpms.commands._analysis import open_recording_for, stream
 
     opened = open_recording_for("track", args.raw_file, args.calibration, args.options,
@@ -59,24 +69,38 @@ def run(args: argparse.Namespace) -> int:
     interval = opts.min_step_interval_s if args.min_interval is None else args.min_interval
     declination = opts.declination_deg if args.declination is None else args.declination
     gravity = proc.sensor_calibration.gravity
-    acc_track = TrackAccumulator(threshold, interval, declination, args.include_hips)
+    range_g = accel_range_g(opened.header)
+    detector = args.detector
+    if detector == "auto":
+        detector = "accel" if accel_detector_usable(range_g, threshold) else "gyro"
+    if detector == "gyro":
+        acc_track = GyroTrackAccumulator(interval, declination, args.include_hips)
+    else:
+        acc_track = TrackAccumulator(threshold, interval, declination, args.include_hips)
     for chunk in stream("track", opened):
         res = chunk.result
-        acc, _, _ = proc.calibrate(chunk.raw)
+        acc, _, gyr = proc.calibrate(chunk.raw)
         window = np.ones(len(res), dtype=bool)
         if args.t0 is not None:
             window &= res.t >= args.t0
         if args.t1 is not None:
             window &= res.t <= args.t1
-        accel_g = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i], 0.0)
-                   for side, i in FOOT_IMUS.items()}
-        acc_track.add(res.t, accel_g, res.joint_positions)
+        if detector == "gyro":
+            rates = {side: np.where(window, lateral_gyro_rate(res.C[:, i], res.R[:, i],
+                                                              gyr[:, i]), 0.0)
+                     for side, i in SHANK_IMUS.items()}
+            acc_track.add(res.t, rates, res.joint_positions)
+        else:
+            accel_g = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i],
+                                      0.0) for side, i in FOOT_IMUS.items()}
+            acc_track.add(res.t, accel_g, res.joint_positions)
     track = acc_track.track()
+    peak_col = "swing_peak_rad_s" if detector == "gyro" else "peak_g"
     out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")
     out = out if out.suffix == ".csv" else out.with_name(out.name + "_track.csv")
     try:
         with open(out, "w", encoding="utf-8", newline="\n") as f:
-            f.write("step,time_s,side,peak_g,step_north_m,step_east_m,step_down_m,"
+            f.write(f"step,time_s,side,{peak_col},step_north_m,step_east_m,step_down_m,"
                     "north_m,east_m,down_m\n")
             for k in range(len(track.times)):
                 s, pos = track.steps[k], track.positions[k]
@@ -90,7 +114,9 @@ def run(args: argparse.Namespace) -> int:
             figure = track_figure(track, out.with_suffix(".png"), Path(args.raw_file).name)
     except OSError as exc:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}") from exc
-    print(f"{len(track.times)} heel strikes (threshold {threshold:.2f} g, ≥ {interval:.2f} s "
+    how = (f"gyroscope detector, recording at ±{range_g:g} g" if detector == "gyro"
+           else f"threshold {threshold:.2f} g")
+    print(f"{len(track.times)} heel strikes ({how}, ≥ {interval:.2f} s "
           f"apart), path {track.length_m:.2f} m, declination {declination:.1f}° → {out}"
           + (f", {figure}" if figure else ""), file=sys.stderr)
     return 0

@@ -382,33 +382,65 @@ def _count_rows(path: Path) -> int:
     return count - header
 
 
+#: Column groups of the state guard's and the disturbance indicators' per-IMU flags.
+FLAG_GROUPS = ("reinitialised", "mag_disturbed", "acc_disturbed")
+#: Column groups of the filters' estimates (``bpms filter --estimates``).
+ESTIMATE_GROUPS = ("gyro_bias", "body_acc")
+
+
+def filtered_convention(convention: str) -> str:
+    """The ``convention:`` header line of a filtered file: the Euler convention of the angle
+    columns and the joint-angle convention (:data:`bpms.filter.joints.CONVENTION_TEXT`)."""
+    from bpms.filter.joints import CONVENTION_TEXT
+
+    return ("Euler roll, pitch, yaw (R = Rz Ry Rx), frame -> NED; joint angles: "
+            + CONVENTION_TEXT.get(convention, convention))
+
+
 def filtered_layout(result: Result | type[Result] = Result,
-                    joints: bool = True) -> tuple[list[str], str]:
+                    joints: bool = True, flags: bool = True,
+                    estimates: bool = False) -> tuple[list[str], str]:
     """(column groups, ``euler`` kind) of a filtered file for results like ``result`` (an
     instance or the class): ``euler`` is what ``Result.euler`` holds; when Results also carry
     uncorrected ``euler_sensor`` angles, ``euler`` holds segment angles and ``euler_sensor``
-    is added."""
+    is added. flags: add :data:`FLAG_GROUPS` (re-initialisation and disturbance flags) when
+    the results carry them; estimates: add :data:`ESTIMATE_GROUPS` (gyro bias, body
+    acceleration)."""
     groups = ["euler"]
     kind = "sensor"
     if isinstance(result, type):
         has_sensor = (hasattr(result, "euler_sensor")
                       or "euler_sensor" in getattr(result, "__dataclass_fields__", {}))
+        has_flags = True
     else:
         has_sensor = getattr(result, "euler_sensor", None) is not None
+        has_flags = getattr(result, "disturbance", None) is not None
     if has_sensor:
         groups.append("euler_sensor")
         kind = "segment"
     if joints:
         groups.append("joints")
+    if flags and has_flags:
+        groups.extend(FLAG_GROUPS)
+    if estimates:
+        groups.extend(ESTIMATE_GROUPS)
     return groups, kind
 
 
 def filtered_arrays(result: Result, groups: Sequence[str]) -> dict[str, np.ndarray]:
-    """The per-group arrays of ``result`` for :meth:`FilteredWriter.write_block`."""
+    """The per-group arrays of ``result`` for :meth:`FilteredWriter.write_block` (a group the
+    result does not carry, e.g. ``body_acc`` of the Mahony filter, is left out: NaN)."""
+    dist = getattr(result, "disturbance", None)
     out: dict[str, np.ndarray] = {}
     for g in groups:
         if g == "joints":
             out[g] = result.joint_angles
-        elif hasattr(result, g):
+        elif g == "mag_disturbed":
+            if dist is not None:
+                out[g] = dist.mag
+        elif g == "acc_disturbed":
+            if dist is not None:
+                out[g] = dist.acc
+        elif getattr(result, g, None) is not None:
             out[g] = getattr(result, g)
     return out

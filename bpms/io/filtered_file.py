@@ -52,8 +52,10 @@ EPOCH_THRESHOLD_S = 1e8
 BLOCK_ROWS = 10_000
 _FMT = "%.10g"
 _HOST_FMT = "%.6f"
-_DEFAULT_CONVENTION = ("Euler roll, pitch, yaw (R = Rz Ry Rx), frame -> NED; joint angles as "
-                       "docs/filter.md")
+#: Written when the writer is given no convention (callers give the joint-angle convention in
+#: force: :func:`bpms.filter.door.filtered_convention`).
+_DEFAULT_CONVENTION = ("Euler roll, pitch, yaw (R = Rz Ry Rx), frame -> NED; joint angles: "
+                       "docs/joint-angles.md")
 
 
 class FilteredFileError(Exception):
@@ -129,6 +131,32 @@ register_column_group(ColumnGroup(
 register_column_group(ColumnGroup(
     "joints", lambda unit: [f"joint_{slug(j)}_{unit}" for j in JOINT_ANGLE_NAMES],
     (len(JOINT_ANGLE_NAMES),), angular=True, description="the 28 joint angles"))
+
+
+def _imu_names(suffixes: Sequence[str]) -> Callable[[str], list[str]]:
+    def names(unit: str) -> list[str]:
+        return [f"imu{i}_{slug(n)}_{x}" for i, n in enumerate(IMU_NAMES) for x in suffixes]
+    return names
+
+
+# Flags are written 1/0 (``nan`` in a hole row); the reader returns them as floats 1.0/0.0/NaN.
+_FLAG_FMT = "%.0f"
+register_column_group(ColumnGroup(
+    "reinitialised", _imu_names(["reinit"]), (N_IMUS,), fmt=_FLAG_FMT,
+    description="1 where the state guard re-initialised IMU i's filter at that frame"))
+register_column_group(ColumnGroup(
+    "mag_disturbed", _imu_names(["mag_disturbed"]), (N_IMUS,), fmt=_FLAG_FMT,
+    description="1 where IMU i's magnetometer is disturbed (field norm or dip off)"))
+register_column_group(ColumnGroup(
+    "acc_disturbed", _imu_names(["acc_disturbed"]), (N_IMUS,), fmt=_FLAG_FMT,
+    description="1 where IMU i's acceleration has been far from gravity for long"))
+register_column_group(ColumnGroup(
+    "gyro_bias", _imu_names([f"gyro_bias_{a}_rad_s" for a in "xyz"]), (N_IMUS, 3),
+    description="gyro-bias estimate of IMU i, rad/s, sensor (filter-frame) axes x, y, z"))
+register_column_group(ColumnGroup(
+    "body_acc", _imu_names([f"body_acc_{a}_m_s2" for a in "ned"]), (N_IMUS, 3),
+    description="body-acceleration estimate of IMU i, m/s², NED axes (observer/adaptive "
+                "filters; nan for the others)"))
 
 
 def filtered_columns(degrees: bool = False, joints: bool = False,

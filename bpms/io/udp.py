@@ -61,6 +61,9 @@ READ_VERSIONS = (1, 2)
 EXT_BLOCK = struct.Struct("!HH")
 EXT_JOINT_POSITIONS = 1
 EXT_CONVENTION = 2
+#: POSE extension: two uint32 masks, bit i = IMU i magnetometer / acceleration disturbed.
+EXT_DISTURBANCE = 3
+DISTURBANCE_MASKS = struct.Struct("!II")
 HEADER = struct.Struct("!4sBBHIIdd")
 HEADER_SIZE = HEADER.size
 assert HEADER_SIZE == 32
@@ -113,6 +116,9 @@ class Pose:
     angles: np.ndarray
     positions: np.ndarray | None = None  # [P, 3] m NED (POSE version 2)
     convention: str | None = None  # joint-angle convention (POSE version 2)
+    #: bit i set: IMU i's magnetometer disturbed / acceleration far from gravity (tag 3)
+    mag_disturbed: int | None = None
+    acc_disturbed: int | None = None
 
 
 @dataclass(frozen=True)
@@ -166,10 +172,18 @@ def encode_pose_payload(quaternions: np.ndarray, angles: np.ndarray) -> bytes:
             + a.astype(">f4").tobytes())
 
 
+def disturbance_mask(flags: np.ndarray) -> int:
+    """``flags[n]`` bool (IMU order) → an int with bit i set where ``flags[i]``."""
+    bits = np.flatnonzero(np.asarray(flags, dtype=bool).reshape(-1))
+    return int(sum(1 << int(i) for i in bits))
+
+
 def encode_pose_extensions(positions: np.ndarray | None = None,
-                           convention: str | None = None) -> bytes:
-    """POSE version 2 extension blocks: joint positions ``[P, 3]`` m (NED) and/or the
-    joint-angle convention name. Raises ValueError on non-finite positions."""
+                           convention: str | None = None,
+                           disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> bytes:
+    """POSE version 2 extension blocks: joint positions ``[P, 3]`` m (NED), the joint-angle
+    convention name and/or the disturbance flags ``(mag[18], acc[18])`` bool (tag 3, two
+    masks). Raises ValueError on non-finite positions."""
     out = b""
     if positions is not None:
         p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
@@ -180,6 +194,9 @@ def encode_pose_extensions(positions: np.ndarray | None = None,
     if convention:
         data = convention.encode("ascii")
         out += EXT_BLOCK.pack(EXT_CONVENTION, len(data)) + data
+    if disturbance is not None:
+        data = DISTURBANCE_MASKS.pack(*(disturbance_mask(f) for f in disturbance))
+        out += EXT_BLOCK.pack(EXT_DISTURBANCE, len(data)) + data
     return out
 
 
@@ -205,6 +222,10 @@ def _decode_extensions(data: bytes) -> dict:
             out["positions"] = p.astype(np.float32)
         elif tag == EXT_CONVENTION:
             out["convention"] = block.decode("ascii", "replace")
+        elif tag == EXT_DISTURBANCE:
+            if length != DISTURBANCE_MASKS.size:
+                raise DatagramError("POSE disturbance block has the wrong length")
+            out["mag_disturbed"], out["acc_disturbed"] = DISTURBANCE_MASKS.unpack(block)
         # other tags: skipped (later extensions)
     return out
 
@@ -503,14 +524,16 @@ class UdpForwarder:
         return self._send(MessageType.RAW_FRAME, build)
 
     def send_pose(self, quaternions: np.ndarray, angles: np.ndarray, suit_time: float,
-                  positions: np.ndarray | None = None, convention: str | None = None) -> int:
+                  positions: np.ndarray | None = None, convention: str | None = None,
+                  disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> int:
         """Forward one filtered pose: ``quaternions[18, 4]`` (w, x, y, z, body→NED) and
-        ``angles[28]`` rad; with ``positions[21, 3]`` (m, NED) and/or ``convention`` a
-        version-2 POSE carrying them. Raises ValueError on bad shapes or non-finite values."""
+        ``angles[28]`` rad; with ``positions[21, 3]`` (m, NED), ``convention`` and/or
+        ``disturbance`` = (mag[18], acc[18]) bool flags a version-2 POSE carrying them. Raises
+        ValueError on bad shapes or non-finite values."""
         payload = encode_pose_payload(quaternions, angles)
         version = VERSION
-        if positions is not None or convention:
-            payload += encode_pose_extensions(positions, convention)
+        if positions is not None or convention or disturbance is not None:
+            payload += encode_pose_extensions(positions, convention, disturbance)
             version = POSE_VERSION
 
         def build(seq: int) -> bytes:

@@ -1,4 +1,4 @@
-"""Lab Streaming Layer outlets: the live (or replayed) session as four LSL streams.
+"""Lab Streaming Layer outlets: the live (or replayed) session as five LSL streams.
 
 Streams (docs/lsl.md lists every channel):
 
@@ -10,6 +10,9 @@ Streams (docs/lsl.md lists every channel):
 - ``BPMS Sensors`` (type ``IMU``, 162 float32 channels): calibrated accelerometer m/s²,
   magnetometer gauss, gyroscope rad/s per IMU in signed board axes (the numbers of the GUI's
   table and ``bpms extract``);
+- ``BPMS Disturbance`` (type ``Misc``, 36 int8 channels, 50 Hz): per IMU 1 when its
+  magnetometer is disturbed, then per IMU 1 when its acceleration has been far from gravity
+  for long (:mod:`bpms.filter.disturbance`); -1 when not computed;
 - ``BPMS Events`` (type ``Markers``, one string channel, irregular): ``reset zero``,
   ``logging start``, ``logging stop``, ``link lost``, ``link recovered``,
   ``filter re-initialised``.
@@ -41,7 +44,8 @@ from bpms.pipeline.frame_clock import FrameClock
 log = logging.getLogger(__name__)
 
 STREAM_NAMES = {"segments": "BPMS Segments", "joints": "BPMS Joint Angles",
-                "sensors": "BPMS Sensors", "events": "BPMS Events"}
+                "sensors": "BPMS Sensors", "disturbance": "BPMS Disturbance",
+                "events": "BPMS Events"}
 #: Source states in which the link counts as lost (the suit's silent, gone and reopening;
 #: "link lost" is what a UDP client source reports).
 LINK_LOST_STATES = frozenset({"silent", "gone", "reopening", "link lost"})
@@ -82,6 +86,13 @@ def sensor_channels() -> list[Channel]:
     """162 channels: per IMU accel x, y, z, mag x, y, z, gyro x, y, z."""
     return [Channel(f"{_slug(name)}_{short}_{axis}", f"{kind}{axis.upper()}", unit, _slug(name))
             for name in IMU_NAMES for kind, short, unit in _SENSOR_AXES for axis in "xyz"]
+
+
+def disturbance_channels() -> list[Channel]:
+    """36 channels: the 18 magnetometer flags (IMU order), then the 18 acceleration flags."""
+    return [Channel(f"{_slug(name)}_{kind}_disturbed", f"{kind.capitalize()}Disturbed", "flag",
+                    _slug(name))
+            for kind in ("mag", "acc") for name in IMU_NAMES]
 
 
 def _describe(info, channels: Sequence[Channel], extra: dict[str, str]) -> None:
@@ -132,6 +143,15 @@ class LslOutlets:
                                     pylsl.cf_float32, f"{base}:{key}")
             _describe(info, channels, {**extra, **sync})
             self.outlets[key] = pylsl.StreamOutlet(info, chunk_size=1, max_buffered=360)
+        channels = disturbance_channels()
+        info = pylsl.StreamInfo(STREAM_NAMES["disturbance"], "Misc", len(channels), rate,
+                                pylsl.cf_int8, f"{base}:disturbance")
+        _describe(info, channels, {
+            "meaning": "1: the IMU's magnetometer is disturbed (field norm or dip away from "
+                       "the values learnt at rest) / its acceleration has been far from 1 g "
+                       "for long; 0: not; -1: not computed",
+            "order": "18 mag flags then 18 acc flags, IMU order", **sync})
+        self.outlets["disturbance"] = pylsl.StreamOutlet(info, chunk_size=1, max_buffered=360)
         info = pylsl.StreamInfo(STREAM_NAMES["events"], "Markers", 1, pylsl.IRREGULAR_RATE,
                                 pylsl.cf_string, f"{base}:events")
         _describe(info, [Channel("event", "Marker", "")],
@@ -145,20 +165,26 @@ class LslOutlets:
 
     def push_frames(self, indices: Sequence[int], arrivals: Sequence[float],
                     quaternions: np.ndarray, joint_angles: np.ndarray, sensors: np.ndarray,
-                    discontinuity: bool = False) -> list[float]:
+                    discontinuity: bool = False,
+                    disturbance: np.ndarray | None = None) -> list[float]:
         """One sample per frame on every data stream. ``arrivals``: ``time.perf_counter()``
         at receipt; quaternions ``[N, 18, 4]``; joint_angles ``[N, 28]`` rad; sensors
-        ``[N, 18, 9]``. Returns the LSL time stamps."""
+        ``[N, 18, 9]``; disturbance ``[N, 36]`` (mag flags, acc flags; -1 unknown; None: all
+        -1). Returns the LSL time stamps."""
         stamps = self.clock.stamp_many(indices, [a + self._to_lsl for a in arrivals],
                                        discontinuity)
         q = np.asarray(quaternions, dtype=np.float32).reshape(len(stamps), -1)
         a = np.degrees(np.asarray(joint_angles, dtype=np.float64)).astype(np.float32)
         s = np.asarray(sensors, dtype=np.float32).reshape(len(stamps), -1)
-        seg, jnt, sen = (self.outlets[k] for k in ("segments", "joints", "sensors"))
+        d = (np.full((len(stamps), 36), -1, dtype=np.int8) if disturbance is None
+             else np.asarray(disturbance, dtype=np.int8).reshape(len(stamps), -1))
+        seg, jnt, sen, dis = (self.outlets[k] for k in ("segments", "joints", "sensors",
+                                                        "disturbance"))
         for k, t in enumerate(stamps):
             seg.push_sample(q[k], t)
             jnt.push_sample(a[k], t)
             sen.push_sample(s[k], t)
+            dis.push_sample(d[k].tolist(), t)
         for i, t in zip(indices[-64:], stamps[-64:], strict=True):
             self._stamps[int(i)] = t
         if len(self._stamps) > 512:
@@ -257,6 +283,9 @@ class LslBridge:
         acc, mag, gyr = self.session.processor.sensor_calibration.physical_units(
             np.stack([s.raw for s in batch]))
         sensors = np.concatenate([acc, mag, gyr], axis=-1)
+        flags = np.array([np.concatenate([s.mag_disturbed, s.acc_disturbed])
+                          if s.mag_disturbed is not None and s.acc_disturbed is not None
+                          else np.full(36, -1) for s in batch], dtype=np.int8)
         # runs split where the source index does not continue (a seek or reconnection)
         idx = [s.index for s in batch]
         starts = [0] + [k for k in range(1, len(idx)) if idx[k] != idx[k - 1] + 1] + [len(idx)]
@@ -264,7 +293,8 @@ class LslBridge:
             jump = self._last_index is not None and idx[lo] != self._last_index + 1
             self.outlets.push_frames(idx[lo:hi], [s.arrival for s in batch[lo:hi]], q[lo:hi],
                                      np.stack([s.joint_angles for s in batch[lo:hi]]),
-                                     sensors[lo:hi], discontinuity=jump)
+                                     sensors[lo:hi], discontinuity=jump,
+                                     disturbance=flags[lo:hi])
             self._last_index = idx[hi - 1]
 
     def _watch_link(self) -> None:

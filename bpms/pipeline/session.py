@@ -279,12 +279,13 @@ class LiveSession:
             status.raw_path = raw_path
             self._raw_logger = logger
         if filtered:
-            from bpms.filter.door import filtered_layout  # loaded with the filter, not the GUI
+            from bpms.filter.door import filtered_convention, filtered_layout  # not the GUI
 
             try:
                 groups, kind = filtered_layout()
                 writer = FilteredWriter(filtered_path, degrees=degrees, groups=groups,
-                                        euler=kind)
+                                        euler=kind, convention=filtered_convention(
+                                            self.processor.options.joints.convention))
             except OSError as exc:
                 self.note(f"filtered recording not started: cannot create {filtered_path}: {exc}")
             else:
@@ -489,7 +490,8 @@ class LiveSession:
                 if finite[k]:
                     forwarder.send_pose(quats[k], angles[k].astype(np.float32),
                                         max(e.index, 0) * FRAME_PERIOD_S, positions[k],
-                                        result.convention)
+                                        result.convention,
+                                        None if dist is None else (dist.mag[k], dist.acc[k]))
         with self._lock:
             self._latencies.extend(s.latency_s for s in samples)
             if len(self._latencies) > 5000:

@@ -87,12 +87,15 @@ class Recording:
     def save_raw(self, path: str | Path, start_time: float = 1.7e9,
                  notes: str = "simulated suit") -> Path:
         """Write the frames as a native raw recording (receive time ``start_time + t`` s, the
-        true calibration table in the header), as a live recording of this suit would be."""
+        true calibration table and the accelerometer range in the header), as a live recording
+        of this suit would be."""
         from bpms.io.rawfile import new_header, write_raw
 
         path = Path(path)
+        extra = ({"accel_range_g": float(self.model.accel_range_g)}
+                 if getattr(self, "model", None) is not None else None)
         write_raw(path, start_time + self.t, self.frames,
-                  new_header(calibration=self.calibration.values, notes=notes))
+                  new_header(calibration=self.calibration.values, notes=notes, extra=extra))
         return path
 
 
