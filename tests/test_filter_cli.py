@@ -79,14 +79,14 @@ def test_bpms_filter_writes_one_row_per_frame_like_the_api(recording, tmp_path):
     api = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors)
     assert len(data.t) == len(rec)
     np.testing.assert_allclose(data.t, np.arange(len(rec)) * 0.02, atol=1e-12)
-    np.testing.assert_allclose(data.euler, api.euler, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(data.euler, api.euler_output, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(data.joint_angles, api.joint_angles, rtol=1e-9, atol=1e-12)
     # degrees, default output name beside the raw file
     assert main(["filter", str(raw_path), "--degrees"]) == 0
     deg = read_filtered(default_output_path(raw_path))
     assert default_output_path(raw_path).name == "Filtered_trial_001.csv"
     assert deg.unit == "deg"
-    np.testing.assert_allclose(deg.euler, api.euler, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(deg.euler, api.euler_output, rtol=1e-9, atol=1e-12)
 
 
 def _run_cli(*args: str) -> subprocess.CompletedProcess:
@@ -134,7 +134,7 @@ def test_bpms_filter_reads_legacy_pickled_raw_files(tmp_path):
     assert main(["filter", str(path), "-o", str(out)]) == 0
     data = read_filtered(out)
     api = BodyPoseProcessor().process(rec.raw, rec.errors)  # no calibration stored: factory
-    np.testing.assert_allclose(data.euler, api.euler, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(data.euler, api.euler_output, rtol=1e-9, atol=1e-12)
 
 
 def test_bpms_filter_uses_the_options_stored_in_the_recording(tmp_path):
@@ -152,5 +152,5 @@ def test_bpms_filter_uses_the_options_stored_in_the_recording(tmp_path):
     api = BodyPoseProcessor(rec.calibration, opts).process(rec.raw, rec.errors)
     factory = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors)
     got = read_filtered(out).euler
-    np.testing.assert_allclose(got, api.euler, rtol=1e-9, atol=1e-12)
-    assert not np.allclose(got, factory.euler)
+    np.testing.assert_allclose(got, api.euler_output, rtol=1e-9, atol=1e-12)
+    assert not np.allclose(got, factory.euler_output)

@@ -62,7 +62,7 @@ def test_bpms_filter_writes_disturbance_and_reinit_flags(magnet_raw, tmp_path):
     # --no-flags leaves them out
     out2 = tmp_path / "g.csv"
     assert main(["filter", str(raw), "-o", str(out2), "--no-flags"]) == 0
-    assert read_filtered(out2).info.groups == ["euler", "euler_sensor"]
+    assert read_filtered(out2).info.groups == ["euler", "euler_sensor", "corrected"]
 
 
 def test_bpms_filter_estimates_give_the_gyro_bias(bias_raw, tmp_path):

@@ -402,8 +402,9 @@ def filtered_layout(result: Result | type[Result] = Result,
                     estimates: bool = False) -> tuple[list[str], str]:
     """(column groups, ``euler`` kind) of a filtered file for results like ``result`` (an
     instance or the class): ``euler`` is what ``Result.euler`` holds; when Results also carry
-    uncorrected ``euler_sensor`` angles, ``euler`` holds segment angles and ``euler_sensor``
-    is added. flags: add :data:`FLAG_GROUPS` (re-initialisation and disturbance flags) when
+    uncorrected ``euler_sensor`` angles, ``euler`` holds the output angles
+    (``Result.euler_output``: segment angles after Reset Zero, per row as the ``corrected``
+    column says) and ``euler_sensor`` the sensor angles. flags: add :data:`FLAG_GROUPS` (re-initialisation and disturbance flags) when
     the results carry them; estimates: add :data:`ESTIMATE_GROUPS` (gyro bias, body
     acceleration)."""
     groups = ["euler"]
@@ -416,7 +417,7 @@ def filtered_layout(result: Result | type[Result] = Result,
         has_sensor = getattr(result, "euler_sensor", None) is not None
         has_flags = getattr(result, "disturbance", None) is not None
     if has_sensor:
-        groups.append("euler_sensor")
+        groups += ["euler_sensor", "corrected"]
         kind = "segment"
     if joints:
         groups.append("joints")
@@ -433,7 +434,12 @@ def filtered_arrays(result: Result, groups: Sequence[str]) -> dict[str, np.ndarr
     dist = getattr(result, "disturbance", None)
     out: dict[str, np.ndarray] = {}
     for g in groups:
-        if g == "joints":
+        if g == "euler" and "euler_sensor" in groups:
+            # the output angles: segment angles after Reset Zero where 'corrected', else sensor
+            out[g] = result.euler_output
+        elif g == "corrected":
+            out[g] = result.corrected.astype(np.float64)[:, None]
+        elif g == "joints":
             out[g] = result.joint_angles
         elif g == "mag_disturbed":
             if dist is not None:

@@ -129,6 +129,11 @@ register_column_group(ColumnGroup(
     description="each IMU's uncorrected filter roll, pitch, yaw, when 'euler' holds the "
                 "Reset-Zero-corrected segment angles"))
 register_column_group(ColumnGroup(
+    "corrected", lambda unit: ["corrected"], (1,), fmt="%.0f",
+    description="1 where the 'euler' columns hold Reset-Zero-corrected segment angles, 0 "
+                "where they still hold the sensor angles (before the first Reset Zero, or "
+                "with the correction switched off)"))
+register_column_group(ColumnGroup(
     "joints", lambda unit: [f"joint_{slug(j)}_{unit}" for j in JOINT_ANGLE_NAMES],
     (len(JOINT_ANGLE_NAMES),), angular=True, description="the 28 joint angles"))
 
