@@ -404,9 +404,9 @@ def filtered_layout(result: Result | type[Result] = Result,
     instance or the class): ``euler`` is what ``Result.euler`` holds; when Results also carry
     uncorrected ``euler_sensor`` angles, ``euler`` holds the output angles
     (``Result.euler_output``: segment angles after Reset Zero, per row as the ``corrected``
-    column says) and ``euler_sensor`` the sensor angles. flags: add :data:`FLAG_GROUPS` (re-initialisation and disturbance flags) when
-    the results carry them; estimates: add :data:`ESTIMATE_GROUPS` (gyro bias, body
-    acceleration)."""
+    column says) and ``euler_sensor`` the sensor angles. flags: add :data:`FLAG_GROUPS`
+    (re-initialisation and disturbance flags) when the results carry them; estimates: add
+    :data:`ESTIMATE_GROUPS` (gyro bias, body acceleration)."""
     groups = ["euler"]
     kind = "sensor"
     if isinstance(result, type):
