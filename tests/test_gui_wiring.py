@@ -19,7 +19,7 @@ from bpms.gui.data_table import DISTURBANCE_COLUMN
 from bpms.gui.layouts import LayoutStore
 from bpms.gui.main_window import MainWindow
 from bpms.gui.modes import ModeConfig, SessionRunner
-from bpms.gui.plots import TickBlock
+from bpms.gui.plots import TickBlock, cell_curve
 from bpms.io.options import Options
 from bpms.io.udp import UdpForwarder
 from bpms.pipeline.session import RecordingStatus
@@ -273,4 +273,39 @@ def test_stream_to_lsl_switch(qtbot, tmp_path, recording_path, monkeypatch):
         assert _texts(window)[-1] == "LSL streaming on"
     finally:
         window.runner.set_lsl(False)
+    window.close()
+
+
+def test_filter_estimates_are_table_columns_and_plot_curves(qtbot, tmp_path, recording_path):
+    """Issue 19.4: the observer's gyro-bias and body-acceleration estimates travel with each
+    sample, show in their table columns and can be plotted like any cell."""
+    from bpms.gui.data_table import COLUMNS
+
+    options = Options()
+    options.filter.algorithm = "observer"
+    runner = SessionRunner(ModeConfig(mode="file", path=str(recording_path),
+                                      recording_dir=str(tmp_path)), options)
+    runner.prepare()
+    window = MainWindow(runner, layout_store=LayoutStore(tmp_path / "layouts.json"),
+                        restore_last=False)
+    qtbot.addWidget(window)
+    window.show()
+    runner.show_frame(150)
+    qtbot.waitUntil(lambda: window.model.latest is not None
+                    and window.model.latest.index == 150, timeout=20000)
+    s = window.model.latest
+    assert s.estimates is not None and s.estimates.shape == (18, 6)
+    assert np.isfinite(s.estimates).all()  # the observer estimates both
+    window._on_samples([s])
+    model = window.table_model
+    est_cols = [k for k, c in enumerate(COLUMNS) if c.group == "est"]
+    assert [COLUMNS[k].label() for k in est_cols[:1] + est_cols[3:4]] == [
+        "gyro bias x [rad/s]", "body acc north [m/s²]"]
+    for j, col in enumerate(est_cols):
+        assert model.value(4, col) == pytest.approx(s.estimates[4, j])
+    # a plot of that cell (dragged from the table, or Plot selection) draws the same numbers
+    spec = cell_curve(4, est_cols[3])
+    assert spec.unit == "m/s²" and "body acc north" in spec.label
+    block = TickBlock.from_samples([s], model.calibration)
+    assert spec.values(block)[0] == pytest.approx(s.estimates[4, 3])
     window.close()

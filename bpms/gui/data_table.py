@@ -52,6 +52,10 @@ COLUMNS: tuple[Column, ...] = (
     *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_LABELS)),
     # last in the model (cell indices of the others stay put), shown after "errors"
     Column("disturbance", 0, "disturbance", ""),
+    # the filter's estimates (observer, adaptive and vqf; Mahony: bias only), after raw
+    *(Column("est", k, name, unit) for k, (name, unit) in enumerate(
+        [(f"gyro bias {a}", "rad/s") for a in "xyz"]
+        + [(f"body acc {a}", "m/s²") for a in ("north", "east", "down")])),
 )
 #: Columns of text (not plottable).
 TEXT_GROUPS = frozenset({"errors", "disturbance"})
@@ -67,9 +71,14 @@ def calibrated(calibration: SensorCalibration, raw: np.ndarray) -> np.ndarray:
 
 
 def column_values(column: Column, raw: np.ndarray, cal: np.ndarray, euler: np.ndarray,
-                  degrees: bool) -> np.ndarray:
-    """Values of ``column`` for blocks ``raw/cal [..., 18, 9]``, ``euler [..., 18, 3]`` rad →
-    ``[..., 18]`` in the column's unit."""
+                  degrees: bool, est: np.ndarray | None = None) -> np.ndarray:
+    """Values of ``column`` for blocks ``raw/cal [..., 18, 9]``, ``euler [..., 18, 3]`` rad,
+    ``est [..., 18, 6]`` (gyro bias rad/s, body acceleration m/s²) → ``[..., 18]`` in the
+    column's unit."""
+    if column.group == "est":
+        if est is None:
+            return np.full(raw.shape[:-1], np.nan)
+        return est[..., column.k]
     if column.group == "raw":
         return raw[..., column.k].astype(np.float64)
     if column.group == "cal":
@@ -127,6 +136,7 @@ class ImuTableModel(QAbstractTableModel):
         self.errors = np.zeros((N_IMUS, 3), bool)
         self.error_until = np.zeros((N_IMUS, 3))  # monotonic s until which a flag stays red
         self.mag_disturbed = np.zeros(N_IMUS, bool)
+        self.est = np.full((N_IMUS, 6), np.nan)
         self.acc_disturbed = np.zeros(N_IMUS, bool)
         #: show the output angles (segment angles after Reset Zero) rather than the sensor's
         self.show_output = True
@@ -151,6 +161,8 @@ class ImuTableModel(QAbstractTableModel):
             self.angles_kind = kind
             self.headerDataChanged.emit(Qt.Orientation.Horizontal, 0, len(COLUMNS) - 1)
         none = np.zeros(N_IMUS, bool)
+        self.est = (np.full((N_IMUS, 6), np.nan) if sample.estimates is None
+                    else sample.estimates)
         self.mag_disturbed = none if sample.mag_disturbed is None else sample.mag_disturbed
         self.acc_disturbed = none if sample.acc_disturbed is None else sample.acc_disturbed
         self.errors = self.error_until > now
@@ -170,7 +182,8 @@ class ImuTableModel(QAbstractTableModel):
             cal = ["–" if v != v else f"{v:.3f}" for v in self.cal[i].tolist()]
             eul = ["–" if v != v else efmt.format(v) for v in euler[i].tolist()]
             dist = disturbance_text(self.mag_disturbed[i], self.acc_disturbed[i])
-            rows.append([*eul, error_text(self.errors[i]), *cal, *raw, dist])
+            est = ["–" if v != v else f"{v:.4f}" for v in self.est[i].tolist()]
+            rows.append([*eul, error_text(self.errors[i]), *cal, *raw, dist, *est])
         self._text = rows
 
     def set_show_output(self, on: bool) -> None:
@@ -206,6 +219,8 @@ class ImuTableModel(QAbstractTableModel):
             return int(self.raw[row, column.k])
         if column.group == "cal":
             return float(self.cal[row, column.k])
+        if column.group == "est":
+            return float(self.est[row, column.k])
         angle = float(self.euler[row, column.k])
         return float(np.degrees(angle)) if self.angle_unit == "deg" else angle
 

@@ -119,6 +119,7 @@ class TickBlock:
     cal: np.ndarray
     euler: np.ndarray
     joint_angles: np.ndarray
+    est: np.ndarray | None = None  # [n, 18, 6] gyro bias rad/s, body acceleration m/s²
 
     @classmethod
     def from_samples(cls, samples: Sequence[PoseSample], calibration: SensorCalibration,
@@ -132,6 +133,8 @@ class TickBlock:
             cal=calibrated(calibration, raw),
             euler=np.array([shown_angles(s, output)[0] for s in samples]),
             joint_angles=np.array([s.joint_angles for s in samples]),
+            est=np.array([np.full((18, 6), np.nan) if s.estimates is None else s.estimates
+                          for s in samples]),
         )
 
 
@@ -195,7 +198,7 @@ def cell_curve(imu: int, col: int, angle_unit: str = "deg") -> CurveSpec:
     unit = angle_unit if column.group == "euler" else column.unit
     label = f"{IMU_NAMES[imu]} {column.name} [{unit}]"
     return CurveSpec(label, lambda b: column_values(column, b.raw, b.cal, b.euler,
-                                                    degrees)[:, imu], unit, (imu, col))
+                                                    degrees, b.est)[:, imu], unit, (imu, col))
 
 
 def _joint_curve(k: int, degrees: bool) -> CurveSpec:

@@ -89,6 +89,9 @@ class PoseSample:
     #: ``[18]`` bool: magnetometer / acceleration disturbed (bpms.filter.disturbance)
     mag_disturbed: np.ndarray | None = None
     acc_disturbed: np.ndarray | None = None
+    #: ``[18, 6]`` the filter's estimates: gyro bias x, y, z (rad/s, sensor axes) and body
+    #: acceleration north, east, down (m/s²); NaN where the filter has none
+    estimates: np.ndarray | None = None
 
 
 @dataclass
@@ -468,11 +471,13 @@ class LiveSession:
         positions = result.joint_positions
         done = time.perf_counter()
         output, dist = result.euler_output, result.disturbance
+        estimates = _estimates(result)
         samples = [PoseSample(e.index, e.host_time, e.frame, decoded.raw[k], decoded.errors[k],
                               result.euler[k], result.R[k], result.C[k], angles[k],
                               positions[k], done - e.arrival, output[k],
                               result.reinitialised[k], e.arrival,
-                              *((dist.mag[k], dist.acc[k]) if dist is not None else ()))
+                              *((dist.mag[k], dist.acc[k]) if dist is not None
+                                else (None, None)), estimates[k])
                    for k, e in enumerate(events)]
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
@@ -545,3 +550,14 @@ def _options_dict(options: Options) -> dict:
     import dataclasses
 
     return {name: dataclasses.asdict(section) for name, section in options.sections().items()}
+
+
+def _estimates(result) -> np.ndarray:
+    """``[N, 18, 6]``: gyro bias (rad/s) and body acceleration (m/s²) of ``result``, NaN for
+    what its filter does not estimate."""
+    out = np.full((len(result), 18, 6), np.nan)
+    if result.gyro_bias is not None:
+        out[..., :3] = result.gyro_bias
+    if result.body_acc is not None:
+        out[..., 3:] = result.body_acc
+    return out
