@@ -109,7 +109,7 @@ def test_bpms_filter_with_filter_option(recording, tmp_path, algorithm):
     assert main(["filter", str(path), "-o", str(out), "--filter", algorithm]) == 0
     api = BodyPoseProcessor(rec.calibration, _options(algorithm)).process(rec.raw, rec.errors)
     got = read_filtered(out).euler
-    np.testing.assert_allclose(got, api.euler, rtol=1e-8, atol=1e-9)
+    np.testing.assert_allclose(got, api.euler_output, rtol=1e-8, atol=1e-9)
 
 
 def test_vqf_missing_gives_one_line(recording, tmp_path):
