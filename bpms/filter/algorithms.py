@@ -174,9 +174,12 @@ class ObserverBank(_PhysicalBank):
         out_e = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
         body_acc = np.empty((n, self.n, 3))
-        observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
-                       np.empty((n, self.n, 4)), bias, body_acc)
+        self._run_kernel(f, m, g, err, rs, out_R, out_e, bias, body_acc)
         return BankOutput(out_R, out_e, gyro_bias=bias, body_acc=body_acc)
+
+    def _run_kernel(self, f, m, g, err, rs, out_R, out_e, bias, body_acc) -> None:
+        observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
+                       np.empty((len(f), self.n, 4)), bias, body_acc)
 
     def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
              errors: np.ndarray | None = None) -> BankOutput:
