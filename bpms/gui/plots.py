@@ -96,6 +96,26 @@ def cells_from_mime(mime: QMimeData | None) -> list[tuple[int, int]]:
         return []
 
 
+def accept_drag(event) -> None:
+    """Accept a drag that carries table cells or joint names, ignore any other."""
+    mime = event.mimeData()
+    if cells_from_mime(mime) or joints_from_mime(mime):
+        event.acceptProposedAction()
+    else:
+        event.ignore()
+
+
+def take_drop(event) -> tuple[list[tuple[int, int]], list[int]]:
+    """The (cells, joints) a drop carries, the drop accepted; ([], []) and ignored when it
+    carries neither."""
+    cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
+    if cells or joints:
+        event.acceptProposedAction()
+    else:
+        event.ignore()
+    return cells, joints
+
+
 def human_joint_name(name: str) -> str:
     """``hip_r.abduction`` → "Right hip abduction"; ``torso.flexion`` → "Torso flexion"."""
     segment, _, angle = name.partition(".")
@@ -413,21 +433,13 @@ class PlotWindow(QWidget):
 
     # -- drag and drop ------------------------------------------------------------------------
     def dragEnterEvent(self, event) -> None:
-        mime = event.mimeData()
-        if cells_from_mime(mime) or joints_from_mime(mime):
-            event.acceptProposedAction()
-        else:
-            event.ignore()
+        accept_drag(event)
 
     def dragMoveEvent(self, event) -> None:
         self.dragEnterEvent(event)
 
     def dropEvent(self, event) -> None:
-        cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
-        if not cells and not joints:
-            event.ignore()
-            return
-        event.acceptProposedAction()
+        cells, joints = take_drop(event)
         if cells:
             if self.receivers(self.cellsDropped):
                 self.cellsDropped.emit(cells, self)
@@ -575,21 +587,13 @@ class PlotDropArea(QLabel):
         self.setMinimumHeight(28)
 
     def dragEnterEvent(self, event) -> None:
-        mime = event.mimeData()
-        if cells_from_mime(mime) or joints_from_mime(mime):
-            event.acceptProposedAction()
-        else:
-            event.ignore()
+        accept_drag(event)
 
     def dragMoveEvent(self, event) -> None:
         self.dragEnterEvent(event)
 
     def dropEvent(self, event) -> None:
-        cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
-        if not cells and not joints:
-            event.ignore()
-            return
-        event.acceptProposedAction()
+        cells, joints = take_drop(event)
         if cells:
             self.cellsDropped.emit(cells, None)
         if joints:

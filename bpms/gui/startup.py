@@ -9,12 +9,10 @@ leaves this window open; closing the main window brings it back.
 from __future__ import annotations
 
 import dataclasses
-import threading
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PyQt6.QtCore import Qt, QTimer, pyqtSignal
+from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtGui import QKeySequence, QShortcut
 from PyQt6.QtWidgets import (
     QButtonGroup,
@@ -42,7 +40,7 @@ from PyQt6.QtWidgets import (
 from bpms.gui import settings_store
 from bpms.gui.main_window import MainWindow, optional_module
 from bpms.gui.modes import MODE_LABELS, MODES, ModeConfig, ModeError, SessionRunner
-from bpms.gui.safety import guard_wheel
+from bpms.gui.safety import BackgroundTask, guard_wheel
 from bpms.io import defaults
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.link import describe_candidate_ports, discover_suit
@@ -69,39 +67,6 @@ def show_error(parent: QWidget | None, title: str, text: str) -> QMessageBox:
     box = QMessageBox(QMessageBox.Icon.Warning, title, text, parent=parent)
     box.open()
     return box
-
-
-class _Worker:
-    """Runs ``fn`` in a daemon thread; ``done(result, error)`` is called in the GUI thread."""
-
-    def __init__(self, parent: QWidget, fn: Callable[[], Any],
-                 done: Callable[[Any, BaseException | None], None]) -> None:
-        self.result: Any = None
-        self.error: BaseException | None = None
-        self._done = done
-        self._thread = threading.Thread(target=self._run, daemon=True, name="bpms-gui-worker")
-        self._fn = fn
-        self._timer = QTimer(parent)
-        self._timer.setInterval(30)
-        self._timer.timeout.connect(self._poll)
-        self._thread.start()
-        self._timer.start()
-
-    def _run(self) -> None:
-        try:
-            self.result = self._fn()
-        except BaseException as exc:
-            self.error = exc
-
-    def _poll(self) -> None:
-        if self._thread.is_alive():
-            return
-        self._timer.stop()
-        self._done(self.result, self.error)
-
-    @property
-    def running(self) -> bool:
-        return self._thread.is_alive() or self._timer.isActive()
 
 
 # -- the options form ---------------------------------------------------------------------
@@ -266,7 +231,7 @@ class StartupWindow(QWidget):
         self.main_window: MainWindow | None = None
         self.last_dialog: QMessageBox | None = None
         self.calibration_wizard: QWidget | None = None
-        self._worker: _Worker | None = None
+        self._worker: BackgroundTask | None = None
 
         layout = QVBoxLayout(self)
         # -- mode --------------------------------------------------------------------------
@@ -445,7 +410,7 @@ class StartupWindow(QWidget):
             elif not found:
                 self.discover_label.setText(f"no suit answered on the remembered port {port}")
 
-        self._probe = _Worker(self, lambda: discover_suit([port], timeout, baud), done)
+        self._probe = BackgroundTask(self, lambda: discover_suit([port], timeout, baud), done)
 
     def discover(self) -> None:
         """Look for the suit in a worker thread; none found → the simulated suit."""
@@ -466,7 +431,7 @@ class StartupWindow(QWidget):
                                             "battery; the simulated suit is selected")
                 self.select_mode("sim")
 
-        self._worker = _Worker(self, lambda: discover_suit(ports, timeout, baud), done)
+        self._worker = BackgroundTask(self, lambda: discover_suit(ports, timeout, baud), done)
 
     def config(self) -> ModeConfig:
         return ModeConfig(mode=self.mode, port=self.port_combo.currentText().strip(),
@@ -618,7 +583,7 @@ class StartupWindow(QWidget):
             self.status_label.setText("")
             self.open_main_window(runner)
 
-        self._worker = _Worker(self, runner.prepare, done)
+        self._worker = BackgroundTask(self, runner.prepare, done)
 
     def _offer_simulated_suit(self, message: str) -> QMessageBox:
         """No suit: say what to check, and offer the simulated suit in the same dialog."""
