@@ -26,8 +26,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from bpms.filter.kernels import kernel
 from bpms.filter.observer import (
     M_CAND_DIP,
     M_CAND_NORM,
@@ -53,7 +53,7 @@ BIAS_MAX_ERR = 0.2
 G_MS2 = 9.81
 
 
-@njit(cache=True)
+@kernel
 def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, rest, R):
     dt = p[DT]
     # 1. prediction: trapezoid + coning correction (or the observer's rectangle rule)
@@ -164,7 +164,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, r
     _dcm(q[i, 0], q[i, 1], q[i, 2], q[i, 3], R, i)
 
 
-@njit(cache=True)
+@kernel
 def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag_state,
            mag_dist, gprev, rest, initialised, held, held_count, R):
     for i in range(f.shape[0]):
@@ -196,7 +196,7 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
                   mag_dist, gprev, rest, R)
 
 
-@njit(cache=True)
+@kernel
 def run_batch(f, m, g, errors, resets, params, q, bias, lp, acc_est, mag_state, mag_dist,
               gprev, rest, initialised, held, held_count, R, out_R, out_euler, out_q,
               out_bias, out_acc, out_mag_dist):

@@ -35,7 +35,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from bpms.filter.kernels import kernel
 
 #: per-IMU state columns
 (S_REST_T, S_LEARN_T, S_REF_NORM, S_REF_DIP, S_READY, S_NORM_LP, S_DIP_LP, S_ACC_LP,
@@ -66,7 +67,7 @@ class DisturbanceSettings:
                          self.rest_acc_g, self.rest_time_s, self.rest_learn_s, dt])
 
 
-@njit(cache=True)
+@kernel(twin="bpms.filter.twins:run_disturbance")
 def run_disturbance(acc, mag, gyr, R, gravity, valid, p, state, mag_dist, acc_dist, norm_ratio,
                     dip_dev, acc_mean):
     """N frames × n IMUs. acc/mag/gyr ``[N, n, 3]``, R ``[N, n, 3, 3]``, gravity ``[n]``,

@@ -163,6 +163,7 @@ class OpenedRecording:
         zero = sorted({round(t / dt) for t in zero_at_s} | {int(k) for k in zero_at_frames})
         label = f"filtering {self.path.name}"
         self.processor.restart()
+        self.processor.plan(self.n_frames)
         if self.kind == "filtered":
             source = self._filtered_chunks(zero, chunk_frames)
         else:
@@ -253,7 +254,8 @@ class OpenedRecording:
                 euler = block.groups[name]
                 R = euler_to_dcm(euler[..., 0], euler[..., 1], euler[..., 2])
                 before = len(proc.pose.captures)
-                C = proc.pose.apply(R, self._frames_in(zero, lo, len(block)))
+                with proc.kernels_for(len(block)):
+                    C = proc.pose.apply(R, self._frames_in(zero, lo, len(block)))
                 result = Result(t=block.t, R=R, euler=euler, C=C, body=proc.options.body,
                                 zeros=list(proc.pose.captures[before:]),
                                 convention=proc.options.joints.convention)

@@ -34,9 +34,9 @@ import math
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from bpms.filter.bank import BankOutput
+from bpms.filter.kernels import kernel
 
 #: ‖RᵀR − I‖ (Frobenius) above which a DCM is no rotation any more.
 SO3_TOLERANCE = 1e-3
@@ -53,7 +53,7 @@ def so3_error(R: np.ndarray) -> np.ndarray:
         return np.sqrt(((gram - np.eye(3)) ** 2).sum(axis=(-1, -2)))
 
 
-@njit(cache=True)
+@kernel(twin="bpms.filter.twins:guard_check")
 def _check(R, gyr, c4, expected, tol, bad, seen):
     """bad[k, i]: IMU i should give a rotation at frame k (``expected`` or a finite frame
     before k) and R[k, i] is non-finite, or finite with ‖RᵀR − I‖_F > tol + c4·|ω|⁴

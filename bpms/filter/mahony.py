@@ -42,8 +42,8 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from bpms.filter.kernels import kernel
 from bpms.io.frames import N_IMUS
 
 #: Indices into ``params``.
@@ -51,7 +51,7 @@ KP_RP, KI_RP, KP_YAW, KI_YAW, DT = range(5)
 N_PARAMS = 5
 
 
-@njit(cache=True)
+@kernel
 def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> float:
     """docs/filter.md step 1: tilt-compensated magnetic heading H, rad."""
     cr = math.cos(roll)
@@ -63,7 +63,7 @@ def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> floa
     return math.atan2(-my, mx)
 
 
-@njit(cache=True)
+@kernel
 def _init_imu(i, a, m, R, w_i, w_p, euler, trig):
     """"Reset_Mahony" of IMU ``i`` from accel ``a[3]`` and mag ``m[3]``."""
     for k in range(3):
@@ -92,7 +92,7 @@ def _init_imu(i, a, m, R, w_i, w_p, euler, trig):
     trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = c1, s1, c2, s2
 
 
-@njit(cache=True)
+@kernel
 def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, euler, trig):
     """One filter step (docs/filter.md steps 1–5) of IMU ``i``; scalars only, no allocation."""
     # 1. heading with the previous roll and pitch; their sines and cosines were cached by the
@@ -167,7 +167,7 @@ def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, eu
     trig[i, 2], trig[i, 3] = math.sqrt(1.0 - s20 * s20), -s20
 
 
-@njit(cache=True)
+@kernel
 def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
            R, w_i, w_p, euler, trig, initialised, held, seen, held_count):
     """One frame for all IMUs: reset flags, failed-sensor hold, initialise or step."""
@@ -206,7 +206,7 @@ def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
                   dt, R, w_i, w_p, euler, trig)
 
 
-@njit(cache=True)
+@kernel
 def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp, store_terms):
     nan = np.nan
     for i in range(R.shape[0]):
@@ -220,7 +220,7 @@ def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
                 out_wp[k, i, r] = w_p[i, r] if ok else nan
 
 
-@njit(cache=True)
+@kernel(twin="bpms.filter.twins:mahony_run_batch")
 def run_batch(acc, mag, gyr, errors, resets, params, gravity,
               R, w_i, w_p, euler, trig, initialised, held, seen, held_count,
               out_R, out_euler, out_wi, out_wp):
@@ -249,7 +249,7 @@ def run_batch(acc, mag, gyr, errors, resets, params, gravity,
                store_terms)
 
 
-@njit(cache=True)
+@kernel(twin="bpms.filter.twins:mahony_step_frame")
 def step_frame(acc, mag, gyr, errors, resets, params, gravity,
                R, w_i, w_p, euler, trig, initialised, held, seen, held_count,
                out_R, out_euler, out_wi, out_wp):
@@ -340,7 +340,7 @@ def warm_up() -> float:
     return time.perf_counter() - t0
 
 
-@njit(cache=True)
+@kernel(twin="bpms.filter.twins:calibrate_batch")
 def calibrate_batch(raw, acc_off, acc_gain, mag_off, mag_gain, gyr_off, gyr_gain, rot,
                     out_acc, out_mag, out_gyr):
     """The arithmetic of ``SensorCalibration.calibrate`` in one compiled pass (no temporaries).
@@ -365,7 +365,7 @@ def calibrate_batch(raw, acc_off, acc_gain, mag_off, mag_gain, gyr_off, gyr_gain
                     out[k, i, r] = (rot[i, r, 0] * v[0] + rot[i, r, 1] * v[1]) + rot[i, r, 2] * v[2]
 
 
-@njit(cache=True)
+@kernel(twin="bpms.filter.twins:right_multiply")
 def right_multiply(R, M, out):
     """``out[k, i] = R[k, i] @ M[i]`` for ``R[N, n, 3, 3]``, ``M[n, 3, 3]`` (Reset Zero)."""
     for k in range(R.shape[0]):

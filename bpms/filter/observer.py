@@ -32,8 +32,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from bpms.filter.kernels import kernel
 from bpms.io.frames import N_IMUS
 
 #: Indices into ``params``.
@@ -47,7 +47,7 @@ MAG_REF_TAU_S = 60.0
 BIAS_MAX_ERR = 0.2
 
 
-@njit(cache=True)
+@kernel
 def _dcm(q0, q1, q2, q3, R, i):
     R[i, 0, 0] = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
     R[i, 0, 1] = 2.0 * (q1 * q2 - q0 * q3)
@@ -60,7 +60,7 @@ def _dcm(q0, q1, q2, q3, R, i):
     R[i, 2, 2] = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
 
 
-@njit(cache=True)
+@kernel
 def _exp(vx, vy, vz):
     """Quaternion of the rotation vector v (rad)."""
     ang = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -70,7 +70,7 @@ def _exp(vx, vy, vz):
     return math.cos(0.5 * ang), vx * s, vy * s, vz * s
 
 
-@njit(cache=True)
+@kernel
 def _mul(a0, a1, a2, a3, b0, b1, b2, b3):
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
             a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
@@ -78,7 +78,7 @@ def _mul(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
 
 
-@njit(cache=True)
+@kernel
 def _rotate(vx, vy, vz, x, y, z):
     """Rotate (x, y, z) by the rotation vector v (Rodrigues)."""
     ang = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -93,7 +93,7 @@ def _rotate(vx, vy, vz, x, y, z):
     return x * c + cx * s + kx * d, y * c + cy * s + ky * d, z * c + cz * s + kz * d
 
 
-@njit(cache=True)
+@kernel
 def _init_imu(i, f, m, q, bias, lp, acc_est, mag_state):
     """Alignment from one sample: TRIAD of the measured down vector and magnetic field."""
     dx, dy, dz = -f[0], -f[1], -f[2]
@@ -152,7 +152,7 @@ def _init_imu(i, f, m, q, bias, lp, acc_est, mag_state):
     mag_state[i, M_REJECT_TIME] = 0.0
 
 
-@njit(cache=True)
+@kernel
 def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
     dt = p[DT]
     # 1. prediction with the bias-corrected rate
@@ -239,7 +239,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
     _dcm(q[i, 0], q[i, 1], q[i, 2], q[i, 3], R, i)
 
 
-@njit(cache=True)
+@kernel
 def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag_state,
            mag_dist, initialised, held, held_count, R):
     for i in range(f.shape[0]):
@@ -276,7 +276,7 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
                   mag_dist, R)
 
 
-@njit(cache=True)
+@kernel
 def _store(k, q, bias, acc_est, R, initialised, out_R, out_euler, out_q, out_bias, out_acc):
     nan = np.nan
     store_q = out_q.shape[0] > 0
@@ -301,7 +301,7 @@ def _store(k, q, bias, acc_est, R, initialised, out_R, out_euler, out_q, out_bia
                 out_acc[k, i, r] = acc_est[i, r] if ok else nan
 
 
-@njit(cache=True)
+@kernel
 def run_batch(f, m, g, errors, resets, params, q, bias, lp, acc_est, mag_state, mag_dist,
               initialised, held, held_count, R, out_R, out_euler, out_q, out_bias, out_acc):
     """Filter N samples × n IMUs, updating the state arrays in place.

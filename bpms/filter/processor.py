@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -55,10 +56,11 @@ from bpms.filter.bank import BankOutput, MahonyBank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarded_step
+from bpms.filter.kernels import claim_twin_frames, twins, twins_active
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
-from bpms.filter.warmup import PATHS, ensure_kernels
+from bpms.filter.warmup import PATHS, TWIN_FILTERS, ensure_kernels, kernels_ready
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, check_option, load_options
@@ -275,6 +277,7 @@ class BodyPoseProcessor:
         self.disturbance = DisturbanceTracker(self.sensor_calibration.gravity, dt)
         self.guard = StateGuard(N_IMUS)
         self.corrected_output = self.options.pose.corrected_output
+        self._twins: bool | None = None  # plan(): how this stream's kernels run
         self.problems = [str(p) for p in (*self.table.problems, *self.options.problems)]
 
     @property
@@ -291,6 +294,30 @@ class BodyPoseProcessor:
         self.pose.restart()
         self.disturbance.reset()
         self.frames = 0
+        self._twins = None
+
+    def plan(self, frames: int) -> None:
+        """A stream of ``frames`` frames (a whole recording) follows: decide once, by its
+        length, whether its kernels run as numpy twins (short: numba is never imported) or
+        compiled (:mod:`bpms.filter.kernels`). The numbers are the same either way."""
+        self._twins = self._twins_for(frames)
+
+    def _twins_for(self, frames: int) -> bool:
+        algorithm = self.options.filter.algorithm
+        return (algorithm in TWIN_FILTERS and not kernels_ready(algorithm, ("batch",))
+                and claim_twin_frames(frames))
+
+    def kernels_for(self, frames: int) -> AbstractContextManager[None]:
+        """The context in which to run ``frames`` frames' kernels: numpy twins when this
+        stream was planned so (:meth:`plan`) or, unplanned, when ``frames`` is short and numba
+        is not loaded; otherwise the compiled kernels, loaded here (with a notice on the very
+        first run). Inside a caller's own :func:`bpms.filter.kernels.twins` block, twins."""
+        if twins_active():
+            return twins(True)
+        use = self._twins if self._twins is not None else self._twins_for(frames)
+        if not use:
+            ensure_kernels(self.options.filter.algorithm, ("batch",))  # first call: notice
+        return twins(use)
 
     def reset_filter(self, imu: int | None = None) -> None:
         """Re-initialise one IMU's filter (all when None) at its next valid frame."""
@@ -333,6 +360,7 @@ class BodyPoseProcessor:
         self.bank = make_bank(self.sensor_calibration.gravity, options)
         self.guard.forget()
         self.options.filter = options
+        self._twins = None
 
     # -- running ------------------------------------------------------------------------
     def load_kernels(self, live: bool = True) -> float:
@@ -378,15 +406,16 @@ class BodyPoseProcessor:
         raw = np.asarray(raw)
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
-        ensure_kernels(self.options.filter.algorithm, ("batch",))  # first call: notice
-        acc, mag, gyr = self.calibrate(raw)
-        if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
-            errors = failed_inputs(acc, mag, gyr, errors)
-        terms = {"store_terms": True} if isinstance(self.bank, MahonyBank) else {}
-        out, reinit = guarded_process(self.bank, self.guard, acc, mag, gyr, errors, **terms)
-        before = len(self.pose.captures)
-        C = self.pose.apply(out.R, zero_at)
-        return self._result(len(raw), out, C, before, acc, mag, gyr, errors, reinit)
+        with self.kernels_for(len(raw)):
+            acc, mag, gyr = self.calibrate(raw)
+            if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
+                errors = failed_inputs(acc, mag, gyr, errors)
+            terms = {"store_terms": True} if isinstance(self.bank, MahonyBank) else {}
+            out, reinit = guarded_process(self.bank, self.guard, acc, mag, gyr, errors,
+                                          **terms)
+            before = len(self.pose.captures)
+            C = self.pose.apply(out.R, zero_at)
+            return self._result(len(raw), out, C, before, acc, mag, gyr, errors, reinit)
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""

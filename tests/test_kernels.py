@@ -1,0 +1,131 @@
+"""One set of numbers whichever way the kernels run (issue 18.3): the numpy twins that filter
+short recordings without numba give the compiled kernels' numbers bit for bit, and a short
+``bpms filter`` really runs without importing numba."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bpms.cli import main as bpms
+from bpms.filter import kernels
+from bpms.filter.processor import BodyPoseProcessor
+from bpms.firmware.sim.session import simulate
+
+FULL_SCALE = 32767
+
+
+@pytest.fixture(scope="module")
+def hard_recording():
+    """38 s of the scripted motion with a magnet passing, 1 % failed readings, and 4 frames
+    of a gyroscope pinned at full scale (the state guard re-initialises the filters)."""
+    rec = simulate(38.0, seed=11, mag_disturbance=True, error_rate=0.01)
+    raw = rec.raw.copy()
+    raw[600:604, :, 6:9] = FULL_SCALE
+    return raw, rec.errors
+
+
+def _run(raw, errors, use_twins: bool):
+    """The processor's results over three batches, with a Reset Zero, a gain change, a
+    manual filter reset and non-finite input through the API; plus its final state."""
+    proc = BodyPoseProcessor()
+    results = []
+    with kernels.twins(use_twins):
+        results.append(proc.process(raw[:700], errors[:700], zero_at=[120]))
+        proc.set_gains(kp_rollpitch=0.05, kp_yaw=2.0)
+        proc.reset_filter(3)
+        bad = raw[700:1200].astype(np.float64)
+        bad[10, 5, 3] = np.nan  # a NaN magnetometer reading: held, not filtered
+        results.append(proc.process(bad, errors[700:1200]))
+        results.append(proc.process(raw[1200:], None, zero_at=[40]))
+    state = [a.copy() for a in proc.bank.state.arrays()]
+    return results, state, proc.disturbance.state.copy(), proc.guard.count.copy()
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    if a is None or b is None:
+        return a is b
+    return a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b, equal_nan=True) \
+        and np.array_equal(np.signbit(a), np.signbit(b))
+
+
+def test_twins_give_the_compiled_numbers_bit_for_bit(hard_recording):
+    raw, errors = hard_recording
+    compiled = _run(raw, errors, use_twins=False)
+    twinned = _run(raw, errors, use_twins=True)
+    (res_c, state_c, dist_c, count_c), (res_t, state_t, dist_t, count_t) = compiled, twinned
+    # the hard parts really happened, so the comparison covers them
+    assert count_c.sum() > 0  # the state guard re-initialised filters
+    assert any(r.disturbance.mag.any() for r in res_c)  # the magnet was flagged
+    assert any(len(r.zeros) for r in res_c)  # Reset Zero captured
+    for rc, rt in zip(res_c, res_t, strict=True):
+        for name in ("t", "R", "euler", "C", "gyro_bias", "reinitialised", "corrected",
+                     "joint_angles", "joint_positions"):
+            assert _same(getattr(rc, name), getattr(rt, name)), name
+        for name in ("mag", "acc", "mag_norm_ratio", "mag_dip_dev_deg", "acc_dev_g"):
+            assert _same(getattr(rc.disturbance, name), getattr(rt.disturbance, name)), name
+    for a, b in zip(state_c, state_t, strict=True):
+        assert _same(a, b)
+    assert _same(dist_c, dist_t)
+    assert _same(count_c, count_t)
+
+
+def test_twins_are_the_only_code_in_a_twins_block(hard_recording):
+    # Would fail if a kernel ignored the block (or a twin silently fell back to numba): the
+    # twin counts its calls.
+    raw, errors = hard_recording
+    calls = []
+    k = kernels.registered()
+    with_twin = [x for x in k if x.twin_name is not None]
+    assert {x.__name__ for x in with_twin} >= {"run_batch", "calibrate_batch", "right_multiply",
+                                              "_check", "run_disturbance", "step_frame"}
+    originals = {x: x.twin() for x in with_twin}
+    try:
+        for x, fn in originals.items():
+            x._twin = (lambda fn, name: lambda *a: (calls.append(name), fn(*a))[1])(fn,
+                                                                                  x.__name__)
+        with kernels.twins():
+            BodyPoseProcessor().process(raw[:100], errors[:100], zero_at=[10])
+    finally:
+        for x, fn in originals.items():
+            x._twin = fn
+    assert {"run_batch", "calibrate_batch", "right_multiply", "_check",
+            "run_disturbance"} <= set(calls)
+
+
+def test_short_filter_runs_without_numba_and_writes_the_same_file(tmp_path):
+    raw_path = tmp_path / "Raw_short_1.bpmsraw"
+    simulate(8.0, seed=2, error_rate=0.005).save_raw(raw_path)
+    twinned = tmp_path / "twins.csv"
+    code = ("import sys; from bpms.cli import main; rc = main(sys.argv[1:]); "
+            "print('NUMBA', 'numba' in sys.modules); sys.exit(rc)")
+    done = subprocess.run([sys.executable, "-c", code, "filter", str(raw_path), "-o",
+                           str(twinned)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "NUMBA False" in done.stdout
+    # this process has numba loaded (conftest), so the same command runs compiled here
+    assert kernels.numba_loaded()
+    compiled = tmp_path / "compiled.csv"
+    assert bpms(["filter", str(raw_path), "-o", str(compiled)]) == 0
+    assert twinned.read_bytes() == compiled.read_bytes()
+
+
+def test_a_long_recording_is_filtered_compiled(tmp_path):
+    raw_path = tmp_path / "Raw_long_1.bpmsraw"
+    frames = kernels.TWIN_FRAME_BUDGET + 50
+    simulate(frames * 0.02, seed=4, noise=False).save_raw(raw_path)
+    code = ("import sys; from bpms.cli import main; rc = main(sys.argv[1:]); "
+            "print('NUMBA', 'numba' in sys.modules); sys.exit(rc)")
+    done = subprocess.run([sys.executable, "-c", code, "filter", str(raw_path), "-o",
+                           str(tmp_path / "f.csv")], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "NUMBA True" in done.stdout
+
+
+def test_budget_is_claimed_once_and_never_after_numba():
+    # numba is loaded in the test process: no twins any more, whatever the length
+    assert not kernels.claim_twin_frames(1)
