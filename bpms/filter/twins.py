@@ -95,13 +95,26 @@ def _init_imus(idx, R, w_i, w_p, euler, trig, held) -> None:
     trig[idx] = np.stack([c1, s1, c2, s2], axis=-1)
 
 
+#: Index orders of a cross product ``p × q = p[_P1]·q[_P2] − p[_P2]·q[_P1]`` (componentwise
+#: the kernels' ``p1·q2 − p2·q1``, ``p2·q0 − p0·q2``, ``p0·q1 − p1·q0``).
+_P1 = [1, 2, 0]
+_P2 = [2, 0, 1]
+
+
+def _sum3(v: np.ndarray) -> np.ndarray:
+    """``v0 + v1 + v2`` over the last axis, left to right as the kernels add."""
+    return (v[..., 0] + v[..., 1]) + v[..., 2]
+
+
 def _step_imus(sel, p, gravity, R, w_i, w_p, euler, trig, held) -> None:
-    """One filter step of the IMUs ``sel`` (docs/filter.md steps 1–5)."""
+    """One filter step of the IMUs ``sel`` (docs/filter.md steps 1–5), the kernel's
+    operations with its three axes (and the DCM's first two rows) side by side."""
     kp_rp, ki_rp, kp_y, ki_y, dt = p[KP_RP], p[KI_RP], p[KP_YAW], p[KI_YAW], p[DT]
     a, m, g = held[sel, 0], held[sel, 1], held[sel, 2]
-    wi, wp = w_i[sel], w_p[sel]
+    wi = w_i[sel]
     t = trig[sel]
     cr, sr, cp, sp = t[:, 0], t[:, 1], t[:, 2], t[:, 3]
+    # 1. heading
     mx = m[:, 0] * cp + m[:, 1] * sr * sp + m[:, 2] * cr * sp
     my = m[:, 1] * cr - m[:, 2] * sr
     rm = np.sqrt(mx * mx + my * my)
@@ -109,49 +122,33 @@ def _step_imus(sel, p, gravity, R, w_i, w_p, euler, trig, held) -> None:
     with np.errstate(divide="ignore", invalid="ignore"):
         sin_h = np.where(some, -my / rm, 0.0)
         cos_h = np.where(some, mx / rm, 1.0)
-    ux = dt * ((g[:, 0] + wi[:, 0]) + wp[:, 0])
-    uy = dt * ((g[:, 1] + wi[:, 1]) + wp[:, 1])
-    uz = dt * ((g[:, 2] + wi[:, 2]) + wp[:, 2])
-    Rs = R[sel]
-    r00, r01, r02 = Rs[:, 0, 0], Rs[:, 0, 1], Rs[:, 0, 2]
-    r10, r11, r12 = Rs[:, 1, 0], Rs[:, 1, 1], Rs[:, 1, 2]
-    x0 = r00 + (r01 * uz - r02 * uy)
-    x1 = r01 + (r02 * ux - r00 * uz)
-    x2 = r02 + (r00 * uy - r01 * ux)
-    y0 = r10 + (r11 * uz - r12 * uy)
-    y1 = r11 + (r12 * ux - r10 * uz)
-    y2 = r12 + (r10 * uy - r11 * ux)
-    e = x0 * y0 + x1 * y1 + x2 * y2
-    h = e / 2.0
-    xo0, xo1, xo2 = x0 - h * y0, x1 - h * y1, x2 - h * y2
-    yo0, yo1, yo2 = y0 - h * x0, y1 - h * x1, y2 - h * x2
-    zo0 = xo1 * yo2 - xo2 * yo1
-    zo1 = xo2 * yo0 - xo0 * yo2
-    zo2 = xo0 * yo1 - xo1 * yo0
-    s = 0.5 * (3.0 - (xo0 * xo0 + xo1 * xo1 + xo2 * xo2))
-    r00, r01, r02 = s * xo0, s * xo1, s * xo2
-    s = 0.5 * (3.0 - (yo0 * yo0 + yo1 * yo1 + yo2 * yo2))
-    r10, r11, r12 = s * yo0, s * yo1, s * yo2
-    s = 0.5 * (3.0 - (zo0 * zo0 + zo1 * zo1 + zo2 * zo2))
-    r20, r21, r22 = s * zo0, s * zo1, s * zo2
-    R[sel] = np.stack([r00, r01, r02, r10, r11, r12, r20, r21, r22], axis=-1).reshape(-1, 3, 3)
-    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
-    w = 1.0 - 2.0 * np.abs(1.0 - np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) / gravity[sel])
+    # 2. R ← R + R·(dt·skew(ω)): rows 0 and 1 (row 2 is rebuilt by the renormalisation)
+    u = (dt * ((g + wi) + w_p[sel]))[:, None, :]
+    rows = R[sel][:, :2, :]
+    xy = rows + (rows[..., _P1] * u[..., _P2] - rows[..., _P2] * u[..., _P1])
+    x, y = xy[:, 0], xy[:, 1]
+    # 3. renormalise
+    h = (_sum3(x * y) / 2.0)[:, None]
+    xo = x - h * y
+    yo = y - h * x
+    zo = xo[:, _P1] * yo[:, _P2] - xo[:, _P2] * yo[:, _P1]
+    o = np.stack([xo, yo, zo], axis=1)
+    Rn = (0.5 * (3.0 - _sum3(o * o)))[..., None] * o
+    R[sel] = Rn
+    # 4. drift correction
+    w = 1.0 - 2.0 * np.abs(1.0 - np.sqrt(_sum3(a * a)) / gravity[sel])
     w = np.minimum(np.maximum(w, 0.0), 1.0)
-    e0 = a1 * r22 - a2 * r21
-    e1 = a2 * r20 - a0 * r22
-    e2 = a0 * r21 - a1 * r20
-    kp = kp_rp * w
-    ki = ki_rp * w
-    c = r00 * sin_h - r10 * cos_h
-    ey0, ey1, ey2 = r20 * c, r21 * c, r22 * c
-    w_p[sel] = np.stack([kp * e0 + kp_y * ey0, kp * e1 + kp_y * ey1, kp * e2 + kp_y * ey2],
-                        axis=-1)
-    w_i[sel] = np.stack([(wi[:, 0] + ki * e0) + ki_y * ey0, (wi[:, 1] + ki * e1) + ki_y * ey1,
-                         (wi[:, 2] + ki * e2) + ki_y * ey2], axis=-1)
+    r2 = Rn[:, 2]
+    e = a[:, _P1] * r2[:, _P2] - a[:, _P2] * r2[:, _P1]  # a × R[2]
+    c = Rn[:, 0, 0] * sin_h - Rn[:, 1, 0] * cos_h  # eCourse
+    ey = r2 * c[:, None]
+    w_p[sel] = (kp_rp * w)[:, None] * e + kp_y * ey
+    w_i[sel] = (wi + (ki_rp * w)[:, None] * e) + ki_y * ey
+    # 5. Euler angles, and the sines/cosines of roll and pitch for the next heading
+    r20, r21, r22 = r2[:, 0], r2[:, 1], r2[:, 2]
     s20 = np.minimum(np.maximum(r20, -1.0), 1.0)
     euler[sel] = np.stack([_each(math.atan2, r21, r22), -_each(math.asin, s20),
-                           _each(math.atan2, r10, r00)], axis=-1)
+                           _each(math.atan2, Rn[:, 1, 0], Rn[:, 0, 0])], axis=-1)
     hr = np.sqrt(r21 * r21 + r22 * r22)
     some = hr > 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -202,16 +199,18 @@ def mahony_run_batch(acc, mag, gyr, errors, resets, params, gravity, R, w_i, w_p
         _frame(acc[k], mag[k], gyr[k], errors[k] if use_err else None,
                resets[k] if use_reset else None, params[k] if per_frame else params[0],
                gravity, R, w_i, w_p, euler, trig, initialised, held, seen, held_count)
-        off = ~initialised
         out_R[k] = R
         out_euler[k] = euler
-        out_R[k, off] = np.nan
-        out_euler[k, off] = np.nan
         if store_terms:
             out_wi[k] = w_i
             out_wp[k] = w_p
-            out_wi[k, off] = np.nan
-            out_wp[k, off] = np.nan
+        if not initialised.all():
+            off = ~initialised
+            out_R[k, off] = np.nan
+            out_euler[k, off] = np.nan
+            if store_terms:
+                out_wi[k, off] = np.nan
+                out_wp[k, off] = np.nan
 
 
 def mahony_step_frame(acc, mag, gyr, errors, resets, params, gravity, R, w_i, w_p, euler,
