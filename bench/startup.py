@@ -3,7 +3,9 @@
 Run: .venv/bin/python bench/startup.py [--repeats N] [--seconds S]
 Prints the median wall time of each command over N runs (fresh processes, warm disk cache,
 numba kernels already compiled), its ratio to the numpy reference, whether the start-up window
-imports numba or OpenGL, and a ``-X importtime`` summary of ``bpms filter``.
+imports numba or OpenGL, and a ``-X importtime`` summary of ``bpms filter``. A short recording
+is filtered by the kernels' numpy twins without importing numba (bpms/filter/kernels.py); the
+same command with the compiled kernels forced (``BPMS_TWIN_FRAMES=0``) is printed beside it.
 Aims (issue 18.3): ``bpms --help`` ≤ 2× and a short ``bpms filter`` ≤ 4× ``import numpy``; the
 start-up window imports neither numba nor OpenGL.
 """
@@ -76,19 +78,22 @@ def main() -> None:
         filt = [py, "-m", "bpms", "filter", str(raw), "-o", str(out), "--force"]
         cases = [
             ("python -c 'import numpy' (reference)", [py, "-c", "import numpy"], None),
-            ("python -c 'import numba' (filter's floor)", [py, "-c", "import numba"], None),
+            ("python -c 'import numba' (compiled kernels' floor)", [py, "-c", "import numba"], None),
             ("bpms --help", [py, "-m", "bpms", "--help"], 2.0),
             ("bpms filter --help", [py, "-m", "bpms", "filter", "--help"], None),
             (f"bpms filter ({args.seconds:g} s recording)", filt, 4.0),
+            (f"bpms filter ({args.seconds:g} s), compiled kernels", filt, None),
         ]
         if not subprocess.run([py, "-c", "import PyQt6"], env=env, capture_output=True).returncode:
             cases.append(("import the start-up window (Qt)",
                           [py, "-c", "import bpms.gui.startup"], None))
         # Interleaved rounds, so that a burst of load elsewhere hits every case alike.
         times: dict[str, list[float]] = {name: [] for name, _, _ in cases}
+        # the same command with the numba kernels forced (no numpy twins), for comparison
+        compiled_env = {**env, "BPMS_TWIN_FRAMES": "0"}
         for _ in range(args.repeats):
             for name, cmd, _ in cases:
-                times[name].append(wall(cmd, env, 1))
+                times[name].append(wall(cmd, compiled_env if "compiled" in name else env, 1))
         ref = statistics.median(times[cases[0][0]])
         print(f"median of {args.repeats} fresh processes each, this machine, same run")
         print(f"{'command':<42} {'s':>7} {'× numpy':>8}  aim")

@@ -4,6 +4,7 @@ short recordings without numba give the compiled kernels' numbers bit for bit, a
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -119,17 +120,26 @@ def test_short_filter_runs_without_numba_and_writes_the_same_file(tmp_path):
     assert twinned.read_bytes() == compiled.read_bytes()
 
 
-def test_a_long_recording_is_filtered_compiled(tmp_path):
+def test_a_recording_over_the_budget_is_filtered_compiled(tmp_path):
     raw_path = tmp_path / "Raw_long_1.bpmsraw"
-    frames = kernels.TWIN_FRAME_BUDGET + 50
-    simulate(frames * 0.02, seed=4, noise=False).save_raw(raw_path)
+    simulate(4.0, seed=4, noise=False).save_raw(raw_path)  # 200 frames
     code = ("import sys; from bpms.cli import main; rc = main(sys.argv[1:]); "
             "print('NUMBA', 'numba' in sys.modules); sys.exit(rc)")
-    done = subprocess.run([sys.executable, "-c", code, "filter", str(raw_path), "-o",
-                           str(tmp_path / "f.csv")], capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert "NUMBA True" in done.stdout
+    runs = {}
+    for budget in ("199", "200", "oops"):
+        env = {**os.environ, kernels.TWIN_FRAMES_ENV: budget}
+        done = subprocess.run([sys.executable, "-c", code, "filter", str(raw_path), "-o",
+                               str(tmp_path / f"f{budget}.csv")], capture_output=True,
+                              text=True, timeout=300, env=env)
+        assert done.returncode == 0, done.stderr
+        runs[budget] = done
+    assert "NUMBA True" in runs["199"].stdout  # one frame over the budget: compiled
+    assert "NUMBA False" in runs["200"].stdout
+    # a malformed budget: one clear warning, the default (3000 frames) applies
+    assert "NUMBA False" in runs["oops"].stdout
+    assert "BPMS_TWIN_FRAMES='oops' is not a whole number" in runs["oops"].stderr
+    assert "Traceback" not in runs["oops"].stderr
+    assert (tmp_path / "f199.csv").read_bytes() == (tmp_path / "f200.csv").read_bytes()
 
 
 def test_budget_is_claimed_once_and_never_after_numba():

@@ -18,6 +18,7 @@ loading its cached code costs about 0.6 s, several times the work of a short rec
 - :func:`claim_twin_frames` decides: twins for the first :data:`TWIN_FRAME_BUDGET` frames a
   process filters while numba is not loaded, compiled kernels after that. A whole recording
   is decided at once by its length (:meth:`bpms.filter.processor.BodyPoseProcessor.plan`).
+  The environment variable ``BPMS_TWIN_FRAMES`` sets the budget (0: always compiled).
 
 Live sessions never use twins: they load the compiled kernels before the first frame
 (:mod:`bpms.filter.warmup`).
@@ -26,14 +27,39 @@ Live sessions never use twins: they load the compiled kernels before the first f
 from __future__ import annotations
 
 import importlib
+import logging
+import os
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+log = logging.getLogger(__name__)
+
 #: Frames a process filters with the numpy twins before numba pays off (≈ 1 min at 50 Hz:
-#: the twins take ~0.2 ms per frame of 18 IMUs, importing numba and loading its cache ~0.6 s).
-TWIN_FRAME_BUDGET = 3000
+#: the twins take ~0.3 ms per frame of 18 IMUs, importing numba and loading its cache ~0.6 s).
+DEFAULT_TWIN_FRAMES = 3000
+#: Environment variable that sets the budget (0: always compiled).
+TWIN_FRAMES_ENV = "BPMS_TWIN_FRAMES"
+
+
+def _budget() -> int:
+    text = os.environ.get(TWIN_FRAMES_ENV, "").strip()
+    if not text:
+        return DEFAULT_TWIN_FRAMES
+    try:
+        value = int(text)
+        if value < 0:
+            raise ValueError
+    except ValueError:
+        log.warning("%s=%r is not a whole number of frames ≥ 0: using %d", TWIN_FRAMES_ENV,
+                    text, DEFAULT_TWIN_FRAMES)
+        return DEFAULT_TWIN_FRAMES
+    return value
+
+
+#: This process's budget (the environment variable, else the default).
+TWIN_FRAME_BUDGET = _budget()
 
 _kernels: list[Kernel] = []
 _lock = threading.RLock()

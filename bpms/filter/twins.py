@@ -97,8 +97,8 @@ def _init_imus(idx, R, w_i, w_p, euler, trig, held) -> None:
 
 #: Index orders of a cross product ``p × q = p[_P1]·q[_P2] − p[_P2]·q[_P1]`` (componentwise
 #: the kernels' ``p1·q2 − p2·q1``, ``p2·q0 − p0·q2``, ``p0·q1 − p1·q0``).
-_P1 = [1, 2, 0]
-_P2 = [2, 0, 1]
+_P1 = np.array([1, 2, 0])
+_P2 = np.array([2, 0, 1])
 
 
 def _sum3(v: np.ndarray) -> np.ndarray:
