@@ -78,7 +78,8 @@ def main() -> None:
         filt = [py, "-m", "bpms", "filter", str(raw), "-o", str(out), "--force"]
         cases = [
             ("python -c 'import numpy' (reference)", [py, "-c", "import numpy"], None),
-            ("python -c 'import numba' (compiled kernels' floor)", [py, "-c", "import numba"], None),
+            ("python -c 'import numba' (compiled kernels' floor)", [py, "-c", "import numba"],
+             None),
             ("bpms --help", [py, "-m", "bpms", "--help"], 2.0),
             ("bpms filter --help", [py, "-m", "bpms", "filter", "--help"], None),
             (f"bpms filter ({args.seconds:g} s recording)", filt, 4.0),
