@@ -145,3 +145,23 @@ def test_a_recording_over_the_budget_is_filtered_compiled(tmp_path):
 def test_budget_is_claimed_once_and_never_after_numba():
     # numba is loaded in the test process: no twins any more, whatever the length
     assert not kernels.claim_twin_frames(1)
+
+
+def test_live_step_twin_gives_the_compiled_numbers(hard_recording):
+    raw, errors = hard_recording
+    outputs = {}
+    for use_twins in (False, True):
+        proc = BodyPoseProcessor()
+        rows = []
+        with kernels.twins(use_twins):
+            for k in range(560, 660):  # includes the pinned gyroscope (re-initialisation)
+                if k == 580:
+                    proc.reset_zero()
+                r = proc.step(raw[k], errors[k])
+                rows.append((r.R, r.euler, r.C, r.gyro_bias, r.reinitialised,
+                             r.disturbance.mag_norm_ratio))
+        outputs[use_twins] = rows
+    assert any(row[4].any() for row in outputs[False])
+    for compiled, twinned in zip(outputs[False], outputs[True], strict=True):
+        for a, b in zip(compiled, twinned, strict=True):
+            assert _same(a, b)
