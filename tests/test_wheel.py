@@ -107,8 +107,9 @@ def installed(tmp_path_factory) -> Path:
     return bindir
 
 
-def _run(bindir: Path, *args: str, cwd: Path) -> subprocess.CompletedProcess:
+def _run(bindir: Path, *args: str, cwd: Path, **extra_env: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    env.update(extra_env)
     exe = bindir / ("bpms.exe" if os.name == "nt" else "bpms")
     return subprocess.run([str(exe), *args], cwd=cwd, env=env, capture_output=True, text=True,
                           timeout=600)
@@ -135,8 +136,15 @@ def test_installed_bpms_filters_a_simulated_recording(installed, tmp_path):
             if not ln.startswith("#")]  # the header lines of the filtered file
     assert len(rows) - 1 == len(open_recording(raw)) == 150
     assert "Traceback" not in done.stderr
-    # First run of a fresh install: the compile is announced, as plain lines in a pipe.
+    # A short recording runs on the numpy twins: nothing to compile yet.
+    assert "compiling the filters" not in done.stderr
+    # First compiled run of a fresh install: the compile is announced, as plain lines in a
+    # pipe, and the numbers are those of the twins.
+    done = _run(installed, "filter", raw.name, "-o", "compiled.csv", cwd=tmp_path,
+                BPMS_TWIN_FRAMES="0")
+    assert done.returncode == 0, done.stderr
     assert "compiling the filters" in done.stderr and "\r" not in done.stderr
+    assert (tmp_path / "compiled.csv").read_bytes() == (tmp_path / "out.csv").read_bytes()
 
 
 def test_installed_bpms_rom_without_matplotlib(installed, tmp_path):
