@@ -46,6 +46,10 @@ def test_record_30_s_holds_every_frame_and_replays_to_the_live_outputs(motion, t
         session.source.stop_stream()  # Stop Data: the frames in flight still arrive
         assert wait_until(lambda: arbiter.stats.stops == 1, 5)
         assert wait_until(lambda: session.status().frames == arbiter.stats.motion_frames, 5)
+        # and every frame read is filtered before the session stops (under load the filtering
+        # thread runs behind the reader)
+        assert wait_until(lambda: session.status().processed == arbiter.stats.motion_frames,
+                          30)
         session.stop()
     recording = read_raw(status.raw_path)
     n = len(recording)
