@@ -62,6 +62,8 @@ def main() -> None:
                          "from the wheel) instead of this source tree")
     args = ap.parse_args()
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    # as installed: modules load from their cached bytecode (pip writes it at install time)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     if args.python:
         env.pop("PYTHONPATH", None)
     else:
@@ -97,12 +99,12 @@ def main() -> None:
                 times[name].append(wall(cmd, compiled_env if "compiled" in name else env, 1))
         ref = statistics.median(times[cases[0][0]])
         print(f"median of {args.repeats} fresh processes each, this machine, same run")
-        print(f"{'command':<42} {'s':>7} {'× numpy':>8}  aim")
+        print(f"{'command':<52} {'s':>7} {'× numpy':>8}  aim")
         for name, _, aim in cases:
             t = statistics.median(times[name])
             verdict = "" if aim is None else (f"≤ {aim:g}×  " + ("met" if t / ref <= aim
                                                                  else "NOT met"))
-            print(f"{name:<42} {t:7.3f} {t / ref:8.2f}  {verdict}")
+            print(f"{name:<52} {t:7.3f} {t / ref:8.2f}  {verdict}")
         has_qt = not subprocess.run([py, "-c", "import PyQt6"], env=env,
                                     capture_output=True).returncode
         heavy = "n/a (no Qt installed)"
