@@ -842,7 +842,10 @@ class MainWindow(QMainWindow):
         self._source_warning = warning
         if st.reinit_count < self._reinit_count:  # a new session (UDP client restarted)
             self._reinit_count = 0
-        if st.reinit_count > self._reinit_count:
+        # the session's own line for this count (rate-limited) says it already
+        said = any(e.endswith(f"; {st.reinit_count} so far") and "re-initialised" in e
+                   for e in st.events[-5:])
+        if st.reinit_count > self._reinit_count and not said:
             new = st.reinit_count - self._reinit_count
             self.event_log.add(f"filter re-initialised by the state guard ({new} "
                                f"re-initialisation{'s' if new > 1 else ''}, "
