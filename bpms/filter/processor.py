@@ -56,7 +56,7 @@ from bpms.filter.bank import BankOutput, MahonyBank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarded_step
-from bpms.filter.kernels import claim_twin_frames, twins, twins_active
+from bpms.filter.kernels import claim_twin_frames, numba_loaded, twins, twins_active
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
@@ -315,7 +315,7 @@ class BodyPoseProcessor:
         if twins_active():
             return twins(True)
         use = self._twins if self._twins is not None else self._twins_for(frames)
-        if not use:
+        if not use and not numba_loaded():
             ensure_kernels(self.options.filter.algorithm, ("batch",))  # first call: notice
         return twins(use)
 
@@ -377,7 +377,8 @@ class BodyPoseProcessor:
         if raw.dtype != np.int16 or not raw.flags.c_contiguous:
             raw = np.ascontiguousarray(raw, dtype=np.float64)
         outs = tuple(np.empty((raw.shape[0], N_IMUS, 3)) for _ in range(3))
-        calibrate_batch(raw, *self._cal_params, *outs)
+        with self.kernels_for(raw.shape[0]):
+            calibrate_batch(raw, *self._cal_params, *outs)
         if self.sensor_calibration.mag_correction() is not None:
             outs[1][:] = self.sensor_calibration.correct_mag(outs[1])
         return outs
