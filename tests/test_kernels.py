@@ -165,3 +165,29 @@ def test_live_step_twin_gives_the_compiled_numbers(hard_recording):
     for compiled, twinned in zip(outputs[False], outputs[True], strict=True):
         for a, b in zip(compiled, twinned, strict=True):
             assert _same(a, b)
+
+
+def test_bank_twin_with_per_frame_gains_and_resets(hard_recording):
+    from bpms.filter.bank import MahonyBank
+
+    raw, errors = hard_recording
+    proc = BodyPoseProcessor()
+    acc, mag, gyr = proc.calibrate(raw[:400])
+    n = len(acc)
+    params = np.tile(proc.bank.params, (n, 1))
+    params[200:, 0] *= 3.0  # kp_rollpitch changes at frame 200
+    resets = np.zeros((n, 18), dtype=bool)
+    resets[150, [0, 7, 17]] = True  # three IMUs re-initialised mid-batch
+    outs = []
+    for use_twins in (False, True):
+        bank = MahonyBank(proc.sensor_calibration.gravity)
+        with kernels.twins(use_twins):
+            out = bank.process(acc, mag, gyr, errors[:400], resets, params, store_terms=True)
+        outs.append((out, [a.copy() for a in bank.state.arrays()]))
+    (out_c, state_c), (out_t, state_t) = outs
+    for name in ("R", "euler", "w_i", "w_p"):
+        assert _same(getattr(out_c, name), getattr(out_t, name)), name
+    for a, b in zip(state_c, state_t, strict=True):
+        assert _same(a, b)
+    # the reset happened: the re-initialised filter starts with ωI = 0
+    assert (out_c.w_i[150, 7] == 0).all() and (out_c.w_i[149, 7] != 0).any()
