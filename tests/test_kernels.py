@@ -47,10 +47,15 @@ def _run(raw, errors, use_twins: bool):
 
 
 def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    """Equal dtype, shape and bits (signed zeros told apart; a NaN's sign bit aside)."""
     if a is None or b is None:
         return a is b
-    return a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b, equal_nan=True) \
-        and np.array_equal(np.signbit(a), np.signbit(b))
+    if a.dtype != b.dtype or a.shape != b.shape or not np.array_equal(a, b, equal_nan=True):
+        return False
+    if a.dtype.kind != "f":
+        return True
+    numbers = ~np.isnan(a)
+    return np.array_equal(np.signbit(a[numbers]), np.signbit(b[numbers]))
 
 
 def test_twins_give_the_compiled_numbers_bit_for_bit(hard_recording):
@@ -191,3 +196,55 @@ def test_bank_twin_with_per_frame_gains_and_resets(hard_recording):
         assert _same(a, b)
     # the reset happened: the re-initialised filter starts with ωI = 0
     assert (out_c.w_i[150, 7] == 0).all() and (out_c.w_i[149, 7] != 0).any()
+
+
+def test_disturbance_twin_on_runaway_rotations():
+    # A finite but huge DCM row (a runaway state through the public API): m·d is inf − inf,
+    # NaN, which the kernel's clamp turns into −1 (dip −90°); the twin must do the same.
+    from bpms.filter.disturbance import DisturbanceTracker
+
+    n, frames = 2, 120
+    acc = np.tile([0.0, 0.0, 256.0], (frames, n, 1))
+    mag = np.tile([60.0, 30.0, 80.0], (frames, n, 1))
+    gyr = np.zeros((frames, n, 3))
+    R = np.tile(np.eye(3), (frames, n, 1, 1))
+    R[:, 0, 2] = [1e308, -1e308, 0.0]
+    states = []
+    for use_twins in (False, True):
+        tracker = DisturbanceTracker(np.full(n, 256.0), 0.02)
+        with kernels.twins(use_twins), np.errstate(all="ignore"):
+            out = tracker.update(acc, mag, gyr, R)
+        states.append((tracker.state.copy(), out.mag_dip_dev_deg))
+    assert _same(states[0][0], states[1][0])
+    assert _same(states[0][1], states[1][1])
+
+
+def test_gravity_must_be_positive():
+    from bpms.filter.bank import MahonyBank
+    from bpms.filter.disturbance import DisturbanceTracker
+
+    for bad in ([256.0, 0.0], [256.0, np.nan], [-1.0, 256.0]):
+        with pytest.raises(ValueError, match="gravity must be finite counts/g > 0"):
+            MahonyBank(np.array(bad))
+        with pytest.raises(ValueError, match="gravity must be finite counts/g > 0"):
+            DisturbanceTracker(np.array(bad), 0.02)
+
+
+def test_the_plan_ends_with_the_recording(tmp_path):
+    # A short recording through the door runs on the twins; the same processor then given
+    # more frames than the budget allows runs them compiled (the plan does not outlive it).
+    raw_path = tmp_path / "Raw_short_1.bpmsraw"
+    simulate(4.0, seed=4, noise=False).save_raw(raw_path)  # 200 frames
+    code = (
+        "import sys, numpy as np\n"
+        "from bpms.filter.processor import BodyPoseProcessor\n"
+        "proc = BodyPoseProcessor()\n"
+        "proc.process_file(sys.argv[1])\n"
+        "print('AFTER_FILE', 'numba' in sys.modules)\n"
+        "proc.process(np.zeros((400, 18, 9), dtype=np.int16))\n"
+        "print('AFTER_LONG', 'numba' in sys.modules)\n")
+    env = {**os.environ, kernels.TWIN_FRAMES_ENV: "300"}
+    done = subprocess.run([sys.executable, "-c", code, str(raw_path)], capture_output=True,
+                          text=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr
+    assert "AFTER_FILE False" in done.stdout and "AFTER_LONG True" in done.stdout

@@ -176,12 +176,10 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
 
 
 def _warm_up() -> None:
-    """Load the compiled filter kernels in this process (a few frames through a processor)."""
-    import numpy as np
-
+    """Load the compiled filter kernels in this process (whole-recording path)."""
     from bpms.filter.processor import BodyPoseProcessor
 
-    BodyPoseProcessor().process(np.zeros((4, 18, 9), dtype=np.int16)).joint_angles  # noqa: B018
+    BodyPoseProcessor().load_kernels(live=False)
 
 
 def write_table(path: str | Path, outcomes: list[Outcome]) -> int:

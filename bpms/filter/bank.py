@@ -32,6 +32,15 @@ class BankOutput:
     body_acc: np.ndarray | None = None
 
 
+def checked_gravity(gravity: np.ndarray) -> np.ndarray:
+    """``gravity[n]`` (accelerometer counts per g) as a contiguous float array; ValueError
+    unless every value is finite and > 0 (the kernels divide by it)."""
+    g = np.ascontiguousarray(gravity, dtype=np.float64)
+    if g.ndim != 1 or not (np.isfinite(g) & (g > 0)).all():
+        raise ValueError(f"gravity must be finite counts/g > 0 for every IMU, got {g}")
+    return g
+
+
 def params_from_options(options: FilterOptions) -> np.ndarray:
     """``[kp_rollpitch, ki_rollpitch, kp_yaw, ki_yaw, dt]`` as the kernels take them."""
     return np.array([options.kp_rollpitch, options.ki_rollpitch, options.kp_yaw,
@@ -48,7 +57,7 @@ class MahonyBank:
     """
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
-        self.gravity = np.ascontiguousarray(gravity, dtype=np.float64)
+        self.gravity = checked_gravity(gravity)
         self.n = len(self.gravity)
         self.params = params_from_options(options or FilterOptions())
         self.state = MahonyState(self.n)

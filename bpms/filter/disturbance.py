@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bpms.filter.bank import checked_gravity
 from bpms.filter.kernels import kernel
 
 #: per-IMU state columns
@@ -163,7 +164,7 @@ class DisturbanceTracker:
 
     def __init__(self, gravity: np.ndarray, dt: float,
                  settings: DisturbanceSettings | None = None) -> None:
-        self.gravity = np.ascontiguousarray(gravity, dtype=np.float64)
+        self.gravity = checked_gravity(gravity)
         self.n = len(self.gravity)
         self.settings = settings or DisturbanceSettings()
         self.params = self.settings.params(dt)

@@ -168,10 +168,13 @@ class OpenedRecording:
             source = self._filtered_chunks(zero, chunk_frames)
         else:
             source = self._raw_chunks(zero, chunk_frames)
-        for chunk in source:
-            yield chunk
-            if progress:
-                progress(label, chunk.start + len(chunk), self.n_frames)
+        try:
+            for chunk in source:
+                yield chunk
+                if progress:
+                    progress(label, chunk.start + len(chunk), self.n_frames)
+        finally:
+            self.processor.plan(None)  # the processor may go on with other frames
         self.problems.extend(p for p in self.processor.problems if p not in self.problems)
 
     def raw_chunks(self, chunk_frames: int = CHUNK_FRAMES
@@ -254,7 +257,7 @@ class OpenedRecording:
                 euler = block.groups[name]
                 R = euler_to_dcm(euler[..., 0], euler[..., 1], euler[..., 2])
                 before = len(proc.pose.captures)
-                with proc.kernels_for(len(block)):
+                with proc.kernels_for(len(block), filter_kernels=False):
                     C = proc.pose.apply(R, self._frames_in(zero, lo, len(block)))
                 result = Result(t=block.t, R=R, euler=euler, C=C, body=proc.options.body,
                                 zeros=list(proc.pose.captures[before:]),

@@ -112,16 +112,14 @@ class Kernel:
 def kernel(func: Callable[..., Any] | None = None, *, twin: str | None = None) -> Any:
     """Decorator for a numba kernel (``@kernel`` or ``@kernel(twin="module:function")``).
 
-    Once numba is loaded, new kernels are numba dispatchers straight away."""
+    Once numba is loaded, a new kernel gets its numba dispatcher straight away."""
 
     def wrap(f: Callable[..., Any]) -> Any:
+        k = Kernel(f, twin)
         with _lock:
-            if _numba_loaded:  # a module imported later: compiled, like its callees
-                from numba import njit
-
-                return njit(cache=True)(f)
-            k = Kernel(f, twin)
             _kernels.append(k)
+            if _numba_loaded:  # a module imported later: its dispatcher at once
+                _bind([k])
         return k
 
     return wrap(func) if func is not None else wrap

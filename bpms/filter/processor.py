@@ -56,11 +56,11 @@ from bpms.filter.bank import BankOutput, MahonyBank
 from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarded_step
-from bpms.filter.kernels import claim_twin_frames, numba_loaded, twins, twins_active
+from bpms.filter.kernels import claim_twin_frames, load_numba, twins, twins_active
 from bpms.filter.mahony import calibrate_batch
 from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
-from bpms.filter.warmup import PATHS, TWIN_FILTERS, ensure_kernels, kernels_ready
+from bpms.filter.warmup import PATHS, TWIN_FILTERS, ensure_kernels
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS
 from bpms.io.options import BodyOptions, Options, check_option, load_options
@@ -296,27 +296,35 @@ class BodyPoseProcessor:
         self.frames = 0
         self._twins = None
 
-    def plan(self, frames: int) -> None:
+    def plan(self, frames: int | None) -> None:
         """A stream of ``frames`` frames (a whole recording) follows: decide once, by its
         length, whether its kernels run as numpy twins (short: numba is never imported) or
-        compiled (:mod:`bpms.filter.kernels`). The numbers are the same either way."""
-        self._twins = self._twins_for(frames)
+        compiled (:mod:`bpms.filter.kernels`). The numbers are the same either way. None
+        ends the plan (the door does when the recording is done): later calls decide by
+        their own length."""
+        self._twins = None if frames is None else self._twins_for(frames)
 
     def _twins_for(self, frames: int) -> bool:
-        algorithm = self.options.filter.algorithm
-        return (algorithm in TWIN_FILTERS and not kernels_ready(algorithm, ("batch",))
-                and claim_twin_frames(frames))
+        return (self.options.filter.algorithm in TWIN_FILTERS
+                and claim_twin_frames(frames))  # False once numba is loaded
 
-    def kernels_for(self, frames: int) -> AbstractContextManager[None]:
+    def kernels_for(self, frames: int, filter_kernels: bool = True
+                    ) -> AbstractContextManager[None]:
         """The context in which to run ``frames`` frames' kernels: numpy twins when this
         stream was planned so (:meth:`plan`) or, unplanned, when ``frames`` is short and numba
-        is not loaded; otherwise the compiled kernels, loaded here (with a notice on the very
-        first run). Inside a caller's own :func:`bpms.filter.kernels.twins` block, twins."""
+        is not loaded; otherwise the compiled kernels, with this filter's made ready here
+        (compiled with a notice on the very first run; ``filter_kernels=False``: only numba
+        is loaded, for Reset Zero on stored angles). Inside a caller's own
+        :func:`bpms.filter.kernels.twins` block, twins."""
         if twins_active():
             return twins(True)
         use = self._twins if self._twins is not None else self._twins_for(frames)
-        if not use and not numba_loaded():
-            ensure_kernels(self.options.filter.algorithm, ("batch",))  # first call: notice
+        if not use:
+            if filter_kernels:
+                # the common case costs a set lookup; the first call compiles or loads
+                ensure_kernels(self.options.filter.algorithm, ("batch",))
+            else:
+                load_numba()
         return twins(use)
 
     def reset_filter(self, imu: int | None = None) -> None:
@@ -372,16 +380,20 @@ class BodyPoseProcessor:
     def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Raw ``[N, 18, 9]`` counts → filter inputs (accel, mag, gyro) ``[N, 18, 3]``: the
         numbers of ``SensorCalibration.calibrate`` (same formula and parameters), computed in
-        one compiled pass."""
+        one compiled pass (or its numpy twin for a short stream, :meth:`kernels_for`)."""
+        with self.kernels_for(np.shape(raw)[0]):
+            return self._calibrate(raw)
+
+    def _calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raw = np.asarray(raw)
         if raw.dtype != np.int16 or not raw.flags.c_contiguous:
             raw = np.ascontiguousarray(raw, dtype=np.float64)
         outs = tuple(np.empty((raw.shape[0], N_IMUS, 3)) for _ in range(3))
-        with self.kernels_for(raw.shape[0]):
-            calibrate_batch(raw, *self._cal_params, *outs)
+        calibrate_batch(raw, *self._cal_params, *outs)
         if self.sensor_calibration.mag_correction() is not None:
             outs[1][:] = self.sensor_calibration.correct_mag(outs[1])
         return outs
+
     def _result(self, n: int, out: BankOutput, C: np.ndarray, captures_before: int,
                 acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None, reinitialised: np.ndarray) -> Result:
@@ -408,7 +420,7 @@ class BodyPoseProcessor:
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
         with self.kernels_for(len(raw)):
-            acc, mag, gyr = self.calibrate(raw)
+            acc, mag, gyr = self._calibrate(raw)
             if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
                 errors = failed_inputs(acc, mag, gyr, errors)
             terms = {"store_terms": True} if isinstance(self.bank, MahonyBank) else {}
@@ -422,7 +434,7 @@ class BodyPoseProcessor:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
         ensure_kernels(self.options.filter.algorithm, ("live",))  # no-op once loaded
         raw = np.asarray(raw)
-        acc, mag, gyr = self.calibrate(raw[None])
+        acc, mag, gyr = self._calibrate(raw[None])  # live: the compiled kernels
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
             errors = failed_inputs(acc[0], mag[0], gyr[0], errors)
         out, reinit = guarded_step(self.bank, self.guard, acc[0], mag[0], gyr[0], errors)

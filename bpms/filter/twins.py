@@ -300,7 +300,9 @@ def run_disturbance(acc, mag, gyr, R, gravity, valid, p, state, mag_dist, acc_di
                 d2 = np.where(finite, d2, np.where(some, a2 / dn, 1.0))
             some = mn > 0.0
             x = np.where(some, (m0 * d0 + m1 * d1 + m2 * d2) / mn, 0.0)
-        dip = np.where(some, _each(math.asin, np.minimum(1.0, np.maximum(-1.0, x))), 0.0)
+        # ``min(1.0, max(-1.0, x))`` as the kernel evaluates it (a NaN x gives -1.0)
+        lo = np.where(x > -1.0, x, -1.0)
+        dip = np.where(some, _each(math.asin, np.where(lo < 1.0, lo, 1.0)), 0.0)
         still = (w < rest_gyr) & (np.abs(an - 1.0) < rest_acc)
         s[:, S_REST_T] = np.where(still, s[:, S_REST_T] + dt, 0.0)
         learn = still & (s[:, S_REST_T] >= rest_time) & (s[:, S_LEARN_T] < learn_s) & some

@@ -23,9 +23,10 @@ from bpms.io.frames import N_CHANNELS, N_IMUS
 
 #: Filters whose kernels numba compiles (``vqf`` runs in the vqf package's own code).
 COMPILED_FILTERS = ("mahony", "observer", "adaptive")
-#: Filters whose every kernel has a numpy twin (:mod:`bpms.filter.twins`): short recordings
-#: run without numba.
-TWIN_FILTERS = ("mahony",)
+#: Filters whose whole path has numpy twins (:mod:`bpms.filter.twins`: calibration, the
+#: Mahony filter, the state guard, the disturbance indicators, Reset Zero; vqf is its own
+#: package): short recordings run without numba.
+TWIN_FILTERS = ("mahony", "vqf")
 #: Say something when getting the kernels ready takes longer than this, s.
 NOTICE_AFTER_S = 2.0
 
