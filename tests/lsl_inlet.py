@@ -1,4 +1,4 @@
-"""Run as a separate process: resolve the four BPMS LSL streams, pull until ``frames`` samples
+"""Run as a separate process: resolve the five BPMS LSL streams, pull until ``frames`` samples
 arrived on each data stream (or a deadline), print a JSON summary on stdout.
 
 Written against pylsl's public API only (no bpms import): an independent receiver.
@@ -13,7 +13,8 @@ import time
 import pylsl
 import pylsl.util
 
-NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Events")
+NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Disturbance",
+         "BPMS Events")
 if len(sys.argv) > 3:  # a third argument: the stream names, comma-separated
     NAMES = tuple(sys.argv[3].split(","))
 DATA_NAMES = [n for n in NAMES if n != "BPMS Events"]
