@@ -9,7 +9,7 @@ Every fault must make at least one test fail by an assertion (pytest.fail and as
 errors count; import, collection or other errors do not). Prints the table fault → failing
 tests; exits 1 if the baseline fails, a patch no longer applies, or a fault survives.
 
-    python tools/planted_faults.py            # the whole run (a few minutes)
+    python tools/planted_faults.py            # the whole run (about 20 s on 2 cores)
     python tools/planted_faults.py --check    # only check that every patch still applies
     python tools/planted_faults.py --only gyro
     python tools/planted_faults.py --jobs 1   # one run after the other
