@@ -1,4 +1,4 @@
-"""Run as a separate process: resolve the four BPMS LSL streams, pull until ``frames`` samples
+"""Run as a separate process: resolve the five BPMS LSL streams, pull until ``frames`` samples
 arrived on each data stream (or a deadline), print a JSON summary on stdout.
 
 Written against pylsl's public API only (no bpms import): an independent receiver.
@@ -13,7 +13,8 @@ import time
 import pylsl
 import pylsl.util
 
-NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Events")
+NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Disturbance",
+         "BPMS Events")
 if len(sys.argv) > 3:  # a third argument: the stream names, comma-separated
     NAMES = tuple(sys.argv[3].split(","))
 DATA_NAMES = [n for n in NAMES if n != "BPMS Events"]
@@ -44,25 +45,31 @@ def main() -> None:
     frames, timeout = int(sys.argv[1]), float(sys.argv[2])
     deadline = time.monotonic() + timeout
     inlets = {}
+    full = {}
     while len(inlets) < len(NAMES) and time.monotonic() < deadline:
         for info in pylsl.resolve_streams(wait_time=1.0):
             if info.name() in NAMES and info.name() not in inlets:
                 inlet = pylsl.StreamInlet(info, max_buflen=360, recover=False)
-                inlet.open_stream(timeout=10)
+                # the full description before the data connection: once every stream has
+                # its consumer (a sender may wait for that), this process only pulls
+                info = inlet.info(timeout=10)
+                full[info.name()] = {
+                    "type": info.type(), "channels": info.channel_count(),
+                    "rate": info.nominal_srate(), "labels": channel_labels(info),
+                    "convention": info.desc().child_value("convention"),
+                    "units": sorted({u for u in [info.desc().child("channels")
+                                                 .child("channel").child_value("unit")]})}
                 inlets[info.name()] = inlet
+    for inlet in inlets.values():
+        inlet.open_stream(timeout=10)
     print("ready", file=sys.stderr, flush=True)
     data = {name: {"stamps": [], "values": []} for name in inlets}
-    full = {}
-    for name, inlet in inlets.items():
-        info = inlet.info(timeout=10)
-        full[name] = {"type": info.type(), "channels": info.channel_count(),
-                      "rate": info.nominal_srate(), "labels": channel_labels(info),
-                      "convention": info.desc().child_value("convention"),
-                      "units": sorted({u for u in [info.desc().child("channels")
-                                                   .child("channel").child_value("unit")]})}
     while time.monotonic() < deadline:
-        for name, inlet in inlets.items():
-            samples, stamps = pull(inlet, 0.05)
+        # Keep up with the sender: liblsl drops what an inlet holds once the sender has gone
+        # (LostError), so every stream is read at each turn; only the first one waits, a
+        # little, for the next frame (which comes on every data stream at once).
+        for k, (name, inlet) in enumerate(inlets.items()):
+            samples, stamps = pull(inlet, 0.01 if k == 0 else 0.0)
             data[name]["stamps"] += stamps
             if name == "BPMS Events":
                 data[name]["values"] += [s[0] for s in samples]

@@ -35,9 +35,11 @@ def test_lsl_switch_streams_file_playback(tmp_path):
         runner.prepare()
         assert runner.set_lsl(True) is None and runner.lsl_on
         bridge = runner._lsl
-        # wait for the inlet to connect before playing, as a lab would start LabRecorder first
-        outlet = bridge.outlets.outlets["segments"]
-        assert outlet.wait_for_consumers(30)
+        # wait for the inlet to connect to every stream before playing, as a lab would start
+        # LabRecorder first (a stream it joins late misses the first samples: the inlet would
+        # then wait for its deadline)
+        for outlet in bridge.outlets.outlets.values():
+            assert outlet.wait_for_consumers(30)
         runner.start_data()
         assert wait_until(lambda: bridge.sent >= 300, timeout=60)
         runner.set_lsl(False)

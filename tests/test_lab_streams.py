@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from waiting import receive_until_exit
 
 from bpms.filter.body_model import POINT_NAMES
 from bpms.firmware.sim.session import simulate
@@ -48,15 +49,7 @@ def _udp_socket():
 
 def _receive_all(sock, proc):
     """Datagrams until the sender has exited and the socket is quiet."""
-    out = []
-    while True:
-        try:
-            sock.settimeout(0.5 if proc.poll() is not None else 20.0)
-            out.append(sock.recv(65535))
-        except TimeoutError:
-            if proc.poll() is not None:
-                return out
-            raise
+    return receive_until_exit(sock, proc, silence=20.0)
 
 
 def _replay(path, *extra):
@@ -188,7 +181,8 @@ def test_every_lsl_stream_reaches_an_inlet_in_another_process(recording, lsl_env
     assert sender.returncode == 0, sender_err.decode()
     result = json.loads(out)
     info, data = result["info"], result["data"]
-    assert set(info) == {"BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Events"}
+    assert set(info) == {"BPMS Segments", "BPMS Joint Angles", "BPMS Sensors",
+                         "BPMS Disturbance", "BPMS Events"}
     seg, jnt, sen = info["BPMS Segments"], info["BPMS Joint Angles"], info["BPMS Sensors"]
     assert seg["channels"] == 72 and seg["type"] == "MoCap" and seg["rate"] == 50.0
     assert seg["labels"][:4] == [f"{IMU_NAMES[0].lower().replace(' ', '_')}_q{c}"
@@ -196,7 +190,8 @@ def test_every_lsl_stream_reaches_an_inlet_in_another_process(recording, lsl_env
     assert jnt["channels"] == 28 and jnt["labels"][2] == "knee_r.flexion"
     assert jnt["convention"].startswith("isb")
     assert sen["channels"] == 162 and sen["type"] == "IMU"
-    for name in ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors"):
+    assert info["BPMS Disturbance"]["channels"] == 36
+    for name in ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Disturbance"):
         stamps = np.array(data[name]["stamps"])
         assert len(stamps) == FRAMES, name
         assert np.all(np.diff(stamps) > 0), name

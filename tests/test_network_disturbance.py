@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from waiting import receive_until_exit
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.motion import generate_motion
@@ -62,15 +63,7 @@ def test_pose_datagrams_carry_the_disturbance_masks(magnet):
     proc = subprocess.Popen([sys.executable, "-m", "bpms", "replay", str(path), "--speed", "0",
                              "--udp", f"127.0.0.1:{sock.getsockname()[1]}"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    grams = []
-    while True:
-        sock.settimeout(0.5 if proc.poll() is not None else 30.0)
-        try:
-            grams.append(sock.recv(65535))
-        except TimeoutError:
-            if proc.poll() is not None:
-                break
-            raise
+    grams = receive_until_exit(sock, proc, silence=30.0)
     assert proc.wait(30) == 0
     poses = [decode_datagram(g) for g in grams if g[5] == 2]
     assert len(poses) > len(rec) - 10
@@ -114,7 +107,7 @@ def lsl_env(tmp_path):
 def test_lsl_disturbance_stream_reaches_an_inlet_in_another_process(magnet, lsl_env):
     rec, path, dist = magnet
     inlet = subprocess.Popen([sys.executable, str(ROOT / "tests" / "lsl_inlet.py"),
-                              str(len(rec)), "120", "BPMS Disturbance"], cwd=ROOT,
+                              str(len(rec)), "120"], cwd=ROOT,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=lsl_env)
     sender = subprocess.Popen([sys.executable, "-m", "bpms", "replay", str(path), "--lsl",
                                "--lsl-wait", "60", "--speed", "4"], cwd=ROOT,

@@ -1,6 +1,6 @@
 """tools/planted_faults.py stays usable: every fault's exact-text patch still applies to the
 code (each target occurs once) and its tests exist. The full run (baseline + one run per
-fault, about a minute) is ``python tools/planted_faults.py``, run by CI."""
+fault, three at a time, about 20 s) is ``python tools/planted_faults.py``, run by CI."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def test_a_stale_patch_is_reported(tmp_path):
 
 def test_every_planted_fault_is_caught():
     """The whole run, as CI does it: baseline green, then every fault fails a test by an
-    assertion (about a minute; more on a loaded machine)."""
+    assertion (about 20 s; more on a loaded machine)."""
     import subprocess
 
     result = subprocess.run([sys.executable, str(REPO / "tools" / "planted_faults.py")],

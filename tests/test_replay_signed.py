@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from waiting import receive_until_exit
 
 from bpms.firmware.sim.session import simulate
 
@@ -35,15 +36,7 @@ def _replay_and_receive(path, env):
     proc = subprocess.Popen([sys.executable, "-m", "bpms", "replay", str(path), "--speed", "0",
                              "--udp", f"127.0.0.1:{sock.getsockname()[1]}"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
-    grams = []
-    while True:
-        sock.settimeout(0.5 if proc.poll() is not None else 30.0)
-        try:
-            grams.append(sock.recv(65535))
-        except TimeoutError:
-            if proc.poll() is not None:
-                break
-            raise
+    grams = receive_until_exit(sock, proc, silence=30.0)
     _, err = proc.communicate(timeout=30)
     sock.close()
     assert proc.returncode == 0, err

@@ -148,12 +148,15 @@ def test_script_plays_a_recording_with_a_single_imu_box(tmp_path):
     port = _free_port()
     env = {**os.environ, "VPYTHON_NO_LAUNCH_BROWSER": "1", "VPYTHON_HTTP_PORT": str(port)}
     proc = subprocess.Popen([sys.executable, "-m", "bpms.gui.vpython_views", str(path),
-                             "--imu", "4", "--mode", "box", "--rate", "200"], env=env)
+                             "--imu", "4", "--mode", "box", "--rate", "50"], env=env)
     try:
         browser = FakeBrowser(port)
         assert browser.poll_until(lambda: browser.count("box") == 1)
         box = next(c for c in browser.cmds if c.get("cmd") == "box")
-        # The box turns with the right arm: its axis ('f') and up ('b') are updated.
+        # The box turns with the right arm: its axis ('f') and up ('b') are updated. vpython
+        # sends an object's newest attributes once per poll, so the count is bounded by the
+        # polls during the playback: at 50 frames/s the 3 s give ~40 even on a loaded machine
+        # (at 200 frames/s, 0.75 s gave ~10 unloaded and fewer than 6 under load).
         assert browser.poll_until(
             lambda: sum(a.startswith(f"a{box['idx']}f") for a in browser.attrs) > 5)
         assert browser.count("canvas") >= 2  # the body scene and the IMU's own canvas

@@ -14,3 +14,30 @@ def wait_until(predicate: Callable[[], bool], timeout: float = 20.0) -> bool:
             return True
         time.sleep(0.02)
     return False
+
+
+def receive_until_exit(sock, proc, silence: float = 30.0, quiet: float = 0.5) -> list[bytes]:
+    """Every datagram ``sock`` receives until the sender process ``proc`` has exited and the
+    socket then stayed quiet for ``quiet`` s. While ``proc`` runs, ``silence`` s without a
+    datagram raise TimeoutError (a stuck sender fails the test instead of hanging it).
+
+    The socket is polled in short steps, so the end of the sender is seen within ~50 ms: a long
+    blocking ``recv`` would otherwise wait its whole timeout after the last datagram."""
+    out: list[bytes] = []
+    sock.settimeout(0.05)
+    last = time.monotonic()
+    exited_at = None
+    while True:
+        try:
+            out.append(sock.recv(65535))
+            last = time.monotonic()
+            continue
+        except TimeoutError:
+            pass
+        now = time.monotonic()
+        if proc.poll() is not None:
+            exited_at = exited_at or now
+            if now - max(last, exited_at) >= quiet:
+                return out
+        elif now - last > silence:
+            raise TimeoutError(f"no datagram for {silence:g} s while the sender runs")
