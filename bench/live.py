@@ -191,25 +191,33 @@ def pipeline(seconds: float, tuned: bool = True) -> Run:
         with tempfile.TemporaryDirectory(prefix="bpms-live-") as tmp:
             session = LiveSession(SuitFrameSource(server.path, SerialOptions()),
                                   recording_dir=tmp)
-            sub = session.subscribe(maxlen=200_000)
+            sub = session.subscribe(maxlen=10_000)
             session.source.connect()
             session.start_logging(raw=True, filtered=True, name="bench")
+            # (latency s, host time s) of every sample; the samples themselves are let go, as
+            # a display does, so that collections do not scan minutes of them
+            seen: list[tuple[float, float]] = []
             with GcWatch() as watch:
                 session.start()
                 first = sub.get(60.0)
                 cpu0 = time.process_time()
-                time.sleep(seconds)
+                end = time.monotonic() + seconds
+                while first is not None and time.monotonic() < end:
+                    time.sleep(min(0.5, max(end - time.monotonic(), 0.0)))
+                    seen += [(s.latency_s, s.host_time) for s in sub.drain()]
                 cpu, t1 = time.process_time() - cpu0, time.time()
                 session.stop()
-            samples = [first, *sub.drain()] if first is not None else []
-            if samples:  # the warm-up's collection happens before the first frame
-                watch.since = time.perf_counter() - (time.time() - samples[0].host_time)
+            if first is not None:
+                seen = [(first.latency_s, first.host_time), *seen,
+                        *((s.latency_s, s.host_time) for s in sub.drain())]
+                # the warm-up's collection happens before the first frame
+                watch.since = time.perf_counter() - (time.time() - first.host_time)
     finally:
         if original is not None:
             session_module.prepare_live_path = original
         server.stop()
-    lat = np.array([s.latency_s for s in samples])
-    n = sum(1 for s in samples[1:] if s.host_time <= t1)
+    lat = np.array([latency for latency, _ in seen])
+    n = sum(1 for _, host in seen[1:] if host <= t1)
     return Run(lat, watch.counted(), cpu / max(n, 1))
 
 

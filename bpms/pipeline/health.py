@@ -95,6 +95,9 @@ def write_with_holes(writer, indices: np.ndarray, host_times: np.ndarray,
     written, holes marked, holes after the last frame: pass them with the next block)."""
     from bpms.io.timebase import stream_time_of
 
+    if not holes:  # the usual case: nothing to merge
+        writer.write_block(stream_time_of(indices, dt), host_time=host_times, **arrays)
+        return len(indices), 0, []
     order, hole_index, hole_host, later = merge_holes(indices, holes)
     if not len(hole_index):
         writer.write_block(stream_time_of(indices, dt), host_time=host_times, **arrays)

@@ -38,6 +38,7 @@ from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
 from bpms.io.udp import UdpForwarder, shared_key
 from bpms.pipeline.fanout import Fanout, Subscription
+from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
     MAX_BACKLOG_FRAMES,
     PipelineHealth,
@@ -46,7 +47,6 @@ from bpms.pipeline.health import (
     write_with_holes,
 )
 from bpms.pipeline.rate import RateMeter
-from bpms.pipeline.raw_logger import STOP as RAW_STOP
 from bpms.pipeline.raw_logger import RawLogger
 from bpms.pipeline.settings_queue import SettingsQueue
 from bpms.pipeline.steady import prepare_live_path
@@ -171,7 +171,7 @@ class LiveSession:
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
-        self._proc_queue: queue.Queue[FrameEvent | object] = queue.Queue(maxsize=max_backlog)
+        self._proc_queue: Handoff[FrameEvent | object] = Handoff(max_backlog)
         self.health = PipelineHealth()
         self._holes: list = []  # holes after the last processed frame, not yet written
         self._commands: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
@@ -305,7 +305,7 @@ class LiveSession:
             self.markers.publish(("logging stop", -1))
         logger, self._raw_logger = self._raw_logger, None
         if logger is not None:
-            logger.queue.put(RAW_STOP)
+            logger.stop()
             logger.join(10.0)
         done = threading.Event()
 
@@ -395,7 +395,7 @@ class LiveSession:
         if getattr(self.source, "can_wait", False):
             while not self._stop.is_set():
                 try:
-                    self._proc_queue.put(event, timeout=0.2)
+                    self._proc_queue.put_wait(event, 0.2)
                     return
                 except queue.Full:
                     continue
