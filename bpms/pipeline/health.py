@@ -51,6 +51,8 @@ class PipelineHealth:
 
     def take_holes(self) -> list[Hole]:
         """The holes noted since the last call, in arrival order (processing thread)."""
+        if self._holes.empty():
+            return []
         out = []
         while True:
             try:

@@ -56,6 +56,9 @@ if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with t
 
 log = logging.getLogger(__name__)
 _STOP = object()
+#: Processed frames queued before they are written to the filtered file (0.2 s at 50 Hz; the
+#: file is flushed once per flush interval anyway).
+FILTERED_BATCH = 10
 
 
 @dataclass(frozen=True, slots=True)
@@ -187,6 +190,9 @@ class LiveSession:
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
+        # processed rows not yet written: (source indices, host times, per-group arrays)
+        self._pending: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] = []
+        self._pending_frames = 0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
         # Session markers (text, source frame index or -1) for LSL/other consumers (i16).
@@ -310,7 +316,10 @@ class LiveSession:
         done = threading.Event()
 
         def close_filtered() -> None:
+            if self._filtered is not None:
+                self._write_filtered()
             writer, self._filtered = self._filtered, None
+            self._pending, self._pending_frames = [], 0
             if writer is not None:
                 holes, self._holes = [*self._holes, *self.health.take_holes()], []
                 try:
@@ -413,6 +422,8 @@ class LiveSession:
                 first = self._proc_queue.get(timeout=0.1)
             except queue.Empty:
                 self._run_commands()
+                if self._pending:  # the source went quiet: write what is waiting
+                    self._write_filtered()
                 if self._stop.is_set():
                     break
                 continue
@@ -520,20 +531,41 @@ class LiveSession:
             self._reinit_imus.clear()
 
     def _log_filtered(self, events: list[FrameEvent], result) -> None:
-        """Write the processed rows and a marked row for every frame that skipped processing,
-        in frame order (:mod:`bpms.pipeline.health`)."""
+        """Queue the processed rows for the filtered file; they are written every
+        :data:`FILTERED_BATCH` frames (and when the source goes quiet or logging stops), so
+        the per-write work is paid once per batch instead of once per frame."""
         from bpms.filter.door import filtered_arrays  # loaded with the filter, not the GUI
 
-        holes = [*self._holes, *self.health.take_holes()]
         writer = self._filtered
         if writer is None:
             self._holes = []
+            self.health.take_holes()
             return
+        self._pending.append((np.array([e.index for e in events], dtype=np.int64),
+                              np.array([e.host_time for e in events]),
+                              filtered_arrays(result, writer.groups)))
+        self._pending_frames += len(events)
+        if self._pending_frames >= FILTERED_BATCH:
+            self._write_filtered()
+
+    def _write_filtered(self) -> None:
+        """Write the queued rows and a marked row for every frame that skipped processing,
+        in frame order (:mod:`bpms.pipeline.health`)."""
+        pending, self._pending, self._pending_frames = self._pending, [], 0
+        writer = self._filtered
+        holes = [*self._holes, *self.health.take_holes()]
+        if writer is None or not pending:
+            self._holes = holes if writer is not None else []
+            return
+        if len(pending) == 1:
+            indices, host_times, arrays = pending[0]
+        else:
+            indices = np.concatenate([p[0] for p in pending])
+            host_times = np.concatenate([p[1] for p in pending])
+            arrays = {g: np.concatenate([p[2][g] for p in pending]) for g in pending[0][2]}
         try:
             rows, marked, self._holes = write_with_holes(
-                writer, np.array([e.index for e in events], dtype=np.int64),
-                np.array([e.host_time for e in events]), filtered_arrays(result, writer.groups),
-                holes, self.processor.options.filter.dt)
+                writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
             self.health.holes_marked += marked
             if self._recording is not None:
                 self._recording.filtered_rows += rows
