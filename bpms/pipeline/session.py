@@ -496,7 +496,6 @@ class LiveSession:
             self.markers.publish(("reset zero", head.index + z.frame - first))
         self._processed += len(events)
         self._error_bits += int(decoded.errors.sum())
-        self._log_filtered(events, result)
         forwarder = self._forwarder
         if forwarder is not None:
             quats = result.segment_quaternions.astype(np.float32)
@@ -514,6 +513,7 @@ class LiveSession:
                 del self._latencies[:-2500]
         for sample in samples:
             self._fanout.publish(sample)
+        self._log_filtered(events, result)  # after the pose went out: off the latency path
 
     def _note_reinit(self, result) -> None:
         """State-guard re-initialisations are events (logged, in the status): every one is
