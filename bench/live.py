@@ -224,15 +224,16 @@ def pipeline(seconds: float, tuned: bool = True) -> Run:
 def reference(tree: str, seconds: float) -> tuple[Run, Run] | str:
     """(relay, pipeline) of the reference tree in child processes, or why not."""
     if tree == "auto":
-        dest = Path(tempfile.mkdtemp(prefix="bpms-ref18-"))
-        try:
-            tar = subprocess.run(["git", "-C", str(ROOT), "archive", REFERENCE_COMMIT],
-                                 capture_output=True, check=True).stdout
-        except (OSError, subprocess.CalledProcessError) as exc:
-            return f"reference not measured: git archive {REFERENCE_COMMIT[:7]} failed ({exc})"
-        with tarfile.open(fileobj=io.BytesIO(tar)) as archive:
-            archive.extractall(dest, filter="data")
-        tree = str(dest)
+        with tempfile.TemporaryDirectory(prefix="bpms-ref18-") as dest:
+            try:
+                tar = subprocess.run(["git", "-C", str(ROOT), "archive", REFERENCE_COMMIT],
+                                     capture_output=True, check=True).stdout
+            except (OSError, subprocess.CalledProcessError) as exc:
+                return (f"reference not measured: git archive {REFERENCE_COMMIT[:7]} failed "
+                        f"({exc})")
+            with tarfile.open(fileobj=io.BytesIO(tar)) as archive:
+                archive.extractall(dest, filter="data")
+            return reference(dest, seconds)
     runs = []
     for what in ("relay", "pipeline"):
         with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as out:

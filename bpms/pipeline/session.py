@@ -428,7 +428,7 @@ class LiveSession:
                     break
                 continue
             batch = [first]
-            while len(batch) < 512:
+            while len(batch) < 512 and self._proc_queue.qsize():
                 try:
                     batch.append(self._proc_queue.get_nowait())
                 except queue.Empty:
@@ -449,7 +449,7 @@ class LiveSession:
 
     def _run_commands(self) -> None:
         self.settings.apply(self.processor, self.note)
-        while True:
+        while not self._commands.empty():
             try:
                 command = self._commands.get_nowait()
             except queue.Empty:
