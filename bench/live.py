@@ -1,6 +1,8 @@
-"""Live latency at 50 Hz over a pseudo-terminal: the pipeline beside a minimal relay.
+"""Live latency and CPU at 50 Hz over a pseudo-terminal: the pipeline beside a minimal relay,
+and the recorder's CPU beside the recorder as it was when issue 18 was filed.
 
-Run: ``.venv/bin/python bench/live.py [--minutes 0.5] [--untuned]`` (Linux/macOS: a pty).
+Run: ``.venv/bin/python bench/live.py [--minutes 0.5] [--untuned] [--reference auto|PATH|none]``
+(Linux/macOS: a pty).
 
 The simulated suit streams in real time (50 Hz) on a pty, read by the project's serial source
 (:class:`bpms.pipeline.sources.SuitFrameSource`). Measured one after the other in this run:
@@ -9,22 +11,33 @@ The simulated suit streams in real time (50 Hz) on a pty, read by the project's 
   nothing else (the floor any live pipeline pays on this machine);
 - **pipeline**: :class:`bpms.pipeline.session.LiveSession` with raw and filtered recording on
   (warm-up and frozen heap, :mod:`bpms.pipeline.steady`);
-- with ``--untuned``, also the pipeline with warm-up and gc freezing switched off.
+- with ``--untuned``, also the pipeline with warm-up and gc freezing switched off;
+- **reference**: the relay and the pipeline of the tree at :data:`REFERENCE_COMMIT` (the
+  recorder when issue 18 was filed), extracted with ``git archive`` into a temporary folder and
+  run in a child process (``--reference-minutes`` each, default up to 1 min).
 
 Printed for each: frame → pose latency (host took the frame in → sample ready) p50, p99,
 p99.9 and max in ms, the worst of the first 10 frames, the longest garbage-collection pause
-(``gc.callbacks``, from the first frame on) and the number of full (generation 2) collections,
-and CPU time per frame (ms, whole process).
-Aim (issue 18.4): p99.9 ≤ 5 ms and no gc pause over 5 ms in a 10-minute run. Figures only.
+(``gc.callbacks``, from the first frame on), the number of full (generation 2) collections,
+and CPU time per frame (ms, whole process, from the first frame to the end: the simulated suit
+runs in the same process). The **recorder's** CPU per frame is the pipeline's minus the relay's
+of the same tree (what recording adds on top of reading the suit), printed beside the
+reference's.
+Aims (issue 18.4): p99.9 ≤ 5 ms and no gc pause over 5 ms in a 10-minute run; the recorder's
+CPU per frame half the reference's. Figures only.
 """
 
 from __future__ import annotations
 
 import argparse
 import gc
+import io
+import json
 import os
 import queue
+import subprocess
 import sys
+import tarfile
 import tempfile
 import threading
 import time
@@ -32,12 +45,20 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+#: The recorder when issue 18 was filed: main before the issue-18 work (the fork point of
+#: that work's branch).
+REFERENCE_COMMIT = "c87bf7b3368944bbef952f67c222e89648a67371"
+ROOT = Path(__file__).resolve().parents[1]
 
-from bpms.firmware.sim.arbiter import Arbiter, MotionSource
-from bpms.firmware.sim.server import PtyServer
-from bpms.io.options import SerialOptions
-from bpms.pipeline.sources import SuitFrameSource
+
+def _tree_from_argv() -> Path:
+    """``--tree PATH`` (child runs of another tree) goes first on sys.path, before bpms loads."""
+    if "--tree" in sys.argv:
+        return Path(sys.argv[sys.argv.index("--tree") + 1]).resolve()
+    return ROOT
+
+
+sys.path.insert(0, str(_tree_from_argv()))
 
 
 class GcWatch:
@@ -66,18 +87,44 @@ class GcWatch:
         gc.callbacks.remove(self)
 
 
-def _suit() -> PtyServer:
+class Run:
+    """One measured run: latencies s, gc pauses (s, generation), CPU s per frame."""
+
+    def __init__(self, latencies: np.ndarray, pauses: list[tuple[float, int]],
+                 cpu_per_frame: float) -> None:
+        self.latencies = latencies
+        self.pauses = pauses
+        self.cpu = cpu_per_frame
+
+    def to_json(self) -> str:
+        return json.dumps({"latencies": self.latencies.tolist(), "pauses": self.pauses,
+                           "cpu": self.cpu})
+
+    @classmethod
+    def from_json(cls, text: str) -> Run:
+        d = json.loads(text)
+        return cls(np.array(d["latencies"]), [tuple(p) for p in d["pauses"]], d["cpu"])
+
+
+def _suit():
+    from bpms.firmware.sim.arbiter import Arbiter, MotionSource
+    from bpms.firmware.sim.server import PtyServer
+
     return PtyServer(Arbiter(MotionSource.simulated(seed=1), realtime=True)).start()
 
 
-def relay(seconds: float) -> tuple[np.ndarray, GcWatch, float]:
-    """(latencies s, gc watch, CPU s per frame) of the minimal relay."""
+def relay(seconds: float) -> Run:
+    """The minimal relay: read the suit in one thread, hand each frame to another."""
+    from bpms.io.options import SerialOptions
+    from bpms.pipeline.sources import SuitFrameSource
+
     server = _suit()
     source = SuitFrameSource(server.path, SerialOptions())
     source.connect()
     handoff: queue.Queue = queue.Queue()
     latencies: list[float] = []
     stop = threading.Event()
+    first = threading.Event()
 
     def reader() -> None:
         while not stop.is_set():
@@ -92,67 +139,126 @@ def relay(seconds: float) -> tuple[np.ndarray, GcWatch, float]:
                 continue
             if not latencies:
                 watch.since = event.arrival
+                first.set()
             latencies.append(time.perf_counter() - event.arrival)
 
     threads = [threading.Thread(target=f, daemon=True) for f in (reader, taker)]
-    cpu0 = time.process_time()
     watch = GcWatch()
     with watch:
         for t in threads:
             t.start()
+        first.wait(30.0)
+        cpu0, n0 = time.process_time(), len(latencies)
         time.sleep(seconds)
+        cpu, n = time.process_time() - cpu0, len(latencies) - n0
         stop.set()
         for t in threads:
             t.join(2)
-    cpu = time.process_time() - cpu0
     source.close()
     server.stop()
-    return np.array(latencies), watch, cpu / max(len(latencies), 1)
+    return Run(np.array(latencies), watch.counted(), cpu / max(n, 1))
 
 
-def pipeline(seconds: float, tuned: bool = True) -> tuple[np.ndarray, GcWatch, float]:
-    """(latencies s, gc watch, CPU s per frame) of the LiveSession with recording on."""
+def _prewarm_reference() -> None:
+    """A tree without a warm-up of its own (the reference) loads its kernels here, so its CPU
+    figure is the steady state's, not the first call's."""
+    from bpms.filter.processor import BodyPoseProcessor
+
+    proc = BodyPoseProcessor()
+    raw = np.zeros((4, 18, 9), np.int16)
+    raw[..., 2] = 256
+    result = proc.process(raw)
+    for _ in range(3):
+        result = proc.step(raw[0])
+    _ = result.joint_angles, result.joint_positions, result.segment_quaternions
+
+
+def pipeline(seconds: float, tuned: bool = True) -> Run:
+    """The LiveSession with raw and filtered recording on."""
     import bpms.pipeline.session as session_module
+    from bpms.io.options import SerialOptions
     from bpms.pipeline.session import LiveSession
+    from bpms.pipeline.sources import SuitFrameSource
 
-    original = session_module.prepare_live_path
-    if not tuned:
+    own_warm_up = hasattr(session_module, "prepare_live_path")
+    if not own_warm_up:
+        _prewarm_reference()
+    original = getattr(session_module, "prepare_live_path", None)
+    if not tuned and own_warm_up:
         session_module.prepare_live_path = lambda processor: 0.0
     server = _suit()
     try:
         with tempfile.TemporaryDirectory(prefix="bpms-live-") as tmp:
             session = LiveSession(SuitFrameSource(server.path, SerialOptions()),
                                   recording_dir=tmp)
-            sub = session.subscribe(maxlen=200_000)
+            sub = session.subscribe(maxlen=10_000)
             session.source.connect()
             session.start_logging(raw=True, filtered=True, name="bench")
-            cpu0 = time.process_time()
+            # (latency s, host time s) of every sample; the samples themselves are let go, as
+            # a display does, so that collections do not scan minutes of them
+            seen: list[tuple[float, float]] = []
             with GcWatch() as watch:
                 session.start()
-                time.sleep(seconds)
+                first = sub.get(60.0)
+                cpu0 = time.process_time()
+                end = time.monotonic() + seconds
+                while first is not None and time.monotonic() < end:
+                    time.sleep(min(0.5, max(end - time.monotonic(), 0.0)))
+                    seen += [(s.latency_s, s.host_time) for s in sub.drain()]
+                cpu, t1 = time.process_time() - cpu0, time.time()
                 session.stop()
-            cpu = time.process_time() - cpu0
-            samples = sub.drain()
-            if samples:  # the warm-up's collection happens before the first frame
-                watch.since = time.perf_counter() - (time.time() - samples[0].host_time)
+            if first is not None:
+                seen = [(first.latency_s, first.host_time), *seen,
+                        *((s.latency_s, s.host_time) for s in sub.drain())]
+                # the warm-up's collection happens before the first frame
+                watch.since = time.perf_counter() - (time.time() - first.host_time)
     finally:
-        session_module.prepare_live_path = original
+        if original is not None:
+            session_module.prepare_live_path = original
         server.stop()
-    lat = np.array([s.latency_s for s in samples])
-    return lat, watch, cpu / max(len(lat), 1)
+    lat = np.array([latency for latency, _ in seen])
+    n = sum(1 for _, host in seen[1:] if host <= t1)
+    return Run(lat, watch.counted(), cpu / max(n, 1))
 
 
-def report(name: str, lat: np.ndarray, watch: GcWatch, cpu: float) -> None:
-    ms = lat * 1e3
-    pauses = watch.counted()
-    longest = max((p for p, _ in pauses), default=0.0) * 1e3
-    full = sum(1 for _, g in pauses if g == 2)
+def reference(tree: str, seconds: float) -> tuple[Run, Run] | str:
+    """(relay, pipeline) of the reference tree in child processes, or why not."""
+    if tree == "auto":
+        with tempfile.TemporaryDirectory(prefix="bpms-ref18-") as dest:
+            try:
+                tar = subprocess.run(["git", "-C", str(ROOT), "archive", REFERENCE_COMMIT],
+                                     capture_output=True, check=True).stdout
+            except (OSError, subprocess.CalledProcessError) as exc:
+                return (f"reference not measured: git archive {REFERENCE_COMMIT[:7]} failed "
+                        f"({exc})")
+            with tarfile.open(fileobj=io.BytesIO(tar)) as archive:
+                archive.extractall(dest, filter="data")
+            return reference(dest, seconds)
+    runs = []
+    for what in ("relay", "pipeline"):
+        with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as out:
+            path = out.name
+        env = {**os.environ, "PYTHONPATH": tree}
+        done = subprocess.run([sys.executable, __file__, "--tree", tree, "--child", what,
+                               "--minutes", str(seconds / 60), "--out", path],
+                              env=env, cwd=tree, capture_output=True, text=True)
+        if done.returncode:
+            return f"reference {what} failed: {done.stderr.strip().splitlines()[-1:]}"
+        runs.append(Run.from_json(Path(path).read_text()))
+        os.unlink(path)
+    return runs[0], runs[1]
+
+
+def report(name: str, run: Run) -> None:
+    ms = run.latencies * 1e3
+    longest = max((p for p, _ in run.pauses), default=0.0) * 1e3
+    full = sum(1 for _, g in run.pauses if g == 2)
     if not len(ms):
-        print(f"{name:<18} no frames")
+        print(f"{name:<20} no frames")
         return
     p50, p99, p999 = np.percentile(ms, [50, 99, 99.9])
-    print(f"{name:<18}{len(ms):8d}{p50:8.2f}{p99:8.2f}{p999:9.2f}{ms.max():8.2f}"
-          f"{ms[:10].max():10.2f}{longest:10.2f}{full:7d}{cpu * 1e3:10.3f}")
+    print(f"{name:<20}{len(ms):8d}{p50:8.2f}{p99:8.2f}{p999:9.2f}{ms.max():8.2f}"
+          f"{ms[:10].max():10.2f}{longest:10.2f}{full:7d}{run.cpu * 1e3:10.3f}")
 
 
 def main() -> None:
@@ -160,18 +266,46 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=0.5, help="length of each run")
     parser.add_argument("--untuned", action="store_true",
                         help="also run the pipeline without warm-up and gc freezing (first)")
+    parser.add_argument("--reference", default="auto",
+                        help="the reference tree: auto (git archive of REFERENCE_COMMIT), a "
+                             "folder, or none")
+    parser.add_argument("--reference-minutes", type=float, default=None,
+                        help="length of each reference run (default: --minutes, at most 1)")
+    parser.add_argument("--tree", help=argparse.SUPPRESS)
+    parser.add_argument("--child", choices=("relay", "pipeline"), help=argparse.SUPPRESS)
+    parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args()
     seconds = args.minutes * 60.0
-    runs = []
-    runs.append(("relay", *relay(seconds)))
+    if args.child:
+        run = relay(seconds) if args.child == "relay" else pipeline(seconds)
+        Path(args.out).write_text(run.to_json())
+        return
+    runs = [("relay", relay(seconds))]
     if args.untuned:
-        runs.append(("pipeline untuned", *pipeline(seconds, tuned=False)))
-    runs.append(("pipeline", *pipeline(seconds)))
-    print(f"\nframe → pose latency at 50 Hz over a pty, {args.minutes:g} min per run (ms)")
-    print(f"{'':<18}{'frames':>8}{'p50':>8}{'p99':>8}{'p99.9':>9}{'max':>8}{'first 10':>10}"
+        runs.append(("pipeline untuned", pipeline(seconds, tuned=False)))
+    runs.append(("pipeline", pipeline(seconds)))
+    ref: tuple[Run, Run] | str | None = None
+    ref_minutes = args.reference_minutes or min(args.minutes, 1.0)
+    if args.reference != "none":
+        ref = reference(args.reference, ref_minutes * 60.0)
+        if not isinstance(ref, str):
+            runs += [("reference relay", ref[0]), ("reference pipeline", ref[1])]
+    print(f"\nframe → pose latency at 50 Hz over a pty, {args.minutes:g} min per run "
+          f"(reference: {ref_minutes:g} min) (ms)")
+    print(f"{'':<20}{'frames':>8}{'p50':>8}{'p99':>8}{'p99.9':>9}{'max':>8}{'first 10':>10}"
           f"{'gc max':>10}{'gen2':>7}{'CPU/frame':>10}")
-    for name, lat, watch, cpu in runs:
-        report(name, lat, watch, cpu)
+    for name, run in runs:
+        report(name, run)
+    by_name = dict(runs)
+    recorder = by_name["pipeline"].cpu - by_name["relay"].cpu
+    print(f"\nrecorder CPU per frame (pipeline − relay of the same tree): "
+          f"{recorder * 1e3:.3f} ms", end="")
+    if isinstance(ref, tuple):
+        ref_recorder = ref[1].cpu - ref[0].cpu
+        print(f"; reference ({REFERENCE_COMMIT[:7]}): {ref_recorder * 1e3:.3f} ms; "
+              f"ratio {recorder / ref_recorder:.2f} (aim ≤ 0.50)")
+    else:
+        print(f"; {ref}" if ref else "")
     print(f"load average: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 

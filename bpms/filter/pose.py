@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -68,8 +69,9 @@ class Zero:
     yaw0: float
     frame: int  # stream frame index of the capture
 
-    @property
+    @cached_property
     def offset(self) -> np.ndarray:
+        # once per capture, not once per frame (a capture is never changed after it is made)
         return np.swapaxes(self.R0, -1, -2) @ rot_z(self.yaw0)
 
 

@@ -70,6 +70,8 @@ from bpms.io.timebase import stream_times
 SETTLE_S = 0.5
 
 
+_BANK_FIELDS = tuple(f.name for f in dataclasses.fields(BankOutput))
+
 #: Result fields that are running totals (the last part's value stands for the whole stream).
 _RUNNING_FIELDS = frozenset({"held_count", "reinit_count"})
 
@@ -432,7 +434,10 @@ class BodyPoseProcessor:
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
-        ensure_kernels(self.options.filter.algorithm, ("live",))  # no-op once loaded
+        algorithm = self.options.filter.algorithm
+        if getattr(self, "_live_kernels", None) != algorithm:  # once per filter, not per frame
+            ensure_kernels(algorithm, ("live",))
+            self._live_kernels = algorithm
         raw = np.asarray(raw)
         acc, mag, gyr = self._calibrate(raw[None])  # live: the compiled kernels
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
@@ -441,7 +446,7 @@ class BodyPoseProcessor:
         before = len(self.pose.captures)
         C = self.pose.apply(out.R[None])
         out = BankOutput(*(None if v is None else v[None]
-                           for v in (getattr(out, f.name) for f in dataclasses.fields(out))))
+                           for v in (getattr(out, name) for name in _BANK_FIELDS)))
         return self._result(1, out, C, before, acc, mag, gyr,
                             None if errors is None else np.asarray(errors)[None], reinit[None])
 

@@ -52,6 +52,7 @@ EPOCH_THRESHOLD_S = 1e8
 BLOCK_ROWS = 10_000
 _FMT = "%.10g"
 _HOST_FMT = "%.6f"
+_DEGREES = np.degrees(1.0)
 #: Written when the writer is given no convention (callers give the joint-angle convention in
 #: force: :func:`bpms.filter.door.filtered_convention`).
 _DEFAULT_CONVENTION = ("Euler roll, pitch, yaw (R = Rz Ry Rx), frame -> NED; joint angles: "
@@ -210,12 +211,13 @@ class FilteredWriter:
         for g in self.groups:
             fmts += [_GROUPS[g].fmt] * _GROUPS[g].width
         self._fmt = ",".join(fmts)
-        self._scale = np.ones(len(self.columns))
+        # (group, first column, width, angular columns scaled to degrees), computed once: a
+        # live file takes one row per frame and this is its per-row overhead
+        self._layout: list[tuple[str, int, int, bool]] = []
         col = len(FIXED_COLUMNS)
         for g in self.groups:
             w = _GROUPS[g].width
-            if degrees and _GROUPS[g].angular:
-                self._scale[col:col + w] = np.degrees(1.0)
+            self._layout.append((g, col, w, degrees and _GROUPS[g].angular))
             col += w
         if isinstance(path, str | Path):
             self.path: Path | None = Path(path)
@@ -245,23 +247,30 @@ class FilteredWriter:
             groups["joints"] = joint_angles
         elif self.joints and "joints" not in groups and euler is not None:
             raise ValueError("this file has joint-angle columns: give joint_angles")
-        block = np.full((n, len(self.columns)), np.nan)
+        block = np.empty((n, len(self.columns)))
         block[:, 0] = t
-        if host_time is not None:
-            block[:, 1] = np.asarray(host_time, dtype=np.float64).reshape(-1)
-        block[:, 2] = 0 if hole is None else np.asarray(hole, dtype=bool).reshape(-1)
-        col = len(FIXED_COLUMNS)
-        for g in self.groups:
-            w = _GROUPS[g].width
-            if g in groups and groups[g] is not None:
-                block[:, col:col + w] = np.asarray(groups[g], dtype=np.float64).reshape(n, w)
-            col += w
-        block *= self._scale
+        block[:, 1] = (np.nan if host_time is None
+                       else np.asarray(host_time, dtype=np.float64).reshape(-1))
+        holes = 0
+        if hole is None:
+            block[:, 2] = 0
+        else:
+            hole = np.asarray(hole, dtype=bool).reshape(-1)
+            block[:, 2] = hole
+            holes = int(np.count_nonzero(hole))
+        for g, col, w, to_degrees in self._layout:
+            values = groups.get(g)
+            if values is None:
+                block[:, col:col + w] = np.nan
+                continue
+            block[:, col:col + w] = np.reshape(values, (n, w))
+            if to_degrees:
+                block[:, col:col + w] *= _DEGREES
         if n:  # one format string per row: half the cost of numpy.savetxt for live rows
             fmt = self._fmt
             self._file.write("\n".join([fmt % tuple(r) for r in block.tolist()]) + "\n")
         self.rows += n
-        self.holes += int(block[:, 2].sum()) if n else 0
+        self.holes += holes
 
     def write(self, t: float, euler: np.ndarray, joint_angles: np.ndarray | None = None,
               host_time: float | None = None) -> None:

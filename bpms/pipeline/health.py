@@ -51,6 +51,8 @@ class PipelineHealth:
 
     def take_holes(self) -> list[Hole]:
         """The holes noted since the last call, in arrival order (processing thread)."""
+        if self._holes.empty():
+            return []
         out = []
         while True:
             try:
@@ -95,6 +97,9 @@ def write_with_holes(writer, indices: np.ndarray, host_times: np.ndarray,
     written, holes marked, holes after the last frame: pass them with the next block)."""
     from bpms.io.timebase import stream_time_of
 
+    if not holes:  # the usual case: nothing to merge
+        writer.write_block(stream_time_of(indices, dt), host_time=host_times, **arrays)
+        return len(indices), 0, []
     order, hole_index, hole_host, later = merge_holes(indices, holes)
     if not len(hole_index):
         writer.write_block(stream_time_of(indices, dt), host_time=host_times, **arrays)

@@ -38,6 +38,7 @@ from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
 from bpms.io.udp import UdpForwarder, shared_key
 from bpms.pipeline.fanout import Fanout, Subscription
+from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
     MAX_BACKLOG_FRAMES,
     PipelineHealth,
@@ -46,7 +47,6 @@ from bpms.pipeline.health import (
     write_with_holes,
 )
 from bpms.pipeline.rate import RateMeter
-from bpms.pipeline.raw_logger import STOP as RAW_STOP
 from bpms.pipeline.raw_logger import RawLogger
 from bpms.pipeline.settings_queue import SettingsQueue
 from bpms.pipeline.steady import prepare_live_path
@@ -56,6 +56,9 @@ if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with t
 
 log = logging.getLogger(__name__)
 _STOP = object()
+#: Processed frames queued before they are written to the filtered file (0.2 s at 50 Hz; the
+#: file is flushed once per flush interval anyway).
+FILTERED_BATCH = 10
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,7 +174,7 @@ class LiveSession:
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
-        self._proc_queue: queue.Queue[FrameEvent | object] = queue.Queue(maxsize=max_backlog)
+        self._proc_queue: Handoff[FrameEvent | object] = Handoff(max_backlog)
         self.health = PipelineHealth()
         self._holes: list = []  # holes after the last processed frame, not yet written
         self._commands: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
@@ -187,6 +190,9 @@ class LiveSession:
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
+        # processed rows not yet written: (source indices, host times, per-group arrays)
+        self._pending: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] = []
+        self._pending_frames = 0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
         # Session markers (text, source frame index or -1) for LSL/other consumers (i16).
@@ -305,12 +311,15 @@ class LiveSession:
             self.markers.publish(("logging stop", -1))
         logger, self._raw_logger = self._raw_logger, None
         if logger is not None:
-            logger.queue.put(RAW_STOP)
+            logger.stop()
             logger.join(10.0)
         done = threading.Event()
 
         def close_filtered() -> None:
+            if self._filtered is not None:
+                self._write_filtered()
             writer, self._filtered = self._filtered, None
+            self._pending, self._pending_frames = [], 0
             if writer is not None:
                 holes, self._holes = [*self._holes, *self.health.take_holes()], []
                 try:
@@ -395,7 +404,7 @@ class LiveSession:
         if getattr(self.source, "can_wait", False):
             while not self._stop.is_set():
                 try:
-                    self._proc_queue.put(event, timeout=0.2)
+                    self._proc_queue.put_wait(event, 0.2)
                     return
                 except queue.Full:
                     continue
@@ -413,11 +422,13 @@ class LiveSession:
                 first = self._proc_queue.get(timeout=0.1)
             except queue.Empty:
                 self._run_commands()
+                if self._pending:  # the source went quiet: write what is waiting
+                    self._write_filtered()
                 if self._stop.is_set():
                     break
                 continue
             batch = [first]
-            while len(batch) < 512:
+            while len(batch) < 512 and self._proc_queue.qsize():
                 try:
                     batch.append(self._proc_queue.get_nowait())
                 except queue.Empty:
@@ -438,7 +449,7 @@ class LiveSession:
 
     def _run_commands(self) -> None:
         self.settings.apply(self.processor, self.note)
-        while True:
+        while not self._commands.empty():
             try:
                 command = self._commands.get_nowait()
             except queue.Empty:
@@ -485,7 +496,6 @@ class LiveSession:
             self.markers.publish(("reset zero", head.index + z.frame - first))
         self._processed += len(events)
         self._error_bits += int(decoded.errors.sum())
-        self._log_filtered(events, result)
         forwarder = self._forwarder
         if forwarder is not None:
             quats = result.segment_quaternions.astype(np.float32)
@@ -503,6 +513,7 @@ class LiveSession:
                 del self._latencies[:-2500]
         for sample in samples:
             self._fanout.publish(sample)
+        self._log_filtered(events, result)  # after the pose went out: off the latency path
 
     def _note_reinit(self, result) -> None:
         """State-guard re-initialisations are events (logged, in the status): every one is
@@ -520,20 +531,41 @@ class LiveSession:
             self._reinit_imus.clear()
 
     def _log_filtered(self, events: list[FrameEvent], result) -> None:
-        """Write the processed rows and a marked row for every frame that skipped processing,
-        in frame order (:mod:`bpms.pipeline.health`)."""
+        """Queue the processed rows for the filtered file; they are written every
+        :data:`FILTERED_BATCH` frames (and when the source goes quiet or logging stops), so
+        the per-write work is paid once per batch instead of once per frame."""
         from bpms.filter.door import filtered_arrays  # loaded with the filter, not the GUI
 
-        holes = [*self._holes, *self.health.take_holes()]
         writer = self._filtered
         if writer is None:
             self._holes = []
+            self.health.take_holes()
             return
+        self._pending.append((np.array([e.index for e in events], dtype=np.int64),
+                              np.array([e.host_time for e in events]),
+                              filtered_arrays(result, writer.groups)))
+        self._pending_frames += len(events)
+        if self._pending_frames >= FILTERED_BATCH:
+            self._write_filtered()
+
+    def _write_filtered(self) -> None:
+        """Write the queued rows and a marked row for every frame that skipped processing,
+        in frame order (:mod:`bpms.pipeline.health`)."""
+        pending, self._pending, self._pending_frames = self._pending, [], 0
+        writer = self._filtered
+        holes = [*self._holes, *self.health.take_holes()]
+        if writer is None or not pending:
+            self._holes = holes if writer is not None else []
+            return
+        if len(pending) == 1:
+            indices, host_times, arrays = pending[0]
+        else:
+            indices = np.concatenate([p[0] for p in pending])
+            host_times = np.concatenate([p[1] for p in pending])
+            arrays = {g: np.concatenate([p[2][g] for p in pending]) for g in pending[0][2]}
         try:
             rows, marked, self._holes = write_with_holes(
-                writer, np.array([e.index for e in events], dtype=np.int64),
-                np.array([e.host_time for e in events]), filtered_arrays(result, writer.groups),
-                holes, self.processor.options.filter.dt)
+                writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
             self.health.holes_marked += marked
             if self._recording is not None:
                 self._recording.filtered_rows += rows

@@ -62,7 +62,7 @@ class SettingsQueue:
         package missing) is reported through ``on_error`` and the others still apply.
         Returns how many changes were applied."""
         done = 0
-        while True:
+        while not self._queue.empty():  # (checked first: no exception per frame)
             try:
                 change = self._queue.get_nowait()
             except queue.Empty:
@@ -80,6 +80,7 @@ class SettingsQueue:
             except Exception as exc:  # reported, never kills the processing thread
                 if on_error is not None:
                     on_error(f"setting {change.kind} not applied: {exc}")
+        return done
 
 
 __all__ = ["Change", "SettingsQueue"]
