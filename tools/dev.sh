@@ -62,10 +62,13 @@ setup() {
 
 run_tests() {
   log "ruff check"
-  "$VENV/bin/ruff" check bpms tests bench
+  "$VENV/bin/ruff" check bpms tests bench tools
   log "pytest"
   local rc=0
-  HYPOTHESIS_PROFILE=ci "$PY" -m pytest -q "$@" || rc=$?
+  # Modules load from cached bytecode, as installed (the tests start many `python -m bpms`
+  # children); a crash in a child prints its Python stack.
+  unset PYTHONDONTWRITEBYTECODE
+  HYPOTHESIS_PROFILE=ci PYTHONFAULTHANDLER=1 "$PY" -m pytest -q "$@" || rc=$?
   if [ "$rc" -eq 5 ]; then
     log "pytest collected no tests"
     return 1
