@@ -89,15 +89,8 @@ def walked_path(t: np.ndarray, accel_g: dict[str, np.ndarray], joint_positions: 
     :func:`bpms.analysis.gait_events.gyro_heel_strikes`); ``accel_g`` is then unused."""
     idx, sides, peaks = (heel_strikes(accel_g, t, threshold_g, min_interval_s)
                          if strikes is None else strikes)
-    pos = joint_positions[idx]
-    origin_r = "pelvis" if include_hips else "hip_r"
-    origin_l = "pelvis" if include_hips else "hip_l"
-    right = pos[:, POINT_INDEX["ankle_r"]] - pos[:, POINT_INDEX[origin_r]]
-    left = pos[:, POINT_INDEX["ankle_l"]] - pos[:, POINT_INDEX[origin_l]]
-    lead_right = np.array([s == "right" for s in sides])[:, None]
-    steps = np.where(lead_right, right - left, left - right).reshape(-1, 3)
-    steps = np.nan_to_num(steps) @ rot_z(np.radians(declination_deg)).T
-    return Track(t[idx], sides, peaks, steps, np.cumsum(steps, axis=0))
+    return _track(np.asarray(t)[idx], list(sides), np.asarray(peaks), joint_positions[idx],
+                  include_hips, declination_deg)
 
 
 class TrackAccumulator:
@@ -154,18 +147,11 @@ class TrackAccumulator:
     def track(self) -> Track:
         """The walked path so far."""
         kept = sorted(self._kept, key=lambda c: (c[0], c[1]))
-        sides = [c[1] for c in kept]
         pos = (np.array([c[4] for c in kept]) if kept
                else np.zeros((0, len(POINT_INDEX), 3)))
-        origin_r = "pelvis" if self.include_hips else "hip_r"
-        origin_l = "pelvis" if self.include_hips else "hip_l"
-        right = pos[:, POINT_INDEX["ankle_r"]] - pos[:, POINT_INDEX[origin_r]]
-        left = pos[:, POINT_INDEX["ankle_l"]] - pos[:, POINT_INDEX[origin_l]]
-        lead_right = np.array([s == "right" for s in sides], dtype=bool)[:, None]
-        steps = np.where(lead_right, right - left, left - right).reshape(-1, 3)
-        steps = np.nan_to_num(steps) @ rot_z(np.radians(self.declination_deg)).T
-        return Track(np.array([c[3] for c in kept]), sides, np.array([c[2] for c in kept]),
-                     steps, np.cumsum(steps, axis=0))
+        return _track(np.array([c[3] for c in kept]), [c[1] for c in kept],
+                      np.array([c[2] for c in kept]), pos, self.include_hips,
+                      self.declination_deg)
 
 
 class GyroTrackAccumulator:
