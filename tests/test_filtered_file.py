@@ -142,3 +142,33 @@ def test_newer_versions_and_foreign_files_are_one_line_errors(tmp_path):
         bad.write_text(text)
         with pytest.raises(FilteredFileError):
             read_filtered(bad)
+
+
+def test_flag_columns_are_written_as_the_row_format_writes_them(tmp_path):
+    # The trailing 0/1 flag columns take a shortcut (their bytes); the text must be what the
+    # row's printf format gives, and any other value (NaN, -0.0, 2) must fall back to it.
+    import io
+
+    from bpms.io.filtered_file import FilteredWriter
+
+    groups = ["euler", "corrected", "joints", "reinitialised", "mag_disturbed"]
+    rng = np.random.default_rng(0)
+    n = 12
+    flags = (rng.random((n, 18)) < 0.3).astype(float)
+    cases = [flags, np.where(np.arange(18) == 4, np.nan, flags), flags * -0.0 + flags,
+             np.where(np.arange(18) == 2, -0.0, flags), flags * 2]
+    for values in cases:
+        out = io.StringIO()
+        writer = FilteredWriter(out, groups=groups)
+        arrays = {"euler": rng.normal(size=(n, 18, 3)), "corrected": np.ones((n, 1)),
+                  "joints": rng.normal(size=(n, 28)), "reinitialised": values,
+                  "mag_disturbed": values[:, ::-1]}
+        writer.write_block(np.arange(n) * 0.02, arrays["euler"], arrays["joints"],
+                           host_time=1.7e9 + np.arange(n), corrected=arrays["corrected"],
+                           reinitialised=values, mag_disturbed=values[:, ::-1])
+        rows = out.getvalue().splitlines()[-n:]
+        block = np.column_stack([np.arange(n) * 0.02, 1.7e9 + np.arange(n), np.zeros(n),
+                                 arrays["euler"].reshape(n, -1), arrays["corrected"],
+                                 arrays["joints"], values, values[:, ::-1]])
+        assert rows == [writer._fmt % tuple(r) for r in block.tolist()]
+    assert writer._flags == 36

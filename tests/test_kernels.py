@@ -100,12 +100,13 @@ def test_twins_are_the_only_code_in_a_twins_block(hard_recording):
         for x, fn in originals.items():
             x._twin = counting(fn, x.__name__)
         with kernels.twins():
-            BodyPoseProcessor().process(raw[:100], errors[:100], zero_at=[10])
+            result = BodyPoseProcessor().process(raw[:100], errors[:100], zero_at=[10])
+            _ = (result.euler_output, result.joint_angles, result.joint_positions)
     finally:
         for x, fn in originals.items():
             x._twin = fn
-    assert {"run_batch", "calibrate_batch", "right_multiply", "_check",
-            "run_disturbance"} <= set(calls)
+    assert {"run_batch", "calibrate_batch", "right_multiply", "_check", "run_disturbance",
+            "segment_euler", "joint_angle_frames", "joint_position_frames"} <= set(calls)
 
 
 def test_short_filter_runs_without_numba_and_writes_the_same_file(tmp_path):
@@ -248,3 +249,30 @@ def test_the_plan_ends_with_the_recording(tmp_path):
                           text=True, timeout=300, env=env)
     assert done.returncode == 0, done.stderr
     assert "AFTER_FILE False" in done.stdout and "AFTER_LONG True" in done.stdout
+
+
+def test_body_twins_give_the_compiled_numbers(hard_recording):
+    # Segment angles, joint angles (both conventions) and joint positions (on the ground or
+    # not) from segment orientations with NaN IMUs, NaN frames and entries just past ±1.
+    from bpms.filter.body_model import joint_positions
+    from bpms.filter.joints import joint_angles
+    from bpms.filter.pose import segment_angles
+    from bpms.io.options import BodyOptions
+
+    raw, errors = hard_recording
+    C = BodyPoseProcessor().process(raw[:400], errors[:400]).C.copy()
+    C[100, 4] = np.nan  # one arm IMU missing
+    C[101] = np.nan  # a whole frame missing
+    C[102, :, 2, 0] = 1.0 + 1e-12  # rounding past the asin domain
+    C[103, 6, 0, 0] = np.inf
+    body = BodyOptions(arm=0.31, thigh=0.47)
+    outputs = {}
+    for use_twins in (False, True):
+        with kernels.twins(use_twins):
+            outputs[use_twins] = [segment_angles(C), joint_angles(C, "isb"),
+                                  joint_angles(C, "original"), joint_positions(C, body),
+                                  joint_positions(C[:3], body, on_ground=False)]
+    assert np.isnan(outputs[False][1][101]).all() and np.isfinite(outputs[False][1][200]).all()
+    assert np.isfinite(outputs[False][0][102]).all()  # clipped, not NaN
+    for compiled, twinned in zip(outputs[False], outputs[True], strict=True):
+        assert _same(compiled, twinned)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bpms.filter.body_kernels import body_context, joint_position_frames
 from bpms.io.options import BodyOptions
 
 UP = (0.0, 0.0, -1.0)
@@ -72,37 +73,35 @@ for _p in BODY_POINTS:
     SEGMENT_AXIS.setdefault(_p.imu, _p.direction)
 
 
-_POINT_IMUS = np.array([p.imu for p in BODY_POINTS])
+# The tables the compiled kernel (bpms.filter.body_kernels.joint_position_frames) reads.
+_POINT_IMUS = np.array([p.imu for p in BODY_POINTS], dtype=np.int64)
+_PARENTS = np.array([POINT_INDEX[p.parent] for p in BODY_POINTS], dtype=np.int64)
 _DIRECTIONS = np.array([p.direction for p in BODY_POINTS], dtype=np.float64)
-_FOOT_INDEX = np.array([POINT_INDEX[n] for n in FOOT_POINTS])
+_FOOT_INDEX = np.array([POINT_INDEX[n] for n in FOOT_POINTS], dtype=np.int64)
 
 
-def _path_matrix() -> np.ndarray:
-    """``[21, 20]``: entry (p, k) is 1 when segment k lies on the path from the pelvis to p."""
-    paths = np.zeros((len(POINT_NAMES), len(BODY_POINTS)))
-    for k, point in enumerate(BODY_POINTS):
-        paths[k + 1] = paths[POINT_INDEX[point.parent]]
-        paths[k + 1, k] = 1.0
-    return paths
-
-
-_PATHS = _path_matrix()
-
-
-def segment_vectors(C: np.ndarray, lengths: BodyOptions | None = None) -> np.ndarray:
-    """``[..., 20, 3]`` vectors from parent to child point in world axes, metres."""
+def segment_lengths(lengths: BodyOptions | None = None) -> np.ndarray:
+    """``[20]`` m: the length of each segment of :data:`BODY_POINTS` (``Options.body``)."""
     lengths = lengths or BodyOptions()
-    C = np.asarray(C, dtype=np.float64)
-    scale = np.array([getattr(lengths, p.length) for p in BODY_POINTS])
-    return np.einsum("...pij,pj->...pi", C[..., _POINT_IMUS, :, :], _DIRECTIONS * scale[:, None])
+    return np.array([float(getattr(lengths, p.length)) for p in BODY_POINTS])
 
 
 def joint_positions(C: np.ndarray, lengths: BodyOptions | None = None,
                     on_ground: bool = True) -> np.ndarray:
     """Joint positions ``[..., 21, 3]`` (order :data:`POINT_NAMES`), metres, world NED axes,
     pelvis above the origin. With ``on_ground`` the lowest foot point is at z = 0."""
-    pos = _PATHS @ segment_vectors(C, lengths)
-    if on_ground:
-        lowest = pos[..., _FOOT_INDEX, 2].max(axis=-1)  # z down: the largest z is the lowest
-        pos[..., 2] -= lowest[..., None]
-    return pos
+    C = np.ascontiguousarray(C, dtype=np.float64)
+    frames = C.reshape(-1, *C.shape[-3:])
+    out = np.empty((len(frames), len(POINT_NAMES), 3))
+    with body_context(len(frames)):  # one kernel live and in batch (docs/body-model.md)
+        joint_position_frames(frames, *position_tables(lengths), bool(on_ground), out)
+    return out.reshape(*C.shape[:-3], len(POINT_NAMES), 3)
+
+
+def position_tables(lengths: BodyOptions | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The chain tables :func:`bpms.filter.body_kernels.joint_position_frames` takes after
+    ``C``: each point's IMU, its parent point, its vector in segment axes (m) and the foot
+    points."""
+    vectors = _DIRECTIONS * segment_lengths(lengths)[:, None]
+    return _POINT_IMUS, _PARENTS, vectors, _FOOT_INDEX

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from bpms.filter.bank import BankOutput
+from bpms.filter.bank import BankOutput, MahonyBank
 from bpms.filter.kernels import kernel
 
 #: ‖RᵀR − I‖ (Frobenius) above which a DCM is no rotation any more.
@@ -100,6 +100,7 @@ class StateGuard:
         self.n = n
         self.expected = np.zeros(n, dtype=np.bool_)
         self.count = np.zeros(n, dtype=np.int64)
+        self.total = 0  # re-initialisations of all IMUs so far (= count.sum(), a plain int)
 
     def forget(self, imu: int | np.ndarray | None = None) -> None:
         """IMU ``imu`` (a bool mask, an index, or all when None) restarts: NaN is normal again
@@ -138,8 +139,6 @@ class StateGuard:
 def renorm_allowance(bank: Any) -> float:
     """``c4`` of :func:`_check` for ``bank``: ``MAHONY_RENORM_K · dt⁴`` for the Mahony DCM
     filter (:class:`bpms.filter.bank.MahonyBank`), 0 for the quaternion filters."""
-    from bpms.filter.bank import MahonyBank
-
     if isinstance(bank, MahonyBank):
         return MAHONY_RENORM_K * float(bank.params[4]) ** 4
     return 0.0
@@ -204,6 +203,7 @@ def _reinit(bank: Any, guard: StateGuard, imus: np.ndarray) -> None:
     for i in np.flatnonzero(imus):
         bank.reset(int(i))
     guard.count += imus
+    guard.total += int(np.count_nonzero(imus))
 
 
 def failed_inputs(acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,

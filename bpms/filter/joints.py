@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bpms.filter.body_kernels import body_context, joint_angle_frames
 from bpms.filter.body_model import SEGMENT_AXIS
-from bpms.filter.rotations import dcm_to_euler
 from bpms.io.names import JOINT_ANGLE_NAMES
 
 
@@ -68,12 +68,11 @@ assert (
 ) == JOINT_ANGLE_NAMES, "bpms.io.names.JOINT_ANGLE_NAMES disagrees with the joint tables"
 
 
-_HINGE_PROXIMAL = np.array([j.proximal for j in HINGE_JOINTS])
-_HINGE_DISTAL = np.array([j.distal for j in HINGE_JOINTS])
-_HINGE_AXIS_P = np.array([SEGMENT_AXIS[j.proximal] for j in HINGE_JOINTS])
-_HINGE_AXIS_D = np.array([SEGMENT_AXIS[j.distal] for j in HINGE_JOINTS])
-_BALL_STATIC = np.array([j.static for j in BALL_JOINTS])
-_BALL_DYNAMIC = np.array([j.dynamic for j in BALL_JOINTS])
+# The tables the compiled kernel (bpms.filter.body_kernels.joint_angle_frames) reads.
+_HINGE = np.array([(j.proximal, j.distal) for j in HINGE_JOINTS], dtype=np.int64)
+_HINGE_AXES = np.array([(SEGMENT_AXIS[j.proximal], SEGMENT_AXIS[j.distal])
+                        for j in HINGE_JOINTS], dtype=np.float64)
+_BALL = np.array([(j.static, j.dynamic) for j in BALL_JOINTS], dtype=np.int64)
 
 
 CONVENTIONS = ("isb", "original")
@@ -107,6 +106,7 @@ def _isb_signs() -> np.ndarray:
 #: ISB value = ``ISB_SIGNS * original value``, column by column (the conversion is a pure sign
 #: change because both read the same Euler decomposition).
 ISB_SIGNS = _isb_signs()
+_ORIGINAL_SIGNS = np.ones_like(ISB_SIGNS)
 
 
 def check_convention(convention: str) -> str:
@@ -128,16 +128,21 @@ def convert(angles: np.ndarray, source: str, target: str) -> np.ndarray:
 def joint_angles(C: np.ndarray, convention: str = DEFAULT_CONVENTION) -> np.ndarray:
     """Joint angles ``[..., 28]`` in radians, order :data:`JOINT_ANGLE_NAMES`, from calibrated
     segment orientations ``C[..., 18, 3, 3]``, in ``convention`` (:data:`CONVENTIONS`)."""
-    check_convention(convention)
-    C = np.asarray(C, dtype=np.float64)
-    u = np.einsum("...jab,jb->...ja", C[..., _HINGE_PROXIMAL, :, :], _HINGE_AXIS_P)
-    v = np.einsum("...jab,jb->...ja", C[..., _HINGE_DISTAL, :, :], _HINGE_AXIS_D)
-    cos = np.sum(u * v, axis=-1) / np.sqrt(np.sum(u * u, axis=-1) * np.sum(v * v, axis=-1))
-    flexion = np.arccos(np.clip(cos, -1.0, 1.0))
-    rel = np.swapaxes(C[..., _BALL_STATIC, :, :], -1, -2) @ C[..., _BALL_DYNAMIC, :, :]
-    ball = dcm_to_euler(rel).reshape(*C.shape[:-3], 3 * len(BALL_JOINTS))
-    out = np.concatenate([flexion, ball], axis=-1)
-    return out * ISB_SIGNS if convention == "isb" else out
+    C = np.ascontiguousarray(C, dtype=np.float64)
+    frames = C.reshape(-1, *C.shape[-3:])
+    out = np.empty((len(frames), len(JOINT_ANGLE_NAMES)))
+    with body_context(len(frames)):  # one kernel live and in batch (docs/joint-angles.md)
+        joint_angle_frames(frames, *angle_tables(convention), out)
+    return out.reshape(*C.shape[:-3], len(JOINT_ANGLE_NAMES))
+
+
+def angle_tables(convention: str = DEFAULT_CONVENTION
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The joint tables :func:`bpms.filter.body_kernels.joint_angle_frames` takes after
+    ``C``: hinge IMU pairs, their segment axes, ball-joint IMU pairs and the column signs of
+    ``convention``."""
+    signs = ISB_SIGNS if check_convention(convention) == "isb" else _ORIGINAL_SIGNS
+    return _HINGE, _HINGE_AXES, _BALL, signs
 
 
 #: OpenSim coordinate (Rajagopal 2016 / gait2392 / Hamner names) → (BPMS ISB column, factor):

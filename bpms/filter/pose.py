@@ -35,6 +35,7 @@ from functools import cached_property
 
 import numpy as np
 
+from bpms.filter.body_kernels import body_context, segment_euler
 from bpms.filter.body_model import joint_positions
 from bpms.filter.joints import joint_angles
 from bpms.filter.mahony import right_multiply
@@ -112,12 +113,22 @@ def segment_orientations(R: np.ndarray, zero: Zero | None) -> np.ndarray:
     """``C[..., 18, 3, 3] = R @ R0^T @ Rz(ψ0)``; NaN without a zero."""
     if zero is None:
         return np.full(np.shape(R), np.nan)
-    R = np.asarray(R, dtype=np.float64)
-    if R.ndim != 4:
-        return R @ zero.offset
-    out = np.empty_like(R)
-    right_multiply(np.ascontiguousarray(R), np.ascontiguousarray(zero.offset), out)
-    return out
+    R = np.ascontiguousarray(R, dtype=np.float64)
+    frames = R.reshape(-1, *R.shape[-3:])  # a live frame is a batch of one: the same kernel
+    out = np.empty_like(frames)
+    right_multiply(frames, np.ascontiguousarray(zero.offset), out)
+    return out.reshape(R.shape)
+
+
+def segment_angles(C: np.ndarray) -> np.ndarray:
+    """``[..., 18, 3]`` rad: roll, pitch, yaw of the segment orientations ``C[..., 18, 3, 3]``
+    (NaN where C is), the compiled kernel both live frames and whole recordings use."""
+    C = np.ascontiguousarray(C, dtype=np.float64)
+    frames = C.reshape(-1, *C.shape[-3:])
+    out = np.empty((*frames.shape[:-2], 3))
+    with body_context(len(frames)):
+        segment_euler(frames, out)
+    return out.reshape(*C.shape[:-2], 3)
 
 
 def body_outputs(C: np.ndarray, body: BodyOptions | None = None, convention: str = "isb",
@@ -147,7 +158,10 @@ class PoseCalibrator:
         """A new stream: forget the zero and the frame count (auto captures run again)."""
         self.zero: Zero | None = None
         self.frames = 0  # frames seen in this stream
-        self._buffer: np.ndarray | None = None  # the last window-1 frames of R
+        # the last window-1 frames of R, a ring: frame by frame costs one copy of a frame
+        self._ring: np.ndarray | None = None
+        self._held = 0  # frames in the ring
+        self._next = 0  # where the next frame goes (the oldest, once the ring is full)
         self._provisional_done = False
         self._requested = False
         self.captures: list[Zero] = []
@@ -161,12 +175,41 @@ class PoseCalibrator:
         """Stream frame index of the automatic capture."""
         return self.settle + self.window - 1
 
+    @property
+    def _buffer(self) -> np.ndarray | None:
+        """The frames of R remembered from earlier batches, oldest first (None: none)."""
+        if self._ring is None or not self._held:
+            return None
+        if self._held < len(self._ring):  # not full yet: filled in order from the start
+            return self._ring[:self._held]
+        return np.concatenate((self._ring[self._next:], self._ring[:self._next]))
+
+    def _remember(self, R: np.ndarray) -> None:
+        """Keep the last ``window - 1`` frames of the stream, ``R`` being its newest."""
+        keep = self.window - 1
+        n = len(R)
+        if keep == 0 or n == 0:
+            return
+        if self._ring is None or self._ring.shape[1:] != R.shape[1:]:
+            self._ring, self._held, self._next = np.empty((keep, *R.shape[1:])), 0, 0
+        if n >= keep:
+            self._ring[:] = R[n - keep:]
+            self._held, self._next = keep, 0
+            return
+        if n == 1:  # a live frame
+            self._ring[self._next] = R[0]
+        else:
+            self._ring[(self._next + np.arange(n)) % keep] = R
+        self._next = (self._next + n) % keep
+        self._held = min(self._held + n, keep)
+
     def _window_ending_at(self, R: np.ndarray, k: int) -> np.ndarray:
         """The last ``window`` frames up to batch frame ``k``, reaching into earlier batches."""
         lo = k - self.window + 1
-        if lo >= 0 or self._buffer is None:
+        earlier = None if lo >= 0 else self._buffer
+        if earlier is None:
             return R[max(lo, 0):k + 1]
-        return np.concatenate([self._buffer[max(len(self._buffer) + lo, 0):], R[:k + 1]])
+        return np.concatenate([earlier[max(len(earlier) + lo, 0):], R[:k + 1]])
 
     def apply(self, R: np.ndarray, zero_at: Iterable[int] = ()) -> np.ndarray:
         """Segment orientations ``C[N, 18, 3, 3]`` of the next N frames' DCMs
@@ -186,9 +229,15 @@ class PoseCalibrator:
             if ok.any():
                 provisional = int(np.argmax(ok))
                 self._provisional_done = True
+        captures = events if provisional is None else events | {provisional}
+        if not captures:  # most frames: no capture in this batch
+            C = segment_orientations(R, self.zero)
+            self._remember(R)
+            self.frames += n
+            return C
         C = np.empty_like(R)
         start = 0
-        for k in sorted(events | ({provisional} if provisional is not None else set())):
+        for k in sorted(captures):
             C[start:k] = segment_orientations(R[start:k], self.zero)
             if k == provisional and k not in events:
                 window = R[k:k + 1]
@@ -198,12 +247,6 @@ class PoseCalibrator:
             self.captures.append(self.zero)
             start = k
         C[start:] = segment_orientations(R[start:], self.zero)
-        keep = self.window - 1
-        if keep == 0:
-            self._buffer = None
-        elif n >= keep:
-            self._buffer = R[n - keep:].copy()
-        else:
-            self._buffer = self._window_ending_at(R, n - 1)[-keep:].copy()
+        self._remember(R)
         self.frames += n
         return C

@@ -57,12 +57,13 @@ from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process, guarded_step
 from bpms.filter.kernels import claim_twin_frames, load_numba, twins, twins_active
+from bpms.filter.live_frame import LiveFrame
 from bpms.filter.mahony import calibrate_batch
-from bpms.filter.pose import PoseCalibrator, Zero, body_outputs
-from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
+from bpms.filter.pose import PoseCalibrator, Zero, body_outputs, segment_angles
+from bpms.filter.rotations import dcm_to_quaternion
 from bpms.filter.warmup import PATHS, TWIN_FILTERS, ensure_kernels
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
-from bpms.io.frames import N_CHANNELS, N_IMUS
+from bpms.io.frames import END, END_OFFSET, FRAME_SIZE, N_CHANNELS, N_IMUS, START, decode_frames
 from bpms.io.options import BodyOptions, Options, check_option, load_options
 from bpms.io.timebase import stream_times
 
@@ -165,13 +166,25 @@ class Result:
     def euler_segment(self) -> np.ndarray:
         """``[N, 18, 3]`` rad: roll, pitch, yaw of the segment orientations ``C`` (relative to
         the calibration pose, heading as ``pose.heading_reference``); NaN before Reset Zero."""
-        return dcm_to_euler(self.C)
+        return segment_angles(self.C)
 
     @cached_property
     def euler_output(self) -> np.ndarray:
         """``[N, 18, 3]`` rad: the per-IMU angles the table, plots, filtered file and streams
         give: :attr:`euler_segment` at frames where ``corrected``, else :attr:`euler_sensor`."""
         return np.where(self.corrected[:, None, None], self.euler_segment, self.euler)
+
+    @cached_property
+    def estimates(self) -> np.ndarray:
+        """``[N, 18, 6]``: the filter's gyro-bias estimate x, y, z (rad/s, body axes) then its
+        body-acceleration estimate north, east, down (m/s²); NaN for what the filter does not
+        estimate."""
+        out = np.full((len(self), N_IMUS, 6), np.nan)
+        if self.gyro_bias is not None:
+            out[..., :3] = self.gyro_bias
+        if self.body_acc is not None:
+            out[..., 3:] = self.body_acc
+        return out
 
     @cached_property
     def _body(self) -> tuple[np.ndarray, np.ndarray]:
@@ -280,6 +293,7 @@ class BodyPoseProcessor:
         self.guard = StateGuard(N_IMUS)
         self.corrected_output = self.options.pose.corrected_output
         self._twins: bool | None = None  # plan(): how this stream's kernels run
+        self._live_frame = LiveFrame()
         self.problems = [str(p) for p in (*self.table.problems, *self.options.problems)]
 
     @property
@@ -436,6 +450,10 @@ class BodyPoseProcessor:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``); a Result with N = 1."""
         ensure_kernels(self.options.filter.algorithm, ("live",))  # ~0.6 µs once loaded
         raw = np.asarray(raw)
+        if errors is not None:
+            errors = np.asarray(errors)
+        if self._live_frame.usable(self, raw, errors):  # most frames: one compiled call
+            return self._live_frame.step(self, raw, errors)
         acc, mag, gyr = self._calibrate(raw[None])  # live: the compiled kernels
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
             errors = failed_inputs(acc[0], mag[0], gyr[0], errors)
@@ -446,6 +464,19 @@ class BodyPoseProcessor:
                            for v in (getattr(out, name) for name in _BANK_FIELDS)))
         return self._result(1, out, C, before, acc, mag, gyr,
                             None if errors is None else np.asarray(errors)[None], reinit[None])
+
+    def step_wire(self, frame: bytes) -> tuple[Result, np.ndarray, np.ndarray]:
+        """Decode and filter one live 340-byte frame as it came off the wire: (a Result with
+        N = 1, raw ``[1, 18, 9]`` int16 counts, errors ``[1, 18, 3]`` bool). The numbers of
+        :func:`bpms.io.frames.decode_frames` and :meth:`step`; most frames take one compiled
+        call for all of it (:mod:`bpms.filter.live_frame`). Raises
+        :class:`bpms.io.frames.FrameError` for a frame without its markers."""
+        ensure_kernels(self.options.filter.algorithm, ("live",))
+        if (len(frame) == FRAME_SIZE and frame[:2] == START and frame[END_OFFSET:] == END
+                and self._live_frame.usable(self)):
+            return self._live_frame.step_wire(self, frame)
+        decoded = decode_frames(frame)
+        return self.step(decoded.raw[0], decoded.errors[0]), decoded.raw, decoded.errors
 
     def process_file(self, path: str | Path, zero_at: list[int] | tuple[int, ...] = ()) -> Result:
         """Filter a whole recording (native raw, legacy pickled raw, or a filtered CSV) as one

@@ -331,3 +331,70 @@ def run_disturbance(acc, mag, gyr, R, gravity, valid, p, state, mag_dist, acc_di
         norm_ratio[t, sel] = np.where(ready, s[:, S_NORM_LP] - 1.0, nan)
         dip_dev[t, sel] = np.where(ready, s[:, S_DIP_LP] - s[:, S_REF_DIP], nan)
         state[sel] = s
+
+
+# -- the body's numbers (stateless: vectorised over frames) -----------------------------------
+def _quiet(twin: Callable[..., None]) -> Callable[..., None]:
+    """Run ``twin`` without numpy's floating-point warnings: a non-finite orientation gives
+    NaN silently, as in the compiled kernel."""
+
+    def run(*args: object) -> None:
+        with np.errstate(all="ignore"):
+            twin(*args)
+
+    run.__doc__ = twin.__doc__
+    return run
+
+
+def _clipped(x: np.ndarray) -> np.ndarray:
+    """x clipped to [−1, 1], NaN kept (the kernels' two comparisons)."""
+    return np.where(x > 1.0, 1.0, np.where(x < -1.0, -1.0, x))
+
+
+@_quiet
+def segment_euler(C, out) -> None:
+    """Twin of :func:`bpms.filter.body_kernels.segment_euler`."""
+    shape = C.shape[:-2]
+    C = C.reshape(-1, 3, 3)
+    out[..., 0] = _each(math.atan2, C[:, 2, 1], C[:, 2, 2]).reshape(shape)
+    out[..., 1] = -_each(math.asin, _clipped(C[:, 2, 0])).reshape(shape)
+    out[..., 2] = _each(math.atan2, C[:, 1, 0], C[:, 0, 0]).reshape(shape)
+
+
+@_quiet
+def joint_angle_frames(C, hinge, hinge_axes, ball, signs, out) -> None:
+    """Twin of :func:`bpms.filter.body_kernels.joint_angle_frames`."""
+    n_hinge = len(hinge)
+    for j in range(n_hinge):
+        P, D = C[:, hinge[j, 0]], C[:, hinge[j, 1]]
+        ap, ad = hinge_axes[j, 0], hinge_axes[j, 1]
+        u = [(P[:, a, 0] * ap[0] + P[:, a, 1] * ap[1]) + P[:, a, 2] * ap[2] for a in range(3)]
+        v = [(D[:, a, 0] * ad[0] + D[:, a, 1] * ad[1]) + D[:, a, 2] * ad[2] for a in range(3)]
+        c = ((u[0] * v[0] + u[1] * v[1]) + u[2] * v[2]) / np.sqrt(
+            ((u[0] * u[0] + u[1] * u[1]) + u[2] * u[2]) * ((v[0] * v[0] + v[1] * v[1])
+                                                           + v[2] * v[2]))
+        out[:, j] = _each(math.acos, _clipped(c)) * signs[j]
+    for b in range(len(ball)):
+        S, D = C[:, ball[b, 0]], C[:, ball[b, 1]]
+
+        def rel(a: int, c: int, S=S, D=D) -> np.ndarray:
+            return (S[:, 0, a] * D[:, 0, c] + S[:, 1, a] * D[:, 1, c]) + S[:, 2, a] * D[:, 2, c]
+
+        col = n_hinge + 3 * b
+        out[:, col] = _each(math.atan2, rel(2, 1), rel(2, 2)) * signs[col]
+        out[:, col + 1] = -_each(math.asin, _clipped(rel(2, 0))) * signs[col + 1]
+        out[:, col + 2] = _each(math.atan2, rel(1, 0), rel(0, 0)) * signs[col + 2]
+
+
+@_quiet
+def joint_position_frames(C, imus, parents, vectors, feet, on_ground, out) -> None:
+    """Twin of :func:`bpms.filter.body_kernels.joint_position_frames`."""
+    out[:, 0] = 0.0
+    for p in range(len(imus)):
+        R, w = C[:, imus[p]], vectors[p]
+        for a in range(3):
+            out[:, p + 1, a] = out[:, parents[p], a] + ((R[:, a, 0] * w[0] + R[:, a, 1] * w[1])
+                                                        + R[:, a, 2] * w[2])
+    if on_ground:
+        lowest = out[:, feet, 2].max(axis=1)  # NaN when one foot point is NaN
+        out[:, :, 2] = out[:, :, 2] - lowest[:, None]

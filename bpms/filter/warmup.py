@@ -19,7 +19,7 @@ from typing import TextIO
 
 import numpy as np
 
-from bpms.io.frames import N_CHANNELS, N_IMUS
+from bpms.io.frames import N_CHANNELS, N_IMUS, encode_frame
 
 #: Filters whose kernels numba compiles (``vqf`` runs in the vqf package's own code).
 COMPILED_FILTERS = ("mahony", "observer", "adaptive")
@@ -146,14 +146,17 @@ def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
                 processor = BodyPoseProcessor(options=options)
                 progress.step(f"{algorithm}, {'whole recordings' if path == 'batch' else 'live'}")
                 if path == "batch":
-                    processor.process(raw)
-                    processor.process(raw, errors)
+                    results = [processor.process(raw), processor.process(raw, errors)]
                 else:
+                    results = []
                     for k in range(len(raw)):
-                        processor.step(raw[k])
-                        processor.step(raw[k], errors[k])
+                        results.append(processor.step(raw[k]))
+                        results.append(processor.step(raw[k], errors[k]))
+                    results.append(processor.step_wire(encode_frame(raw[0]))[0])
                     processor.reset_zero()
-                    processor.step(raw[0])
+                    results.append(processor.step(raw[0]))
+                for result in results[-1:]:  # the body's kernels (bpms.filter.body_kernels)
+                    _ = (result.euler_output, result.joint_angles, result.joint_positions)
                 progress.advance()
         except BaseException:
             _ready.difference_update(todo)

@@ -16,6 +16,8 @@ import numpy as np
 
 def stream_times(first_index: int, n: int, dt: float) -> np.ndarray:
     """``[n]`` s: stream time of frames ``first_index .. first_index + n - 1``."""
+    if n == 1:  # a live frame: the same number, without building a range
+        return np.array([float(int(first_index)) * float(dt)])
     return (int(first_index) + np.arange(n, dtype=np.float64)) * float(dt)
 
 

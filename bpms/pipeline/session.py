@@ -191,7 +191,8 @@ class LiveSession:
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
         # processed rows not yet written: (source indices, host times, per-group arrays)
-        self._pending: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] = []
+        # processed rows not yet written: (their frame events, per-group arrays)
+        self._pending: list[tuple[list[FrameEvent], dict[str, np.ndarray]]] = []
         self._pending_frames = 0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
@@ -473,17 +474,18 @@ class LiveSession:
             else:
                 proc.reset_filter()
             self.markers.publish(("filter re-initialised", head.index))
-        decoded = decode_frames(b"".join(e.frame for e in events))
-        if len(events) == 1:
-            result = proc.step(decoded.raw[0], decoded.errors[0])
+        if len(events) == 1:  # live at 50 Hz: decoded and filtered in one call
+            result, raw, errors = proc.step_wire(events[0].frame)
         else:
-            result = proc.process(decoded.raw, decoded.errors)
+            decoded = decode_frames(b"".join(e.frame for e in events))
+            raw, errors = decoded.raw, decoded.errors
+            result = proc.process(raw, errors)
         angles = result.joint_angles
         positions = result.joint_positions
         done = time.perf_counter()
         output, dist = result.euler_output, result.disturbance
-        estimates = _estimates(result)
-        samples = [PoseSample(e.index, e.host_time, e.frame, decoded.raw[k], decoded.errors[k],
+        estimates = result.estimates
+        samples = [PoseSample(e.index, e.host_time, e.frame, raw[k], errors[k],
                               result.euler[k], result.R[k], result.C[k], angles[k],
                               positions[k], done - e.arrival, output[k],
                               result.reinitialised[k], e.arrival,
@@ -495,7 +497,7 @@ class LiveSession:
         for z in result.zeros:
             self.markers.publish(("reset zero", head.index + z.frame - first))
         self._processed += len(events)
-        self._error_bits += int(decoded.errors.sum())
+        self._error_bits += int(errors.sum())
         forwarder = self._forwarder
         if forwarder is not None:
             quats = result.segment_quaternions.astype(np.float32)
@@ -518,7 +520,7 @@ class LiveSession:
     def _note_reinit(self, result) -> None:
         """State-guard re-initialisations are events (logged, in the status): every one is
         counted (``LiveStatus.reinit_count``), at most one event line per second."""
-        total = int(result.reinit_count.sum())
+        total = self.processor.guard.total  # = result.reinit_count.sum(), without numpy
         if total == self._reinit_seen:
             return
         self._reinit_seen = total
@@ -534,16 +536,12 @@ class LiveSession:
         """Queue the processed rows for the filtered file; they are written every
         :data:`FILTERED_BATCH` frames (and when the source goes quiet or logging stops), so
         the per-write work is paid once per batch instead of once per frame."""
-        from bpms.filter.door import filtered_arrays  # loaded with the filter, not the GUI
-
         writer = self._filtered
         if writer is None:
             self._holes = []
             self.health.take_holes()
             return
-        self._pending.append((np.array([e.index for e in events], dtype=np.int64),
-                              np.array([e.host_time for e in events]),
-                              filtered_arrays(result, writer.groups)))
+        self._pending.append((events, _filtered_arrays()(result, writer.groups)))
         self._pending_frames += len(events)
         if self._pending_frames >= FILTERED_BATCH:
             self._write_filtered()
@@ -557,12 +555,13 @@ class LiveSession:
         if writer is None or not pending:
             self._holes = holes if writer is not None else []
             return
+        events = [e for batch, _ in pending for e in batch]
+        indices = np.array([e.index for e in events], dtype=np.int64)
+        host_times = np.array([e.host_time for e in events])
         if len(pending) == 1:
-            indices, host_times, arrays = pending[0]
+            arrays = pending[0][1]
         else:
-            indices = np.concatenate([p[0] for p in pending])
-            host_times = np.concatenate([p[1] for p in pending])
-            arrays = {g: np.concatenate([p[2][g] for p in pending]) for g in pending[0][2]}
+            arrays = {g: np.concatenate([p[1][g] for p in pending]) for g in pending[0][1]}
         try:
             rows, marked, self._holes = write_with_holes(
                 writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
@@ -578,18 +577,21 @@ class LiveSession:
             self.note(f"filtered recording stopped: {exc}")
 
 
+_LOADED: dict[str, Callable] = {}
+
+
+def _filtered_arrays() -> Callable:
+    """:func:`bpms.filter.door.filtered_arrays`, imported at the first filtered row (the
+    filter layer is loaded with the processor, not with the GUI's start-up window)."""
+    function = _LOADED.get("filtered_arrays")
+    if function is None:
+        from bpms.filter.door import filtered_arrays
+
+        function = _LOADED["filtered_arrays"] = filtered_arrays
+    return function
+
+
 def _options_dict(options: Options) -> dict:
     import dataclasses
 
     return {name: dataclasses.asdict(section) for name, section in options.sections().items()}
-
-
-def _estimates(result) -> np.ndarray:
-    """``[N, 18, 6]``: gyro bias (rad/s) and body acceleration (m/s²) of ``result``, NaN for
-    what its filter does not estimate."""
-    out = np.full((len(result), 18, 6), np.nan)
-    if result.gyro_bias is not None:
-        out[..., :3] = result.gyro_bias
-    if result.body_acc is not None:
-        out[..., 3:] = result.body_acc
-    return out

@@ -43,6 +43,7 @@ def warm_up(processor) -> float:
     """Load (or compile) every kernel the live path calls, with a throwaway copy of
     ``processor`` (same calibration, options and filter). Returns the seconds it took."""
     from bpms.filter.processor import BodyPoseProcessor
+    from bpms.io.frames import encode_frame
 
     t0 = time.perf_counter()
     clone = BodyPoseProcessor(processor.table, processor.options)
@@ -51,6 +52,9 @@ def warm_up(processor) -> float:
     batch = clone.process(np.repeat(frame[None], 4, axis=0), np.repeat(errors[None], 4, 0))
     for _ in range(3):
         one = clone.step(frame, errors)
+    wire = encode_frame(frame, errors)
+    for _ in range(3):  # frames as they come off the wire (bpms.filter.live_frame)
+        one = clone.step_wire(wire)[0]
     for result in (batch, one):
         _ = result.joint_angles, result.joint_positions
         _ = result.segment_quaternions, result.quaternions
