@@ -276,3 +276,19 @@ def test_body_twins_give_the_compiled_numbers(hard_recording):
     assert np.isfinite(outputs[False][0][102]).all()  # clipped, not NaN
     for compiled, twinned in zip(outputs[False], outputs[True], strict=True):
         assert _same(compiled, twinned)
+
+
+def test_every_kernel_cache_is_keyed_by_every_kernel_module():
+    # A kernel that calls another module's kernel must not keep stale machine code when that
+    # module changes: every kernel's cache key holds every kernel module's file stamp.
+    import importlib
+
+    for name in kernels.KERNEL_MODULES:
+        importlib.import_module(f"bpms.filter.{name}")
+    modules = {k.__module__.rsplit(".", 1)[-1] for k in kernels.registered()}
+    assert modules == set(kernels.KERNEL_MODULES)
+    stamp = kernels._sources_stamp()
+    assert [entry[0] for entry in stamp] == list(kernels.KERNEL_MODULES)
+    for k in kernels.registered():
+        key = k.dispatcher._cache._cache_file._source_stamp
+        assert key[1] == stamp, k

@@ -125,11 +125,42 @@ def kernel(func: Callable[..., Any] | None = None, *, twin: str | None = None) -
     return wrap(func) if func is not None else wrap
 
 
+#: The modules that define kernels. A compiled kernel may call kernels of other modules (the
+#: live frame calls the filter's, the guard's, ...), but numba keys its on-disk cache by the
+#: kernel's own file only: a change to a callee's file would leave stale machine code in the
+#: caller's cache. Each kernel's cache is therefore keyed by all of these files
+#: (tests/test_kernels.py checks the list is complete).
+KERNEL_MODULES = ("mahony", "guard", "disturbance", "body_kernels", "live_frame", "observer",
+                  "adaptive_observer")
+
+
+def _sources_stamp() -> tuple:
+    """(name, mtime, size) of every kernel module's file."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    stamp = []
+    for name in KERNEL_MODULES:
+        try:
+            st = os.stat(os.path.join(here, f"{name}.py"))
+        except OSError:
+            continue
+        stamp.append((name, st.st_mtime, st.st_size))
+    return tuple(stamp)
+
+
+def _keyed_by_every_kernel_module(dispatcher: Any, stamp: tuple) -> None:
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    own = getattr(cache_file, "_source_stamp", None)
+    if own is not None:  # numba's layout (0.5x-0.6x); another layout keeps numba's own key
+        cache_file._source_stamp = (own, stamp)
+
+
 def _bind(kernels: list[Kernel]) -> None:
     from numba import njit
 
+    stamp = _sources_stamp()
     for k in kernels:
         k.dispatcher = njit(cache=True)(k.func)
+        _keyed_by_every_kernel_module(k.dispatcher, stamp)
 
 
 def load_numba() -> None:
