@@ -45,11 +45,11 @@ def make_recording(folder: Path, seconds: float) -> Path:
 
 def plot_cells() -> list[list[tuple[int, int]]]:
     """8 × 6 numeric table cells, the same in both phases."""
-    from bpms.gui.data_table import COLUMNS
+    from bpms.gui.data_table import COLUMNS, TEXT_GROUPS
 
     rng = np.random.default_rng(0)
     numeric = [(i, c) for i in range(18) for c in range(len(COLUMNS))
-               if COLUMNS[c].group != "errors"]
+               if COLUMNS[c].group not in TEXT_GROUPS]
     return [[numeric[j] for j in sorted(rng.choice(len(numeric), N_CURVES, replace=False))]
             for _ in range(N_PLOTS)]
 
@@ -134,7 +134,7 @@ def run_bare(app, recording: Path, folder: Path, refresh: float) -> dict:
 
     from bpms.filter.calibration import SensorCalibration
     from bpms.gui import avatar
-    from bpms.gui.data_table import COLUMNS, calibrated, column_values
+    from bpms.gui.data_table import COLUMNS, TEXT_GROUPS, calibrated, column_values
     from bpms.gui.view3d_geometry import to_display
     from bpms.io.calib_file import load_factory_calibration
     from bpms.io.rawfile import read_raw
@@ -206,7 +206,7 @@ def run_bare(app, recording: Path, folder: Path, refresh: float) -> dict:
         t = np.array([s.index for s in samples]) * 0.02
         last = samples[-1]
         for c, column in enumerate(COLUMNS):
-            if column.group != "errors":
+            if column.group not in TEXT_GROUPS:  # the flags' text columns have no number
                 model.values[:, c] = column_values(column, raw[-1:], cal[-1:], euler[-1:],
                                                    True)[0]
         model.dataChanged.emit(model.index(0, 0), model.index(17, len(COLUMNS) - 1))
