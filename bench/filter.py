@@ -36,6 +36,7 @@ from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import STANDARD_GRAVITY
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
+from bpms.io.frames import encode_frame
 from tests.reference_mahony import ReferenceMahony
 
 N_IMUS = 18
@@ -98,8 +99,16 @@ def bench_live(raw, errors, proc, frames: int = 5000) -> None:
         t0 = time.perf_counter()
         p.step(raw[k], errors[k])
         lat2[k] = time.perf_counter() - t0
+    wire = [encode_frame(raw[k], errors[k]) for k in range(frames)]
+    p = BodyPoseProcessor(proc.table)
+    lat3 = np.empty(frames)
+    for k in range(frames):
+        t0 = time.perf_counter()
+        p.step_wire(wire[k])
+        lat3[k] = time.perf_counter() - t0
     for name, x in (("live MahonyBank.step (18 IMUs)", lat),
-                    ("live BodyPoseProcessor.step      ", lat2)):
+                    ("live BodyPoseProcessor.step      ", lat2),
+                    ("live BodyPoseProcessor.step_wire ", lat3)):
         us = np.percentile(x, [50, 99]) * 1e6
         print(f"{name} p50 {us[0]:7.1f} µs  p99 {us[1]:7.1f} µs  max {x.max() * 1e6:7.1f} µs")
 
