@@ -39,6 +39,13 @@ def body_context(frames: int) -> AbstractContextManager[None]:
     return nullcontext()
 
 
+@kernel
+def row_times(M, a, v):
+    """Row ``a`` of the 3 × 3 matrix ``M`` times the vector ``v``, summed left to right (the
+    twins repeat this order)."""
+    return (M[a, 0] * v[0] + M[a, 1] * v[1]) + M[a, 2] * v[2]
+
+
 @kernel(twin="bpms.filter.twins:segment_euler")
 def segment_euler(C, out):
     """``out[k, i]`` = (roll, pitch, yaw) rad of ``C[k, i]`` (``[N, n, 3, 3]`` → ``[N, n, 3]``)."""
@@ -66,18 +73,12 @@ def joint_angle_frames(C, hinge, hinge_axes, ball, signs, out):
         for j in range(n_hinge):
             p = hinge[j, 0]
             d = hinge[j, 1]
-            u0 = (C[k, p, 0, 0] * hinge_axes[j, 0, 0] + C[k, p, 0, 1] * hinge_axes[j, 0, 1]) \
-                + C[k, p, 0, 2] * hinge_axes[j, 0, 2]
-            u1 = (C[k, p, 1, 0] * hinge_axes[j, 0, 0] + C[k, p, 1, 1] * hinge_axes[j, 0, 1]) \
-                + C[k, p, 1, 2] * hinge_axes[j, 0, 2]
-            u2 = (C[k, p, 2, 0] * hinge_axes[j, 0, 0] + C[k, p, 2, 1] * hinge_axes[j, 0, 1]) \
-                + C[k, p, 2, 2] * hinge_axes[j, 0, 2]
-            v0 = (C[k, d, 0, 0] * hinge_axes[j, 1, 0] + C[k, d, 0, 1] * hinge_axes[j, 1, 1]) \
-                + C[k, d, 0, 2] * hinge_axes[j, 1, 2]
-            v1 = (C[k, d, 1, 0] * hinge_axes[j, 1, 0] + C[k, d, 1, 1] * hinge_axes[j, 1, 1]) \
-                + C[k, d, 1, 2] * hinge_axes[j, 1, 2]
-            v2 = (C[k, d, 2, 0] * hinge_axes[j, 1, 0] + C[k, d, 2, 1] * hinge_axes[j, 1, 1]) \
-                + C[k, d, 2, 2] * hinge_axes[j, 1, 2]
+            u0 = row_times(C[k, p], 0, hinge_axes[j, 0])
+            u1 = row_times(C[k, p], 1, hinge_axes[j, 0])
+            u2 = row_times(C[k, p], 2, hinge_axes[j, 0])
+            v0 = row_times(C[k, d], 0, hinge_axes[j, 1])
+            v1 = row_times(C[k, d], 1, hinge_axes[j, 1])
+            v2 = row_times(C[k, d], 2, hinge_axes[j, 1])
             c = ((u0 * v0 + u1 * v1) + u2 * v2) / math.sqrt(
                 ((u0 * u0 + u1 * u1) + u2 * u2) * ((v0 * v0 + v1 * v1) + v2 * v2))
             if c > 1.0:
@@ -125,9 +126,7 @@ def joint_position_frames(C, imus, parents, vectors, feet, on_ground, out):
             i = imus[p]
             q = parents[p]
             for a in range(3):
-                out[k, p + 1, a] = out[k, q, a] + ((C[k, i, a, 0] * vectors[p, 0]
-                                                    + C[k, i, a, 1] * vectors[p, 1])
-                                                   + C[k, i, a, 2] * vectors[p, 2])
+                out[k, p + 1, a] = out[k, q, a] + row_times(C[k, i], a, vectors[p])
         if on_ground:
             lowest = out[k, feet[0], 2]
             for f in range(1, feet.shape[0]):
