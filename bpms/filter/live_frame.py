@@ -17,6 +17,7 @@ input through the API and the other filters all take the general path
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING
 
@@ -26,12 +27,19 @@ from bpms.filter.bank import MahonyBank
 from bpms.filter.body_kernels import joint_angle_frames, joint_position_frames, segment_euler
 from bpms.filter.body_model import position_tables
 from bpms.filter.disturbance import Disturbance, run_disturbance
-from bpms.filter.guard import MAHONY_RENORM_K, SO3_TOLERANCE, _reinit
+from bpms.filter.guard import SO3_TOLERANCE, _reinit, renorm_allowance
 from bpms.filter.guard import _check as guard_check
 from bpms.filter.joints import angle_tables
 from bpms.filter.kernels import kernel, twins_active
 from bpms.filter.mahony import calibrate_batch, right_multiply, step_frame
-from bpms.io.frames import CLUSTER_SIZE, IMUS_PER_CLUSTER, N_CHANNELS, N_CLUSTERS, N_IMUS, N_SENSORS
+from bpms.io.frames import (
+    CLUSTER_SIZE,
+    IMUS_PER_CLUSTER,
+    N_CHANNELS,
+    N_CLUSTERS,
+    N_IMUS,
+    N_SENSORS,
+)
 
 if TYPE_CHECKING:
     from bpms.filter.processor import BodyPoseProcessor, Result
@@ -176,11 +184,10 @@ class LiveFrame:
                errors: np.ndarray | None = None) -> bool:
         """True when the next frame of ``proc`` needs nothing the single call leaves out
         (``raw``/``errors``: the frame given as arrays; None: a wire frame)."""
-        pose = proc.pose
-        return (type(proc.bank) is MahonyBank and proc.frames > 0 and pose.zero is not None
-                and not pose._requested and (not pose.auto or (
-                    pose._provisional_done and pose.frames != pose.auto_frame))
-                and (raw is None or (raw.dtype == np.int16 and raw.shape == (N_IMUS, 9)))
+        return (type(proc.bank) is MahonyBank and proc.frames > 0
+                and proc.pose.plain_next_frame()
+                and (raw is None or (raw.dtype == np.int16
+                                     and raw.shape == (N_IMUS, N_CHANNELS)))
                 and (errors is None or (errors.dtype == np.bool_
                                         and errors.shape == (N_IMUS, 3)))
                 and proc.sensor_calibration.mag_correction() is None and not twins_active())
@@ -188,10 +195,9 @@ class LiveFrame:
     def _arguments(self, proc: BodyPoseProcessor) -> tuple:
         """Every argument of :func:`mahony_live_frame` after ``raw`` and ``errors``."""
         bank, guard, pose, dist = proc.bank, proc.guard, proc.pose, proc.disturbance
-        ring = pose._ring
-        slot = pose._next if ring is not None else -1
+        ring, slot = pose.ring_slot()
         return (*proc._cal_params, bank._pending_reset, bank.params, bank.gravity,
-                *bank.state.arrays(), MAHONY_RENORM_K * float(bank.params[4]) ** 4,
+                *bank.state.arrays(), renorm_allowance(bank),
                 guard.expected, SO3_TOLERANCE, dist.gravity, dist.params, dist.state,
                 dist.mag_count, dist.acc_count, pose.zero.offset,
                 self._no_ring if ring is None else ring, slot, bool(proc.corrected_output),
@@ -218,11 +224,7 @@ class LiveFrame:
         (t, R, euler, bias, bad, mag_dist, acc_dist, norm_ratio, dip, acc_mean, C,
          euler_segment, euler_output, angles, positions, held_count, corrected, n_bad,
          estimates) = outputs
-        pose = proc.pose
-        if pose._ring is not None:  # the kernel wrote this frame's DCMs at ring[_next]
-            pose._next = (pose._next + 1) % len(pose._ring)
-            pose._held = min(pose._held + 1, len(pose._ring))
-        pose.frames += 1
+        proc.pose.plain_frame_done()  # the kernel wrote this frame's DCMs at its ring slot
         proc.frames += 1
         if n_bad:
             _reinit(proc.bank, proc.guard, bad[0])
@@ -238,14 +240,10 @@ class LiveFrame:
         return result
 
 
-_RESULT: list[type] = []
-
-
+@functools.cache
 def _result_class() -> type[Result]:
-    """:class:`bpms.filter.processor.Result` (imported once, at the first live frame: the
-    processor module imports this one)."""
-    if not _RESULT:
-        from bpms.filter.processor import Result
+    """:class:`bpms.filter.processor.Result` (imported at the first live frame: the processor
+    module imports this one)."""
+    from bpms.filter.processor import Result
 
-        _RESULT.append(Result)
-    return _RESULT[0]
+    return Result

@@ -200,8 +200,32 @@ class PoseCalibrator:
             self._ring[self._next] = R[0]
         else:
             self._ring[(self._next + np.arange(n)) % keep] = R
+        self._advance(n)
+
+    def _advance(self, n: int) -> None:
+        keep = len(self._ring)
         self._next = (self._next + n) % keep
         self._held = min(self._held + n, keep)
+
+    def plain_next_frame(self) -> bool:
+        """True when the next single frame will be turned into segment orientations with the
+        current zero and nothing else: a zero exists, and that frame is no capture (requested,
+        automatic) and cannot be the provisional one."""
+        return (self.zero is not None and not self._requested
+                and (not self.auto or (self._provisional_done
+                                       and self.frames != self.auto_frame)))
+
+    def ring_slot(self) -> tuple[np.ndarray | None, int]:
+        """(the window's ring, the row the next frame's DCMs go to), or (None, -1) when no
+        frame is kept (a one-frame window, or no frame yet)."""
+        return (self._ring, self._next) if self._ring is not None else (None, -1)
+
+    def plain_frame_done(self) -> None:
+        """A plain frame (:meth:`plain_next_frame`) was applied outside :meth:`apply`, its
+        DCMs written at :meth:`ring_slot`: count it and move the ring on."""
+        if self._ring is not None:
+            self._advance(1)
+        self.frames += 1
 
     def _window_ending_at(self, R: np.ndarray, k: int) -> np.ndarray:
         """The last ``window`` frames up to batch frame ``k``, reaching into earlier batches."""

@@ -18,6 +18,7 @@ the processor are queued and run in the processing thread between two frames.
 
 from __future__ import annotations
 
+import functools
 import logging
 import queue
 import sys
@@ -577,18 +578,13 @@ class LiveSession:
             self.note(f"filtered recording stopped: {exc}")
 
 
-_LOADED: dict[str, Callable] = {}
-
-
+@functools.cache
 def _filtered_arrays() -> Callable:
     """:func:`bpms.filter.door.filtered_arrays`, imported at the first filtered row (the
     filter layer is loaded with the processor, not with the GUI's start-up window)."""
-    function = _LOADED.get("filtered_arrays")
-    if function is None:
-        from bpms.filter.door import filtered_arrays
+    from bpms.filter.door import filtered_arrays
 
-        function = _LOADED["filtered_arrays"] = filtered_arrays
-    return function
+    return filtered_arrays
 
 
 def _options_dict(options: Options) -> dict:
