@@ -63,7 +63,7 @@ from bpms.filter.pose import PoseCalibrator, Zero, body_outputs, segment_angles
 from bpms.filter.rotations import dcm_to_quaternion
 from bpms.filter.warmup import PATHS, TWIN_FILTERS, ensure_kernels
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
-from bpms.io.frames import END, END_OFFSET, FRAME_SIZE, N_CHANNELS, N_IMUS, START, decode_frames
+from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames, is_frame
 from bpms.io.options import BodyOptions, Options, check_option, load_options
 from bpms.io.timebase import stream_times
 
@@ -472,8 +472,7 @@ class BodyPoseProcessor:
         call for all of it (:mod:`bpms.filter.live_frame`). Raises
         :class:`bpms.io.frames.FrameError` for a frame without its markers."""
         ensure_kernels(self.options.filter.algorithm, ("live",))
-        if (len(frame) == FRAME_SIZE and frame[:2] == START and frame[END_OFFSET:] == END
-                and self._live_frame.usable(self)):
+        if is_frame(frame) and self._live_frame.usable(self):
             return self._live_frame.step_wire(self, frame)
         decoded = decode_frames(frame)
         return self.step(decoded.raw[0], decoded.errors[0]), decoded.raw, decoded.errors

@@ -156,8 +156,7 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
         raise FrameError(f"{len(buf)} bytes is not a whole number of {FRAME_SIZE}-byte frames")
     n = len(buf) // FRAME_SIZE
     if n == 1:  # a live frame: the markers compared as bytes
-        ok = bytes(buf[:2]) == START and bytes(buf[END_OFFSET:]) == END
-        if not ok:
+        if not is_frame(buf):
             raise FrameError("1 frame(s) lack the $#/#$ markers, first at index 0")
     else:
         frames = np.frombuffer(buf, dtype=FRAME_DTYPE)
