@@ -146,17 +146,17 @@ def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
                 processor = BodyPoseProcessor(options=options)
                 progress.step(f"{algorithm}, {'whole recordings' if path == 'batch' else 'live'}")
                 if path == "batch":
-                    results = [processor.process(raw), processor.process(raw, errors)]
+                    processor.process(raw)
+                    last = processor.process(raw, errors)
                 else:
-                    results = []
                     for k in range(len(raw)):
-                        results.append(processor.step(raw[k]))
-                        results.append(processor.step(raw[k], errors[k]))
-                    results.append(processor.step_wire(encode_frame(raw[0]))[0])
+                        processor.step(raw[k])
+                        processor.step(raw[k], errors[k])
+                    processor.step_wire(encode_frame(raw[0]))  # bpms.filter.live_frame
                     processor.reset_zero()
-                    results.append(processor.step(raw[0]))
-                for result in results[-1:]:  # the body's kernels (bpms.filter.body_kernels)
-                    _ = (result.euler_output, result.joint_angles, result.joint_positions)
+                    last = processor.step(raw[0])
+                # the body's kernels (bpms.filter.body_kernels)
+                _ = (last.euler_output, last.joint_angles, last.joint_positions)
                 progress.advance()
         except BaseException:
             _ready.difference_update(todo)

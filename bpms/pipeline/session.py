@@ -191,7 +191,6 @@ class LiveSession:
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
-        # processed rows not yet written: (source indices, host times, per-group arrays)
         # processed rows not yet written: (their frame events, per-group arrays)
         self._pending: list[tuple[list[FrameEvent], dict[str, np.ndarray]]] = []
         self._pending_frames = 0
