@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpms.filter.body_kernels import body_context, joint_position_frames
 from bpms.io.options import BodyOptions
 
 UP = (0.0, 0.0, -1.0)
@@ -73,11 +72,27 @@ for _p in BODY_POINTS:
     SEGMENT_AXIS.setdefault(_p.imu, _p.direction)
 
 
-# The tables the compiled kernel (bpms.filter.body_kernels.joint_position_frames) reads.
+# The chain as arrays: each point's IMU, its parent point, its direction, the foot points, and
+# the points grouped by their depth in the chain (parents before children).
 _POINT_IMUS = np.array([p.imu for p in BODY_POINTS], dtype=np.int64)
 _PARENTS = np.array([POINT_INDEX[p.parent] for p in BODY_POINTS], dtype=np.int64)
 _DIRECTIONS = np.array([p.direction for p in BODY_POINTS], dtype=np.float64)
 _FOOT_INDEX = np.array([POINT_INDEX[n] for n in FOOT_POINTS], dtype=np.int64)
+
+
+def _chain_levels() -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """((segment indices, their parent points) for depth 1, 2, ...) of :data:`BODY_POINTS`."""
+    depth = {"pelvis": 0}
+    for p in BODY_POINTS:
+        depth[p.name] = depth[p.parent] + 1
+    levels = []
+    for d in range(1, max(depth.values()) + 1):
+        idx = np.array([k for k, p in enumerate(BODY_POINTS) if depth[p.name] == d])
+        levels.append((idx, _PARENTS[idx]))
+    return tuple(levels)
+
+
+_LEVELS = _chain_levels()
 
 
 def segment_lengths(lengths: BodyOptions | None = None) -> np.ndarray:
@@ -88,20 +103,16 @@ def segment_lengths(lengths: BodyOptions | None = None) -> np.ndarray:
 
 def joint_positions(C: np.ndarray, lengths: BodyOptions | None = None,
                     on_ground: bool = True) -> np.ndarray:
-    """Joint positions ``[..., 21, 3]`` (order :data:`POINT_NAMES`), metres, world NED axes,
-    pelvis above the origin. With ``on_ground`` the lowest foot point is at z = 0."""
-    C = np.ascontiguousarray(C, dtype=np.float64)
-    frames = C.reshape(-1, *C.shape[-3:])
-    out = np.empty((len(frames), len(POINT_NAMES), 3))
-    with body_context(len(frames)):  # one kernel live and in batch (docs/body-model.md)
-        joint_position_frames(frames, *position_tables(lengths), bool(on_ground), out)
-    return out.reshape(*C.shape[:-3], len(POINT_NAMES), 3)
-
-
-def position_tables(lengths: BodyOptions | None = None
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The chain tables :func:`bpms.filter.body_kernels.joint_position_frames` takes after
-    ``C``: each point's IMU, its parent point, its vector in segment axes (m) and the foot
-    points."""
+    """Joint positions ``[..., 21, 3]`` (order :data:`POINT_NAMES`), metres, world NED axes:
+    each point = its parent + ``C[imu] @ (direction × length)``, the pelvis at the origin.
+    With ``on_ground`` the whole figure is shifted along z (down) so that the lowest foot
+    point is at z = 0 (NaN when one of the foot points is). NaN below a NaN orientation."""
+    C = np.asarray(C, dtype=np.float64)
     vectors = _DIRECTIONS * segment_lengths(lengths)[:, None]
-    return _POINT_IMUS, _PARENTS, vectors, _FOOT_INDEX
+    segments = np.einsum("...pij,pj->...pi", C[..., _POINT_IMUS, :, :], vectors)
+    out = np.zeros((*C.shape[:-3], len(POINT_NAMES), 3))
+    for idx, parents in _LEVELS:
+        out[..., idx + 1, :] = out[..., parents, :] + segments[..., idx, :]
+    if on_ground:
+        out[..., 2] -= out[..., _FOOT_INDEX, 2].max(axis=-1)[..., None]
+    return out

@@ -33,10 +33,11 @@ import numpy as np
 
 from bpms.io.events import FrameEvent, FrameSource, SourceStatus
 from bpms.io.filtered_file import FilteredWriter
-from bpms.io.frames import FRAME_PERIOD_S, decode_frames
+from bpms.io.frames import decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
+from bpms.io.timebase import stream_time
 from bpms.io.udp import UdpForwarder, shared_key
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.handoff import Handoff
@@ -392,7 +393,7 @@ class LiveSession:
             for event in events:
                 self._frames += 1
                 if forwarder is not None:
-                    forwarder.send_frame(event.frame, max(event.index, 0) * FRAME_PERIOD_S)
+                    forwarder.send_frame(event.frame, stream_time(event.index))
                 if logger is not None:
                     logger.queue.put(event)
                 self._enqueue(event)
@@ -474,12 +475,8 @@ class LiveSession:
             else:
                 proc.reset_filter()
             self.markers.publish(("filter re-initialised", head.index))
-        if len(events) == 1:  # live at 50 Hz: decoded and filtered in one call
-            result, raw, errors = proc.step_wire(events[0].frame)
-        else:
-            decoded = decode_frames(b"".join(e.frame for e in events))
-            raw, errors = decoded.raw, decoded.errors
-            result = proc.process(raw, errors)
+        # one frame live at 50 Hz, several when behind: the same call
+        result, raw, errors = proc.step_wire(b"".join(e.frame for e in events))
         angles = result.joint_angles
         positions = result.joint_positions
         done = time.perf_counter()
@@ -506,7 +503,7 @@ class LiveSession:
             for k, e in enumerate(events):
                 if finite[k]:
                     forwarder.send_pose(quats[k], angles[k].astype(np.float32),
-                                        max(e.index, 0) * FRAME_PERIOD_S, positions[k],
+                                        stream_time(e.index), positions[k],
                                         result.convention,
                                         None if dist is None else (dist.mag[k], dist.acc[k]))
         with self._lock:
