@@ -103,7 +103,9 @@ class MahonyBank:
         errors: bool ``[N, n, 3]`` failed-sensor flags; resets: bool ``[N, n]`` re-initialise
         at frame k; params: ``[N, 5]`` per-frame gains (default: :attr:`params` for all).
         """
-        acc, mag, gyr = (np.ascontiguousarray(v, dtype=np.float64) for v in (acc, mag, gyr))
+        acc = np.ascontiguousarray(acc, dtype=np.float64)
+        mag = np.ascontiguousarray(mag, dtype=np.float64)
+        gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         n = acc.shape[0]
         no_errors, no_resets, no_terms = self._none
         err = no_errors if errors is None else np.ascontiguousarray(errors, dtype=np.bool_)

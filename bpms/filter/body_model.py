@@ -72,27 +72,29 @@ for _p in BODY_POINTS:
     SEGMENT_AXIS.setdefault(_p.imu, _p.direction)
 
 
-# The chain as arrays: each point's IMU, its parent point, its direction, the foot points, and
-# the points grouped by their depth in the chain (parents before children).
+# The chain as arrays: each point's IMU; its direction in segment axes as (axis, sign) — every
+# direction is a segment axis; which segments lie on the way from the pelvis to each point;
+# the foot points.
 _POINT_IMUS = np.array([p.imu for p in BODY_POINTS], dtype=np.int64)
-_PARENTS = np.array([POINT_INDEX[p.parent] for p in BODY_POINTS], dtype=np.int64)
 _DIRECTIONS = np.array([p.direction for p in BODY_POINTS], dtype=np.float64)
+assert (np.abs(_DIRECTIONS).sum(axis=1) == 1).all(), "directions must be segment axes"
+_AXIS = np.abs(_DIRECTIONS).argmax(axis=1)
+_SIGN = _DIRECTIONS[np.arange(len(BODY_POINTS)), _AXIS]
 _FOOT_INDEX = np.array([POINT_INDEX[n] for n in FOOT_POINTS], dtype=np.int64)
 
 
-def _chain_levels() -> tuple[tuple[np.ndarray, np.ndarray], ...]:
-    """((segment indices, their parent points) for depth 1, 2, ...) of :data:`BODY_POINTS`."""
-    depth = {"pelvis": 0}
-    for p in BODY_POINTS:
-        depth[p.name] = depth[p.parent] + 1
-    levels = []
-    for d in range(1, max(depth.values()) + 1):
-        idx = np.array([k for k, p in enumerate(BODY_POINTS) if depth[p.name] == d])
-        levels.append((idx, _PARENTS[idx]))
-    return tuple(levels)
+def _on_the_way() -> np.ndarray:
+    """``[21, 20]``: 1 where segment p (ending at point p + 1) lies on the way from the pelvis to
+    point q, so that point positions = this @ segment vectors."""
+    way = np.zeros((len(POINT_NAMES), len(BODY_POINTS)))
+    for p, point in enumerate(BODY_POINTS):
+        q = p + 1
+        way[q] = way[POINT_INDEX[point.parent]]
+        way[q, p] = 1.0
+    return way
 
 
-_LEVELS = _chain_levels()
+_ON_THE_WAY = _on_the_way()
 
 
 def segment_lengths(lengths: BodyOptions | None = None) -> np.ndarray:
@@ -108,11 +110,16 @@ def joint_positions(C: np.ndarray, lengths: BodyOptions | None = None,
     With ``on_ground`` the whole figure is shifted along z (down) so that the lowest foot
     point is at z = 0 (NaN when one of the foot points is). NaN below a NaN orientation."""
     C = np.asarray(C, dtype=np.float64)
-    vectors = _DIRECTIONS * segment_lengths(lengths)[:, None]
-    segments = np.einsum("...pij,pj->...pi", C[..., _POINT_IMUS, :, :], vectors)
-    out = np.zeros((*C.shape[:-3], len(POINT_NAMES), 3))
-    for idx, parents in _LEVELS:
-        out[..., idx + 1, :] = out[..., parents, :] + segments[..., idx, :]
+    # C[imu] @ axis is a column of C: the rows of Cᵀ, picked for every segment at once
+    columns = np.swapaxes(C, -1, -2)[..., _POINT_IMUS, _AXIS, :]
+    segments = columns * (_SIGN * segment_lengths(lengths))[:, None]
+    missing = np.isnan(segments).any(axis=-1)
+    if missing.any():  # a NaN segment makes the points beyond it NaN, and no others
+        segments = np.where(missing[..., None], 0.0, segments)
+        out = _ON_THE_WAY @ segments
+        out[(missing @ _ON_THE_WAY.T) > 0] = np.nan
+    else:
+        out = _ON_THE_WAY @ segments
     if on_ground:
         out[..., 2] -= out[..., _FOOT_INDEX, 2].max(axis=-1)[..., None]
     return out

@@ -151,7 +151,7 @@ class SensorCalibration:
         offset, gain, rot_t = self._counts_to_units
         raw = np.asarray(raw)
         v = ((raw - offset) * gain).reshape(*raw.shape[:-1], 3, 3)  # [N, 18, sensor, axis]
-        out = np.ascontiguousarray(np.moveaxis(v @ rot_t, -2, 0))  # [sensor, N, 18, axis]
+        out = np.ascontiguousarray((v @ rot_t).transpose(2, 0, 1, 3))  # [sensor, N, 18, axis]
         acc, mag, gyr = out[0], out[1], out[2]
         correction = self.mag_correction()
         if correction is not None:

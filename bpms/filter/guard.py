@@ -30,9 +30,11 @@ of absurd input costs one pass, not one pass per frame.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from bpms.filter.bank import BankOutput, MahonyBank
 
@@ -51,34 +53,58 @@ def so3_error(R: np.ndarray) -> np.ndarray:
         return np.sqrt(((gram - np.eye(3)) ** 2).sum(axis=(-1, -2)))
 
 
+@njit(cache=True)
+def _check(R, gyr, c4, tol, expected, bad, seen):
+    """The loop of :func:`check_rotations` (``gyr`` may be ``[0, n, 3]``: no allowance)."""
+    use_rate = c4 > 0.0 and gyr.shape[0] > 0
+    for i in range(R.shape[1]):
+        seen[i] = expected[i]
+    for k in range(R.shape[0]):
+        for i in range(R.shape[1]):
+            finite = True
+            for a in range(3):
+                for b in range(3):
+                    if not math.isfinite(R[k, i, a, b]):
+                        finite = False
+            if not finite:
+                bad[k, i] = seen[i]
+                continue
+            err2 = 0.0
+            for a in range(3):
+                for b in range(3):
+                    g = (R[k, i, 0, a] * R[k, i, 0, b] + R[k, i, 1, a] * R[k, i, 1, b]
+                         + R[k, i, 2, a] * R[k, i, 2, b])
+                    if a == b:
+                        g -= 1.0
+                    err2 += g * g
+            limit = tol
+            if use_rate:
+                w2 = gyr[k, i, 0] ** 2 + gyr[k, i, 1] ** 2 + gyr[k, i, 2] ** 2
+                if math.isfinite(w2):
+                    limit += c4 * w2 * w2
+            bad[k, i] = not (err2 <= limit * limit)  # NaN / overflow count as bad
+            seen[i] = True
+
+
 def check_rotations(R: np.ndarray, gyr: np.ndarray | None, c4: float, expected: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray]:
     """(bad ``[N, n]``, seen ``[n]``) of the DCMs ``R[N, n, 3, 3]``: bad[k, i] when IMU i
     should give a rotation at frame k (``expected[i]``, or a finite frame before k) and R[k, i]
     is non-finite, or finite with ``‖RᵀR − I‖_F`` > ``SO3_TOLERANCE + c4·|ω|⁴`` (``gyr[N, n,
     3]`` rad/s; ``c4`` = 0 or ``gyr`` None: no allowance). seen: ``expected`` or'ed with "a
-    finite frame in the batch". Vectorised: a live frame is N = 1."""
-    finite = np.isfinite(R).all(axis=(-1, -2))
-    with np.errstate(over="ignore", invalid="ignore"):  # a runaway state may overflow: bad
-        gram = np.swapaxes(R, -1, -2) @ R
-        gram -= _EYE
-        err2 = np.einsum("...ij,...ij->...", gram, gram)
-        limit = SO3_TOLERANCE
-        if c4 > 0.0 and gyr is not None:
-            w2 = np.einsum("...i,...i->...", gyr, gyr)
-            limit = SO3_TOLERANCE + c4 * np.where(np.isfinite(w2), w2 * w2, 0.0)
-        off = ~(err2 <= limit * limit)  # NaN / overflow count as bad
-    if len(finite) == 1:  # a live frame
-        before = expected
-    else:
-        before = np.empty_like(finite)
-        before[0] = expected
-        np.logical_or.accumulate(finite[:-1], axis=0, out=before[1:])
-        before[1:] |= expected
-    return np.where(finite, off, before), expected | finite.any(axis=0)
+    finite frame in the batch".
+
+    A compiled loop because "should give a rotation" carries from frame to frame (and from
+    batch to batch through ``expected``); a live frame is N = 1."""
+    R = np.ascontiguousarray(R, dtype=np.float64)
+    gyr = _NO_RATE if gyr is None else np.ascontiguousarray(gyr, dtype=np.float64)
+    bad = np.empty(R.shape[:2], dtype=np.bool_)
+    seen = np.empty(R.shape[1], dtype=np.bool_)
+    _check(R, gyr, float(c4), SO3_TOLERANCE, expected, bad, seen)
+    return bad, seen
 
 
-_EYE = np.eye(3)
+_NO_RATE = np.zeros((0, 0, 3))
 
 
 class StateGuard:
@@ -204,6 +230,13 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
     ``reinitialised[N, n]`` bool). See the module docstring."""
     n_frames = len(acc)
     c4 = renorm_allowance(bank)
+    if n_frames == 1:  # a live frame: nothing to rewind
+        out = bank.process(acc, mag, gyr, errors, **bank_options)
+        bad, guard.expected[:] = check_rotations(out.R, gyr, c4, guard.expected)
+        if bad.any():
+            _mark(out, np.array([0]), bad[0])
+            _reinit(bank, guard, bad[0])
+        return out, bad
     flags = np.zeros((n_frames, guard.n), dtype=np.bool_)
     parts: list[BankOutput] = []
     pos, chunk = 0, max(n_frames, 1)

@@ -68,10 +68,14 @@ assert (
 ) == JOINT_ANGLE_NAMES, "bpms.io.names.JOINT_ANGLE_NAMES disagrees with the joint tables"
 
 
-# The joint tables as arrays (IMU pairs, the hinge segments' axes).
+# The joint tables as arrays: IMU pairs; each hinge segment's axis as (axis, sign), every one a
+# segment axis.
 _HINGE = np.array([(j.proximal, j.distal) for j in HINGE_JOINTS], dtype=np.int64)
 _HINGE_AXES = np.array([(SEGMENT_AXIS[j.proximal], SEGMENT_AXIS[j.distal])
                         for j in HINGE_JOINTS], dtype=np.float64)
+assert (np.abs(_HINGE_AXES).sum(axis=-1) == 1).all(), "hinge axes must be segment axes"
+_HINGE_AXIS = np.abs(_HINGE_AXES).argmax(axis=-1)
+_HINGE_SIGN = np.take_along_axis(_HINGE_AXES, _HINGE_AXIS[..., None], -1)[..., 0]
 _BALL = np.array([(j.static, j.dynamic) for j in BALL_JOINTS], dtype=np.int64)
 
 
@@ -134,8 +138,9 @@ def joint_angles(C: np.ndarray, convention: str = DEFAULT_CONVENTION) -> np.ndar
     orientation involved is NaN."""
     signs = ISB_SIGNS if check_convention(convention) == "isb" else _ORIGINAL_SIGNS
     C = np.asarray(C, dtype=np.float64)
-    u = np.einsum("...hij,hj->...hi", C[..., _HINGE[:, 0], :, :], _HINGE_AXES[:, 0])
-    v = np.einsum("...hij,hj->...hi", C[..., _HINGE[:, 1], :, :], _HINGE_AXES[:, 1])
+    # each segment's axis in the world: a column of C (a row of Cᵀ), both of a hinge at once
+    axes = np.swapaxes(C, -1, -2)[..., _HINGE, _HINGE_AXIS, :] * _HINGE_SIGN[:, :, None]
+    u, v = axes[..., 0, :], axes[..., 1, :]
     cosine = (u * v).sum(axis=-1) / np.sqrt((u * u).sum(axis=-1) * (v * v).sum(axis=-1))
     flexion = np.arccos(np.clip(cosine, -1.0, 1.0))
     relative = np.swapaxes(C[..., _BALL[:, 0], :, :], -1, -2) @ C[..., _BALL[:, 1], :, :]

@@ -233,8 +233,9 @@ class BodyPoseProcessor:
         bias = out.gyro_bias
         if bias is None and out.w_i is not None:
             bias = -out.w_i  # the Mahony integral term is −bias
-        # corrected from the first Reset Zero capture on (C is all NaN before it)
-        corrected = self.corrected_output & np.isfinite(C).all(axis=(-1, -2)).any(axis=1)
+        # corrected from the first Reset Zero capture on (C is all NaN before it; a segment
+        # orientation is finite or NaN as a whole)
+        corrected = self.corrected_output & np.isfinite(C[..., 0, 0]).any(axis=1)
         return Result(t=t, R=out.R, euler=out.euler, C=C, body=self.options.body,
                       held_count=self.bank.held_count, zeros=self.pose.captures[before:],
                       gyro_bias=bias, body_acc=out.body_acc,

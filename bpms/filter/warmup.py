@@ -137,6 +137,7 @@ def _run_kernels(algorithm: str) -> None:
     every later call, so nothing compiles again)."""
     from bpms.filter.algorithms import make_bank
     from bpms.filter.disturbance import DisturbanceTracker
+    from bpms.filter.guard import StateGuard, guarded_process
     from bpms.io.options import FilterOptions
 
     n = 4
@@ -155,4 +156,5 @@ def _run_kernels(algorithm: str) -> None:
         bank = make_bank(gravity, FilterOptions(algorithm=algorithm))
         terms = {"store_terms": True} if algorithm == "mahony" else {}
         R = bank.process(acc, mag, gyr, errors, resets, **terms).R
+        guarded_process(bank, StateGuard(N_IMUS), acc, mag, gyr, errors, **terms)
     DisturbanceTracker(gravity, 0.02).update(acc, mag, gyr, R, errors)

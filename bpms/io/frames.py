@@ -167,12 +167,10 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
         if bad.size:
             raise FrameError(f"{bad.size} frame(s) lack the $#/#$ markers, first at index "
                              f"{bad[0]}")
-    # the frame as big-endian 16-bit words: [marker, 6 × (27 counts, error word), marker]
-    words = np.frombuffer(buf, dtype=">i2").reshape(n, FRAME_SIZE // 2)[:, 1:-1]
-    clusters = words.reshape(n, N_CLUSTERS, CLUSTER_SIZE // 2)
-    raw = clusters[:, :, :-1].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
-    errors = error_words_to_flags(clusters[:, :, -1].view(">u2"))
-    return DecodedFrames(raw=raw, errors=errors)
+    clusters = np.frombuffer(buf, dtype=FRAME_DTYPE)["clusters"]
+    raw = clusters["imu"].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
+    errors = _FLAGS_OF_WORD[clusters["error"] & (len(_FLAGS_OF_WORD) - 1)]
+    return DecodedFrames(raw=raw, errors=errors.reshape(n, N_IMUS, N_SENSORS))
 
 
 def decode_frame(frame: bytes | bytearray | memoryview) -> DecodedFrames:

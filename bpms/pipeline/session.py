@@ -55,6 +55,7 @@ from bpms.pipeline.steady import prepare_live_path
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
     from bpms.filter.processor import BodyPoseProcessor
+    from bpms.filter.result import Result
 
 log = logging.getLogger(__name__)
 _STOP = object()
@@ -63,7 +64,30 @@ _STOP = object()
 FILTERED_BATCH = 10
 
 
-@dataclass(frozen=True, slots=True)
+class _Row:
+    """A PoseSample number: the value given to the constructor, else row ``k`` of the batch's
+    :class:`bpms.filter.result.Result` attribute ``name`` (its field ``part``, for the
+    disturbance record), computed for the whole batch at once when first read."""
+
+    def __init__(self, name: str, part: str | None = None) -> None:
+        self.name = name
+        self.part = part
+
+    def __set_name__(self, owner: type, attr: str) -> None:
+        self.attr = attr
+
+    def __get__(self, sample: PoseSample | None, owner: type) -> np.ndarray | None:
+        if sample is None:
+            return self  # type: ignore[return-value]
+        given = sample._given.get(self.attr)
+        if given is not None or sample._result is None:
+            return given
+        value = getattr(sample._result, self.name)
+        if self.part is not None:
+            value = None if value is None else getattr(value, self.part)
+        return None if value is None else value[sample._k]
+
+
 class PoseSample:
     """One processed frame. Angles rad, lengths m, frames as docs/filter.md, docs/body-model.md.
 
@@ -71,32 +95,65 @@ class PoseSample:
     raw ``[18, 9]`` int16 counts; errors ``[18, 3]`` bool; euler ``[18, 3]`` filter roll,
     pitch, yaw; R ``[18, 3, 3]`` filter DCMs; C ``[18, 3, 3]`` segment orientations after Reset
     Zero (NaN before the first); joint_angles ``[28]``; joint_positions ``[21, 3]`` (NED, lowest
-    foot on the ground); latency_s: host receive → sample ready.
+    foot on the ground); latency_s: host receive → sample ready; arrival:
+    ``time.perf_counter()`` when the host took the frame in; euler_output ``[18, 3]``: the
+    per-IMU angles to show / write / stream (segment angles after Reset Zero when the
+    corrected output is on, else = ``euler``); reinitialised ``[18]`` bool: the state guard
+    re-initialised that IMU in this frame; mag_disturbed / acc_disturbed ``[18]`` bool
+    (:mod:`bpms.filter.disturbance`); estimates ``[18, 6]``: gyro bias x, y, z (rad/s, sensor
+    axes) and body acceleration north, east, down (m/s²), NaN where the filter has none.
+
+    The session's samples are rows of the processed batch's Result (``result``, row ``k``):
+    a number nobody reads is never computed, and those that are read are computed for the
+    whole batch at once. Given explicitly (a test, a script), the arrays are used as they are.
     """
 
-    index: int
-    host_time: float
-    frame: bytes
-    raw: np.ndarray
-    errors: np.ndarray
-    euler: np.ndarray
-    R: np.ndarray
-    C: np.ndarray
-    joint_angles: np.ndarray
-    joint_positions: np.ndarray
-    latency_s: float
-    #: ``[18, 3]`` the per-IMU angles to show / write / stream (Result.euler_output: segment
-    #: angles after Reset Zero when the corrected output is on, else = ``euler``)
-    euler_output: np.ndarray | None = None
-    #: ``[18]`` bool: the state guard re-initialised that IMU in this frame
-    reinitialised: np.ndarray | None = None
-    arrival: float = 0.0  # time.perf_counter() when the host took the frame in
-    #: ``[18]`` bool: magnetometer / acceleration disturbed (bpms.filter.disturbance)
-    mag_disturbed: np.ndarray | None = None
-    acc_disturbed: np.ndarray | None = None
-    #: ``[18, 6]`` the filter's estimates: gyro bias x, y, z (rad/s, sensor axes) and body
-    #: acceleration north, east, down (m/s²); NaN where the filter has none
-    estimates: np.ndarray | None = None
+    __slots__ = (
+        "_given",
+        "_k",
+        "_result",
+        "arrival",
+        "errors",
+        "frame",
+        "host_time",
+        "index",
+        "latency_s",
+        "raw",
+    )
+
+    euler = _Row("euler")
+    R = _Row("R")
+    C = _Row("C")
+    joint_angles = _Row("joint_angles")
+    joint_positions = _Row("joint_positions")
+    euler_output = _Row("euler_output")
+    reinitialised = _Row("reinitialised")
+    mag_disturbed = _Row("disturbance", "mag")
+    acc_disturbed = _Row("disturbance", "acc")
+    estimates = _Row("estimates")
+
+    def __init__(self, index: int, host_time: float, frame: bytes, raw: np.ndarray,
+                 errors: np.ndarray, euler: np.ndarray | None = None,
+                 R: np.ndarray | None = None, C: np.ndarray | None = None,
+                 joint_angles: np.ndarray | None = None,
+                 joint_positions: np.ndarray | None = None, latency_s: float = 0.0,
+                 euler_output: np.ndarray | None = None,
+                 reinitialised: np.ndarray | None = None, arrival: float = 0.0,
+                 mag_disturbed: np.ndarray | None = None,
+                 acc_disturbed: np.ndarray | None = None,
+                 estimates: np.ndarray | None = None, *, result: Result | None = None,
+                 k: int = 0) -> None:
+        self.index, self.host_time, self.frame = index, host_time, frame
+        self.raw, self.errors, self.latency_s, self.arrival = raw, errors, latency_s, arrival
+        given = {"euler": euler, "R": R, "C": C, "joint_angles": joint_angles,
+                 "joint_positions": joint_positions, "euler_output": euler_output,
+                 "reinitialised": reinitialised, "mag_disturbed": mag_disturbed,
+                 "acc_disturbed": acc_disturbed, "estimates": estimates}
+        self._given = {name: value for name, value in given.items() if value is not None}
+        self._result, self._k = result, k
+
+    def __repr__(self) -> str:
+        return f"PoseSample(index={self.index}, host_time={self.host_time:.3f})"
 
 
 @dataclass
@@ -192,8 +249,8 @@ class LiveSession:
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
-        # processed rows not yet written: (their frame events, per-group arrays)
-        self._pending: list[tuple[list[FrameEvent], dict[str, np.ndarray]]] = []
+        # processed rows not yet written: (their frame events, their Result)
+        self._pending: list[tuple[list[FrameEvent], Result]] = []
         self._pending_frames = 0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
@@ -477,17 +534,9 @@ class LiveSession:
             self.markers.publish(("filter re-initialised", head.index))
         # one frame live at 50 Hz, several when behind: the same call
         result, raw, errors = proc.step_wire(b"".join(e.frame for e in events))
-        angles = result.joint_angles
-        positions = result.joint_positions
         done = time.perf_counter()
-        output, dist = result.euler_output, result.disturbance
-        estimates = result.estimates
         samples = [PoseSample(e.index, e.host_time, e.frame, raw[k], errors[k],
-                              result.euler[k], result.R[k], result.C[k], angles[k],
-                              positions[k], done - e.arrival, output[k],
-                              result.reinitialised[k], e.arrival,
-                              *((dist.mag[k], dist.acc[k]) if dist is not None
-                                else (None, None)), estimates[k])
+                              latency_s=done - e.arrival, arrival=e.arrival, result=result, k=k)
                    for k, e in enumerate(events)]
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
@@ -497,15 +546,7 @@ class LiveSession:
         self._error_bits += int(errors.sum())
         forwarder = self._forwarder
         if forwarder is not None:
-            quats = result.segment_quaternions.astype(np.float32)
-            finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
-                      & np.isfinite(positions).all(axis=(1, 2)))
-            for k, e in enumerate(events):
-                if finite[k]:
-                    forwarder.send_pose(quats[k], angles[k].astype(np.float32),
-                                        stream_time(e.index), positions[k],
-                                        result.convention,
-                                        None if dist is None else (dist.mag[k], dist.acc[k]))
+            self._forward_poses(forwarder, events, result)
         with self._lock:
             self._latencies.extend(s.latency_s for s in samples)
             if len(self._latencies) > 5000:
@@ -513,6 +554,20 @@ class LiveSession:
         for sample in samples:
             self._fanout.publish(sample)
         self._log_filtered(events, result)  # after the pose went out: off the latency path
+
+    @staticmethod
+    def _forward_poses(forwarder: UdpForwarder, events: list[FrameEvent], result: Result
+                       ) -> None:
+        """One pose datagram per frame whose pose is complete (docs/udp.md)."""
+        quats = result.segment_quaternions.astype(np.float32)
+        angles, positions, dist = result.joint_angles, result.joint_positions, result.disturbance
+        finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
+                  & np.isfinite(positions).all(axis=(1, 2)))
+        for k, e in enumerate(events):
+            if finite[k]:
+                forwarder.send_pose(quats[k], angles[k].astype(np.float32),
+                                    stream_time(e.index), positions[k], result.convention,
+                                    None if dist is None else (dist.mag[k], dist.acc[k]))
 
     def _note_reinit(self, result) -> None:
         """State-guard re-initialisations are events (logged, in the status): every one is
@@ -538,7 +593,7 @@ class LiveSession:
             self._holes = []
             self.health.take_holes()
             return
-        self._pending.append((events, _filtered_arrays()(result, writer.groups)))
+        self._pending.append((events, result))
         self._pending_frames += len(events)
         if self._pending_frames >= FILTERED_BATCH:
             self._write_filtered()
@@ -555,10 +610,9 @@ class LiveSession:
         events = [e for batch, _ in pending for e in batch]
         indices = np.array([e.index for e in events], dtype=np.int64)
         host_times = np.array([e.host_time for e in events])
-        if len(pending) == 1:
-            arrays = pending[0][1]
-        else:
-            arrays = {g: np.concatenate([p[1][g] for p in pending]) for g in pending[0][1]}
+        # the rows' numbers computed once for the whole batch (the same functions as per frame)
+        concat, filtered_arrays = _filtered_rows()
+        arrays = filtered_arrays(concat([r for _, r in pending]), writer.groups)
         try:
             rows, marked, self._holes = write_with_holes(
                 writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
@@ -575,12 +629,14 @@ class LiveSession:
 
 
 @functools.cache
-def _filtered_arrays() -> Callable:
-    """:func:`bpms.filter.door.filtered_arrays`, imported at the first filtered row (the
-    filter layer is loaded with the processor, not with the GUI's start-up window)."""
+def _filtered_rows() -> tuple[Callable, Callable]:
+    """(:meth:`bpms.filter.result.Result.concat`, :func:`bpms.filter.door.filtered_arrays`),
+    imported at the first filtered row (the filter layer is loaded with the processor, not
+    with the GUI's start-up window)."""
     from bpms.filter.door import filtered_arrays
+    from bpms.filter.result import Result
 
-    return filtered_arrays
+    return Result.concat, filtered_arrays
 
 
 def _options_dict(options: Options) -> dict:
