@@ -152,8 +152,22 @@ class PoseSample:
         self._given = {name: value for name, value in given.items() if value is not None}
         self._result, self._k = result, k
 
+    def replace(self, **given: np.ndarray) -> PoseSample:
+        """A copy with the numbers ``given`` (by their attribute names) in place of its own."""
+        other = PoseSample(self.index, self.host_time, self.frame, self.raw, self.errors,
+                           latency_s=self.latency_s, arrival=self.arrival, result=self._result,
+                           k=self._k)
+        unknown = set(given) - set(_ROWS)
+        if unknown:
+            raise TypeError(f"PoseSample has no number {', '.join(sorted(unknown))}")
+        other._given = {**self._given, **given}
+        return other
+
     def __repr__(self) -> str:
         return f"PoseSample(index={self.index}, host_time={self.host_time:.3f})"
+
+
+_ROWS = tuple(name for name, value in vars(PoseSample).items() if isinstance(value, _Row))
 
 
 @dataclass
