@@ -26,7 +26,11 @@ void ArbiterLogic::loop() {
     take_host_bytes();
     if (streaming_) {
         if (queue_count_ == 0) {
-            if (!time_reached(clock_.micros(), deadline_)) return;
+            const uint32_t t = clock_.micros();
+            if (!time_reached(t, deadline_)) {
+                if (deadline_ - t > IDLE_MARGIN_US) serial_.idle();
+                return;
+            }
             // The sampling instant is the first poll, after the previous frame has left.
             serial_.flush();
             const uint32_t now = clock_.micros();
@@ -46,7 +50,11 @@ void ArbiterLogic::loop() {
     }
     // ... and is then interpreted as a command.
     uint8_t command;
-    if (pop_host(command)) handle_command(command);
+    if (pop_host(command)) {
+        handle_command(command);
+    } else if (!streaming_) {
+        serial_.idle();  // until the host sends a byte
+    }
 }
 
 void ArbiterLogic::handle_command(uint8_t command) {

@@ -28,12 +28,15 @@ public:
     static const uint8_t GUARD_US = 50;
     // A frame starting this late means the previous one overran its 20 ms.
     static const uint16_t LATE_US = 1000;
+    // The CPU sleeps between frames only while the deadline is further away than this: the
+    // timer tick that wakes it comes every 1024 us, so the frame still starts on time.
+    static const uint16_t IDLE_MARGIN_US = 1100;
 
     ArbiterLogic(SerialPort& serial, ArbiterBoard& board, Clock& clock, DigitalOut& stream_led,
                  const BatteryDivider& divider = DEFAULT_DIVIDER);
 
     void begin();  // connect the USART to the radio and let it talk
-    void loop();   // call repeatedly; never blocks longer than one frame
+    void loop();   // call repeatedly; never blocks longer than one frame; sleeps when idle
 
     bool streaming() const { return streaming_; }
     const ArbiterStats& stats() const { return stats_; }
