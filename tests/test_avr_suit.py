@@ -130,15 +130,20 @@ def test_commands_stale_frame_and_values_on_the_firmware(avr_build, motion) -> N
         link.stop()  # 0x02 stops it, BPMS follows the last frame
         again = decode_frames(b"".join(got[:3]))
         assert [sample_of(again.raw[i], motion) for i in range(3)] == [[k], [k + 1], [k + 2]]
-        # Idle: identify is answered at once, an unknown byte is ignored.
+        # Idle: identify is answered at once, an unknown byte is ignored, and a burst of
+        # commands larger than the arbiter's queue (8) is answered in full.
         link._write(b"\x7f")
         link.identify()
+        link._write(b"\x02" * 20)
+        replies = bytearray()
+        assert wait_until(lambda: replies.extend(link._t.read(0.05)) or len(replies) >= 80, 30)
+        assert bytes(replies) == b"BPMS" * 20
     finally:
         final = suit.close()
     c = final["counters"]
     assert c["misrouted"] == c["cut"] == c["unheard"] == c["host_bytes_lost"] == 0, c
     assert c["framing_errors"] == 0 and not any(c["overruns"]), c
-    assert c["host_bytes_in"] == 8  # 0x02 0x01 0x00 0x01 0x00 0x02 0x7f 0x02
+    assert c["host_bytes_in"] == 28  # 0x02 0x01 0x00 0x01 0x00 0x02 0x7f 0x02, 20 x 0x02
     for board, figure in final["cycles_per_frame"].items():
         assert 0 < figure["max"] < 320_000, (board, figure)
 

@@ -120,7 +120,7 @@ void ArbiterLogic::leave_radio() {
     serial_.flush();          // the previous frame must reach the radio before the mux moves
     board_.hold_radio(true);  // the RN-41 keeps the host's bytes while we talk to clusters
     clock_.delay_micros(GUARD_US);
-    take_host_bytes();
+    take_host_bytes(/*all=*/true);
 }
 
 void ArbiterLogic::return_to_radio() {
@@ -132,9 +132,13 @@ void ArbiterLogic::return_to_radio() {
     board_.hold_radio(false);
 }
 
-void ArbiterLogic::take_host_bytes() {
-    int c;
-    while ((c = serial_.read()) >= 0) {
+void ArbiterLogic::take_host_bytes(bool all) {
+    // Bytes beyond the queue's room wait in the USART's receive buffer (64 bytes) for a later
+    // loop, one command per loop. Only before the multiplexer leaves the radio must the buffer
+    // be emptied (what it receives next belongs to a cluster): then the overflow is dropped.
+    while (all || queue_count_ < QUEUE_SIZE) {
+        const int c = serial_.read();
+        if (c < 0) break;
         if (queue_count_ == QUEUE_SIZE) {
             ++stats_.dropped_host_bytes;
             continue;

@@ -16,7 +16,7 @@ struct ArbiterStats {
     uint32_t resyncs;           // frames started a whole period or more late (grid re-anchored)
     uint32_t late_starts;       // frames started >= LATE_US after their deadline (overrun)
     uint32_t unknown_commands;  // bytes other than 0x00..0x02 received while idle
-    uint32_t dropped_host_bytes;  // host bytes lost because the command queue was full
+    uint32_t dropped_host_bytes;  // host bytes lost: queue and receive buffer full at a poll
 };
 
 class ArbiterLogic {
@@ -47,7 +47,7 @@ private:
     void poll_cluster(uint8_t cluster, uint8_t* out);
     void leave_radio();
     void return_to_radio();
-    void take_host_bytes();
+    void take_host_bytes(bool all = false);
     void discard_rx();
     bool pop_host(uint8_t& byte);
 

@@ -350,6 +350,16 @@ TEST(battery_reply) {
     CHECK(str(s.w.take_radio_bytes()) == "V2.58\nBPMS");
 }
 
+TEST(a_burst_of_commands_is_answered_in_full) {
+    Suit s;
+    for (int i = 0; i < 20; ++i) s.w.host_send(bpms::CMD_IDENTIFY);  // more than the queue
+    s.w.run_for(20000);
+    std::string all = str(s.w.radio_bytes()), want;
+    for (int i = 0; i < 20; ++i) want += "BPMS";
+    CHECK(all == want);
+    CHECK_EQ(s.w.arbiter->stats().dropped_host_bytes, 0);
+}
+
 TEST(unknown_command_is_ignored_when_idle) {
     Suit s;
     s.w.host_send(0x7F);
