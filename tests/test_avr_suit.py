@@ -22,7 +22,7 @@ import pytest
 from waiting import wait_until
 
 from bpms.firmware.avr_build import build, missing_tools
-from bpms.firmware.avr_suit import BOARD_FROM_CHIP, AvrSuit, SensorOff, chip_counts
+from bpms.firmware.avr_suit import BOARD_FROM_CHIP, AvrSuit, BusStuck, SensorOff, chip_counts
 from bpms.firmware.sim.arbiter import MotionSource
 from bpms.firmware.sim.server import TcpServer
 from bpms.io.frames import FRAME_SIZE, decode_frames
@@ -148,14 +148,17 @@ def test_commands_stale_frame_and_values_on_the_firmware(avr_build, motion) -> N
         assert 0 < figure["max"] < 320_000, (board, figure)
 
 
-def test_a_sensor_switched_off_sets_exactly_its_error_bit(avr_build, motion) -> None:
+def test_a_switched_off_sensor_and_a_stuck_bus_set_exactly_their_error_bits(avr_build,
+                                                                            motion) -> None:
     # IMU 7 (cluster 2, slot 1) accelerometer and IMU 14 (cluster 4, slot 2) gyroscope lose
-    # power for a while; everything else must read as the Python suit.
+    # power for a while, cluster 3's I2C bus is held later; everything else must read as the
+    # Python suit, and every frame must come on time.
     off = [SensorOff(7, 0, 2.0, 2.5), SensorOff(14, 2, 2.2, 2.4)]
-    suit = Suit(avr_build, motion, realtime=False, sensor_off=off)
+    stuck = BusStuck(3, 2.6, 2.9)
+    suit = Suit(avr_build, motion, realtime=False, sensor_off=off, bus_stuck=[stuck])
     try:
         suit.link.start()
-        frames = suit.frames(120)
+        frames = suit.frames(160)
         suit.link.stop()
         start_s = suit.avr.wait_status(lambda s: bool(s["streams"]), 10)["streams"][-1]["start_s"]
     finally:
@@ -167,11 +170,14 @@ def test_a_sensor_switched_off_sets_exactly_its_error_bit(avr_build, motion) -> 
     expect = np.zeros_like(d.errors)
     for e in off:
         expect[(t > e.from_s) & (t < e.to_s), e.imu, e.sensor] = True
+    expect[(t > stuck.from_s) & (t < stuck.to_s), 9:12] = True  # the whole cluster
     edge = np.zeros(len(frames), bool)
-    for e in off:
-        edge |= (np.abs(t - e.from_s) < 0.015) | (np.abs(t - e.to_s) < 0.015)
+    for a, b in [(e.from_s, e.to_s) for e in off] + [(stuck.from_s, stuck.to_s)]:
+        edge |= (np.abs(t - a) < 0.015) | (np.abs(t - b) < 0.015)
     np.testing.assert_array_equal(d.errors[~edge], expect[~edge])
     assert d.errors[:, 7, 0].sum() >= 20 and d.errors[:, 14, 2].sum() >= 5
+    assert d.errors[:, 9:12].all(axis=(1, 2)).sum() >= 10
+    assert final["late_frames"] == 0 and final["counters"]["twi_stalls"][3] > 0
     # a failed sensor sends zeros; every other value is the Python suit's, before and after
     # (the chips come back in their power-on state: the firmware configures them again)
     for i in range(len(frames)):

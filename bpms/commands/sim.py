@@ -44,6 +44,9 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     a.add_argument("--sensor-off", action="append", default=[], metavar="IMU:SENSOR:FROM:TO",
                    help="with --avr: that sensor chip (accel, mag or gyro of IMU 0-17) has no "
                         "power from FROM to TO simulated seconds after power-up (repeatable)")
+    a.add_argument("--bus-stuck", action="append", default=[], metavar="CLUSTER:FROM:TO",
+                   help="with --avr: cluster 0-5's I2C bus is held (SDA low) from FROM to TO "
+                        "simulated seconds (repeatable)")
     a.add_argument("--report", metavar="FILE.json",
                    help="with --avr: write the simulator's final figures there (JSON)")
     p.set_defaults(run=run)
@@ -142,8 +145,8 @@ def run(args: argparse.Namespace) -> int:
                        "(then open socket://127.0.0.1:PORT)")
     if args.avr:
         return run_avr(args)
-    if args.sensor_off or args.report:
-        raise CliError("--sensor-off and --report need --avr")
+    if args.sensor_off or args.bus_stuck or args.report:
+        raise CliError("--sensor-off, --bus-stuck and --report need --avr")
     arbiter = build_arbiter(args)
     server = open_server(args, arbiter)
     where = server.address
@@ -188,6 +191,21 @@ def parse_sensor_off(text: str):
         raise CliError(f"--sensor-off wants IMU:SENSOR:FROM:TO with IMU 0-17, SENSOR one of "
                        f"{', '.join(SENSORS)} and FROM < TO in seconds, not {text!r}{why}"
                        ) from None
+
+
+def parse_bus_stuck(text: str):
+    """``CLUSTER:FROM:TO`` (seconds) → :class:`BusStuck`."""
+    from bpms.firmware.avr_suit import BusStuck
+
+    parts = text.split(":")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        return BusStuck(int(parts[0]), float(parts[1]), float(parts[2]))
+    except ValueError as exc:
+        why = f" ({exc})" if str(exc) else ""
+        raise CliError(f"--bus-stuck wants CLUSTER:FROM:TO with CLUSTER 0-5 and FROM < TO in "
+                       f"seconds, not {text!r}{why}") from None
 
 
 def _stream_rate(status: dict) -> str:
@@ -242,6 +260,7 @@ def run_avr(args: argparse.Namespace) -> int:
             raise CliError(f"{flag} is the Python suit's fault injection, not available with "
                            "--avr (use --sensor-off to take a sensor chip off the bus)")
     sensor_off = [parse_sensor_off(text) for text in args.sensor_off]
+    bus_stuck = [parse_bus_stuck(text) for text in args.bus_stuck]
     report = Path(args.report) if args.report else None
     if report is not None and not report.parent.is_dir():
         raise CliError(f"cannot write the report: no folder {report.parent}")
@@ -256,7 +275,8 @@ def run_avr(args: argparse.Namespace) -> int:
         print(f"bpms sim: {avr_status_line(status)}", file=sys.stderr, flush=True)
 
     suit = AvrSuit(source, realtime=not args.fast, battery_v=args.battery,
-                   battery_drain_v_per_h=args.drain, sensor_off=sensor_off, on_status=show)
+                   battery_drain_v_per_h=args.drain, sensor_off=sensor_off,
+                   bus_stuck=bus_stuck, on_status=show)
     print("bpms sim: building the AVR images and the simulator host (make avr-suit)",
           file=sys.stderr, flush=True)
     try:

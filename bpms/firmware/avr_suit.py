@@ -67,6 +67,23 @@ class SensorOff:
                              f"{self.from_s:g} to {self.to_s:g} s")
 
 
+@dataclass(frozen=True)
+class BusStuck:
+    """Cluster ``cluster``'s I2C bus held (SDA low) from ``from_s`` to ``to_s`` simulated
+    seconds after power-up: no transfer completes, the firmware's I2C timeout must act."""
+
+    cluster: int
+    from_s: float
+    to_s: float
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.cluster < 6:
+            raise ValueError(f"no cluster {self.cluster}")
+        if not 0 <= self.from_s < self.to_s:
+            raise ValueError(f"the bus must be held from a time to a later one, not "
+                             f"{self.from_s:g} to {self.to_s:g} s")
+
+
 def chip_counts(raw: np.ndarray) -> np.ndarray:
     """Board-axis raw counts ``int16 [N, 18, 9]`` (a frame's ``ax ay az mx my mz gx gy gz``) →
     what each chip's data registers hold, ``int16 [N, 18, 3, 3]`` (sensor, chip x y z)."""
@@ -86,18 +103,20 @@ class AvrSuit:
     realtime: never faster than the wall clock (False: as fast as this computer simulates);
     battery_v, battery_drain_v_per_h: the cell at power-up and its linear drain (floor 2.6 V);
     sensor_off: chips without power for a while (:class:`SensorOff`);
+    bus_stuck: clusters whose I2C bus is held for a while (:class:`BusStuck`);
     build: the built programs (default: :func:`~bpms.firmware.avr_build.build` now).
     """
 
     def __init__(self, source: MotionSource, *, realtime: bool = True, battery_v: float = 3.35,
                  battery_drain_v_per_h: float = 0.1, sensor_off: Iterable[SensorOff] = (),
-                 build: AvrBuild | None = None,
+                 bus_stuck: Iterable[BusStuck] = (), build: AvrBuild | None = None,
                  on_status: Callable[[dict], None] | None = None) -> None:
         self.source = source
         self.realtime = realtime
         self.battery_v = battery_v
         self.battery_drain_v_per_h = battery_drain_v_per_h
         self.sensor_off = tuple(sensor_off)
+        self.bus_stuck = tuple(bus_stuck)
         self.build = build
         self.on_status = on_status
         self.status: dict | None = None  # the last status the simulator sent
@@ -144,10 +163,12 @@ class AvrSuit:
         table = chip_counts(self.source.raw)
         off = b"".join(struct.pack("<BBII", e.imu, e.sensor, round(e.from_s * 1000),
                                    round(e.to_s * 1000)) for e in self.sensor_off)
-        config = struct.pack("<IIIBI", len(table), round(self.battery_v * 1000),
+        held = b"".join(struct.pack("<BII", e.cluster, round(e.from_s * 1000),
+                                    round(e.to_s * 1000)) for e in self.bus_stuck)
+        config = struct.pack("<IIIBII", len(table), round(self.battery_v * 1000),
                              max(round(self.battery_drain_v_per_h * 1e6), 0), int(self.realtime),
-                             len(self.sensor_off))
-        return MAGIC + config + off + table.astype("<i2").tobytes()
+                             len(self.sensor_off), len(self.bus_stuck))
+        return MAGIC + config + off + held + table.astype("<i2").tobytes()
 
     def close(self, timeout_s: float = 10.0) -> dict | None:
         """Stop the simulator; returns its final status (None when it had already failed)."""
@@ -271,4 +292,4 @@ class AvrSuit:
         self._send(b"O" + bytes([imu, sensor, int(bool(on))]))
 
 
-__all__ = ["AvrBuildError", "AvrSuit", "AvrSuitError", "SensorOff", "chip_counts"]
+__all__ = ["AvrBuildError", "AvrSuit", "AvrSuitError", "BusStuck", "SensorOff", "chip_counts"]

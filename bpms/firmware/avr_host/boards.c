@@ -5,7 +5,8 @@
 //     simavr's wall-clock pacing of sleep (usleep) is off: main.c paces the whole suit;
 //   - the USART's byte time is 10 bits for 8N1 (simavr counts a parity bit that is not there);
 //   - the I2C bus runs at the clock the firmware sets in TWBR/TWSR (simavr's TWI counts one
-//     microsecond per bit, 1 MHz): see __wrap_avr_cycle_timer_register_usec below.
+//     microsecond per bit, 1 MHz): see __wrap_avr_cycle_timer_register_usec below, which also
+//     holds a cluster's bus (a stuck SDA) when asked to.
 #include <stdio.h>
 #include <string.h>
 
@@ -197,6 +198,10 @@ void __wrap_avr_cycle_timer_register_usec(struct avr_t* avr, uint32_t when,
     for (int i = 0; i < N_BOARDS; ++i) {
         board_t* b = all_boards[i];
         if (b && b->avr == avr && param == b->twi) {
+            if (b->bus_stuck) {  // SDA held low: the START, byte or ACK never completes
+                ++b->twi_stalls;
+                return;
+            }
             const uint8_t twbr = avr->data[b->twi->r_twbr];
             const uint8_t twps = avr_regbit_get(avr, b->twi->twps);
             const cycle_t per_bit = 16u + 2u * twbr * (1u << (2 * twps));

@@ -3,6 +3,7 @@
 //
 // stdin, once at start:
 //   "BPMSAVR1", bridge_config_t, n_sensor_off x bridge_sensor_off_t,
+//   n_bus_stuck x bridge_bus_stuck_t,
 //   n_samples x 162 int16: [18 IMUs][accel, mag, gyro][chip x, y, z], chip-axis counts
 // stdin, then any number of messages:
 //   'H' u16 n, n bytes   bytes the host sent (to the RN-41, then to the arbiter as CTS allows)
@@ -34,6 +35,7 @@ typedef struct {
     uint32_t drain_uv_per_h;   // linear drain (floor 2.6 V)
     uint8_t realtime;          // 1: never faster than real time; 0: as fast as the host can
     uint32_t n_sensor_off;
+    uint32_t n_bus_stuck;
 } bridge_config_t;
 
 typedef struct {
@@ -41,6 +43,11 @@ typedef struct {
     uint8_t sensor;  // 0 accel, 1 mag, 2 gyro
     uint32_t from_ms, to_ms;  // simulated time since power-up: the chip is off in [from, to)
 } bridge_sensor_off_t;
+
+typedef struct {
+    uint8_t cluster;          // 0..5
+    uint32_t from_ms, to_ms;  // the cluster's I2C bus is held (SDA low) in [from, to)
+} bridge_bus_stuck_t;
 #pragma pack(pop)
 
 #endif  // BPMS_BRIDGE_H

@@ -153,6 +153,9 @@ void stats_write_json(char* out, int size, cycle_t now, double wall_s, double re
     PUT("], \"i2c_nacks\": [");
     for (int k = 0; k < N_CLUSTERS; ++k)
         PUT("%s%llu", k ? ", " : "", (unsigned long long)chips_nacks(k));
+    PUT("], \"twi_stalls\": [");
+    for (int k = 0; k < N_CLUSTERS; ++k)
+        PUT("%s%llu", k ? ", " : "", (unsigned long long)b[1 + k].twi_stalls);
     PUT("], \"lost_events\": [");
     for (int i = 0; i < N_BOARDS; ++i)
         PUT("%s%llu", i ? ", " : "", (unsigned long long)b[i].dropped_events);

@@ -25,6 +25,7 @@ static const char* board_names[N_BOARDS] = {"arbiter",  "cluster0", "cluster1", 
 static motion_table_t table;
 static bridge_config_t config;
 static bridge_sensor_off_t* schedule;
+static bridge_bus_stuck_t* stuck;
 static uint8_t switched_off[18][3];  // runtime switches from the host side ('O')
 
 static double wall_now(void) {
@@ -84,6 +85,10 @@ static int read_config(void) {
     if (config.n_sensor_off) {
         schedule = calloc(config.n_sensor_off, sizeof *schedule);
         if (!schedule || read_exact(schedule, config.n_sensor_off * sizeof *schedule)) return -1;
+    }
+    if (config.n_bus_stuck) {
+        stuck = calloc(config.n_bus_stuck, sizeof *stuck);
+        if (!stuck || read_exact(stuck, config.n_bus_stuck * sizeof *stuck)) return -1;
     }
     const size_t n = (size_t)config.n_samples * BRIDGE_VALUES_PER_SAMPLE;
     int16_t* values = malloc(n * sizeof *values + 1);
@@ -147,6 +152,12 @@ static void apply_parts(cycle_t now) {
             }
             if (on != chips_powered(imu, s)) chips_power(imu, s, on);
         }
+    for (int k = 0; k < N_CLUSTERS; ++k) {
+        int held = 0;
+        for (uint32_t i = 0; i < config.n_bus_stuck; ++i)
+            if (stuck[i].cluster == k && ms >= stuck[i].from_ms && ms < stuck[i].to_ms) held = 1;
+        boards[1 + k].bus_stuck = held;
+    }
     // battery: cell -> 100k -> A0 -> 100k -> GND (docs/firmware.md, "Battery divider"). The
     // ATmega328P's ADC reads floor(Vin * 1024 / Vref); simavr's scales by 1023, so it gets the
     // lowest millivolt value that makes it read the data sheet's count.

@@ -65,6 +65,8 @@ typedef struct board {
     cycle_t awake;         // cycles executed (not asleep), since power-up
     uint64_t overruns;     // bytes a real USART would have lost (receive buffer full)
     uint64_t dropped_events;
+    int bus_stuck;          // its I2C bus is held: no TWI transfer completes
+    uint64_t twi_stalls;    // TWI steps that never completed because of it
     int crashed;
 } board_t;
 
