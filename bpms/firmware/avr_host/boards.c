@@ -3,7 +3,9 @@
 // docs/firmware.md):
 //   - a sleeping core wakes for the parts' events instead of skipping to its next timer, and
 //     simavr's wall-clock pacing of sleep (usleep) is off: main.c paces the whole suit;
-//   - the USART's byte time is 10 bits for 8N1 (simavr counts a parity bit that is not there);
+//   - the USART's byte time is 10 bits for 8N1 (simavr counts a parity bit that is not there),
+//     and its transmitter is double-buffered as on the chip (simavr 1.6 frees UDR only when
+//     the previous byte has left, which leaves a gap of one interrupt latency per byte);
 //   - the I2C bus runs at the clock the firmware sets in TWBR/TWSR (simavr's TWI counts one
 //     microsecond per bit, 1 MHz): see __wrap_avr_cycle_timer_register_usec below, which also
 //     holds a cluster's bus (a stuck SDA) when asked to.
@@ -31,15 +33,44 @@ static avr_io_t* find_io(avr_t* avr, const char* kind) {
     return NULL;
 }
 
+// A byte written to UDR starts on the wire when the shift register is free.
 static void uart_output(struct avr_irq_t* irq, uint32_t value, void* param) {
     (void)irq;
     board_t* b = param;
+    const cycle_t now = b->avr->cycle;
+    const cycle_t start = b->tx_free_at > now ? b->tx_free_at : now;
+    b->tx_last_start = start;
+    b->tx_free_at = start + b->byte_cycles;
     if (b->tx_count == TX_SLOTS) {  // cannot happen: the USART sends one byte per byte time
         ++b->dropped_events;
         return;
     }
-    b->tx[(b->tx_head + b->tx_count) % TX_SLOTS] = (tx_byte_t){b->avr->cycle, (uint8_t)value};
+    b->tx[(b->tx_head + b->tx_count) % TX_SLOTS] = (tx_byte_t){start, (uint8_t)value};
     ++b->tx_count;
+}
+
+// UDR is free again once its byte has moved into the shift register.
+static avr_cycle_count_t udr_free(struct avr_t* avr, avr_cycle_count_t when, void* param) {
+    (void)when;
+    board_t* b = param;
+    if (b->uart->tx_cnt == 1 && avr_regbit_get(avr, b->uart->txen))
+        avr_raise_interrupt(avr, &b->uart->udrc);
+    return 0;
+}
+
+// Runs after simavr's own UDR write handler (simavr calls both, in that order).
+static void udr_written(struct avr_t* avr, avr_io_addr_t addr, uint8_t v, void* param) {
+    (void)addr;
+    (void)v;
+    board_t* b = param;
+    if (!avr_regbit_get(avr, b->uart->txen)) return;
+    if (b->uart->tx_cnt == 1) {
+        udr_free(avr, avr->cycle, b);  // straight into the idle shift register
+    } else if (b->uart->tx_cnt == 2) {
+        // it waits in UDR until the byte before it has left (simavr counts that byte off one
+        // cycle earlier, at the same time)
+        avr_cycle_timer_register(avr, b->tx_last_start + 1 - avr->cycle, udr_free, b);
+    }
 }
 
 int board_load(board_t* b, int index, const char* name, const char* hex_path) {
@@ -85,6 +116,7 @@ int board_load(board_t* b, int index, const char* name, const char* hex_path) {
     b->uart_in = avr_io_getirq(b->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
     avr_irq_register_notify(avr_io_getirq(b->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
                             uart_output, b);
+    avr_register_io_write(b->avr, b->uart->r_udr, udr_written, b);
     b->byte_cycles = 160;
     all_boards[index] = b;
     return 0;

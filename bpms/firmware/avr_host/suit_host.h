@@ -62,6 +62,8 @@ typedef struct board {
     core_event_t ev[EVENT_SLOTS];
     int ev_head, ev_count;
     cycle_t byte_cycles;   // one 8N1 byte at the firmware's baud rate (from its registers)
+    cycle_t tx_free_at;    // when the USART's shift register has sent its byte
+    cycle_t tx_last_start; // start bit of the byte written last
     cycle_t awake;         // cycles executed (not asleep), since power-up
     uint64_t overruns;     // bytes a real USART would have lost (receive buffer full)
     uint64_t dropped_events;
