@@ -302,6 +302,7 @@ def run_avr(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the summary
         server.stop()
         final = suit.close()
     if suit.error is not None:
