@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import threading
 import time
 from typing import TYPE_CHECKING
 
@@ -293,16 +294,15 @@ def run_avr(args: argparse.Namespace) -> int:
     print(f"bpms sim: serving the suit's firmware (7 simulated ATmega328P) on {where} "
           f"({'as fast as it runs' if args.fast else 'real time at most'}); Ctrl-C stops",
           file=sys.stderr, flush=True)
-    signal.signal(signal.SIGTERM, _sigterm)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    # Ctrl-C and SIGTERM only ask to stop: a second one cannot cut the summary short.
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: stop.set())
     server.start()
     try:
-        while suit.error is None:
-            time.sleep(0.2)
-    except KeyboardInterrupt:
-        pass
+        while suit.error is None and not stop.wait(0.2):
+            pass
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the summary
         server.stop()
         final = suit.close()
     if suit.error is not None:

@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -194,6 +195,9 @@ int main(int argc, char** argv) {
         fprintf(stderr, "usage: avr_suit ARBITER.hex CLUSTER.hex  (driven by bpms sim --avr)\n");
         return 2;
     }
+    // Ctrl-C reaches the whole process group: the Python side decides when to stop ('Q', or
+    // the end of stdin when it is gone), so that the final status is always sent.
+    signal(SIGINT, SIG_IGN);
     if (read_config()) {
         fprintf(stderr, "avr_suit: incomplete configuration on stdin\n");
         return 2;
