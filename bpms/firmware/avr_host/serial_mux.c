@@ -197,10 +197,14 @@ void wires_exchange(cycle_t now) {
 }
 
 void wires_host_bytes(const uint8_t* data, int n) {
-    for (int i = 0; i < n && host_count < (int)sizeof host_fifo; ++i) {
+    for (int i = 0; i < n; ++i) {
+        ++counters.host_bytes_in;
+        if (host_count == (int)sizeof host_fifo) {  // the radio's buffer is full
+            ++counters.host_bytes_lost;
+            continue;
+        }
         host_fifo[(host_head + host_count) % (int)sizeof host_fifo] = data[i];
         ++host_count;
-        ++counters.host_bytes_in;
     }
 }
 

@@ -109,7 +109,8 @@ typedef struct {
     uint64_t cut;               // cluster or host bytes cut short by a multiplexer switch
     uint64_t unheard;           // cluster bytes sent while the arbiter listened elsewhere
     uint64_t host_bytes_in;     // host bytes handed to the RN-41
-    uint64_t host_bytes_lost;   // host bytes the RN-41 sent while the arbiter was not listening
+    uint64_t host_bytes_lost;   // host bytes that never reached the arbiter's USART: sent
+                                // while it listened elsewhere, or beyond the RN-41's buffer
     uint64_t host_bytes_held;   // host bytes the RN-41 kept until CTS let it send them
     uint64_t radio_bytes_out;   // bytes that reached the RN-41 (to the host)
     uint64_t framing_errors;    // bytes between boards at different baud rates
