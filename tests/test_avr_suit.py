@@ -293,7 +293,8 @@ def test_bpms_record_against_bpms_sim_avr(avr_build, motion, tmp_path) -> None:
 
 
 def test_sim_avr_refuses_the_python_suits_fault_injection() -> None:
-    for args in (["--error-rate", "0.1"], ["--bursty"], ["--sensor-off", "7:spin:1:2"]):
+    for args in (["--error-rate", "0.1"], ["--bursty"], ["--sensor-off", "7:spin:1:2"],
+                 ["--sensor-off", "7:accel:3:2"], ["--bus-stuck", "9:1:2"]):
         result = subprocess.run([sys.executable, "-m", "bpms", "sim", "--avr", "--tcp", "0",
                                  *args], cwd=ROOT, capture_output=True, text=True, timeout=60,
                                 check=False)

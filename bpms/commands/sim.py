@@ -216,7 +216,8 @@ def _stream_rate(status: dict) -> str:
         return "not streaming"
     s = streams[-1]
     rate = (s["frames"] - 1) / (s["last_s"] - s["start_s"])
-    return f"{s['frames']} frames in this stream, {rate:.2f} per simulated second"
+    which = "this" if status["sim_s"] - s["last_s"] < 0.1 else "the last"
+    return f"{s['frames']} frames in {which} stream, {rate:.2f} per simulated second"
 
 
 def avr_status_line(status: dict) -> str:
@@ -310,5 +311,10 @@ def run_avr(args: argparse.Namespace) -> int:
     if final is not None:
         print(f"bpms sim: stopped; {avr_status_line(final)}", file=sys.stderr)
         if report is not None:
-            report.write_text(json.dumps(final, indent=1) + "\n")
+            try:
+                report.write_text(json.dumps(final, indent=1) + "\n")
+            except OSError as exc:
+                print(f"bpms sim: error: cannot write {report}: {exc.strerror or exc}",
+                      file=sys.stderr)
+                return 1
     return 1 if suit.error is not None else 0
