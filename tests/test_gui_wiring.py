@@ -21,7 +21,7 @@ from bpms.gui.main_window import MainWindow
 from bpms.gui.modes import ModeConfig, SessionRunner
 from bpms.gui.plots import TickBlock, cell_curve
 from bpms.io.options import Options
-from bpms.io.udp import UdpForwarder
+from bpms.io.udp.sender import UdpForwarder
 from bpms.pipeline.session import RecordingStatus
 
 _H = Qt.Orientation.Horizontal
