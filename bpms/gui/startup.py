@@ -38,8 +38,9 @@ from PyQt6.QtWidgets import (
 )
 
 from bpms.gui import settings_store
-from bpms.gui.main_window import MainWindow, optional_module
+from bpms.gui.main_window import MainWindow
 from bpms.gui.modes import MODE_LABELS, MODES, ModeConfig, ModeError, SessionRunner
+from bpms.gui.optional import optional_module
 from bpms.gui.safety import BackgroundTask, guard_wheel
 from bpms.io import defaults
 from bpms.io.calib_file import CalibrationTable, load_calibration
