@@ -13,7 +13,7 @@ import pytest
 from PyQt6.QtCore import Qt
 
 from bpms.firmware.sim.session import simulate
-from bpms.gui.data_table import COLUMNS
+from bpms.gui.columns import COLUMNS
 from bpms.gui.main_window import MainWindow
 from bpms.gui.startup import StartupWindow
 from bpms.io.filtered_file import read_filtered

@@ -8,7 +8,8 @@ from PyQt6.QtCore import Qt
 from PyQt6.QtWidgets import QDockWidget, QWidget
 
 from bpms.gui.docks import make_dock
-from bpms.gui.plots import PlotWindow, TickBlock, cells_plot, joint_angle_plot, plot_from
+from bpms.gui.plot_data import TickBlock
+from bpms.gui.plots import PlotWindow, cells_plot, joint_angle_plot, plot_from
 
 _RIGHT = Qt.DockWidgetArea.RightDockWidgetArea
 _BOTTOM = Qt.DockWidgetArea.BottomDockWidgetArea

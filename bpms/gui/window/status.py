@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from bpms.gui.plots import TickBlock
+from bpms.gui.plot_data import TickBlock
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.pipeline.session import LiveStatus
 
