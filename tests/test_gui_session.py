@@ -16,7 +16,7 @@ from bpms.firmware.sim.session import simulate
 from bpms.gui.columns import COLUMNS
 from bpms.gui.main_window import MainWindow
 from bpms.gui.startup import StartupWindow
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.rawfile import read_raw
 
 ROOT = Path(__file__).resolve().parents[1]

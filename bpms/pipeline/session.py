@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpms.io.events import FrameEvent, FrameSource, SourceStatus
-from bpms.io.filtered_file import FilteredWriter
+from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import FRAME_PERIOD_S, decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
