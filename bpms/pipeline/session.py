@@ -25,32 +25,33 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bpms.io.events import FrameEvent, FrameSource, SourceStatus
-from bpms.io.filtered_file import FilteredWriter
+from bpms.io.events import FrameEvent, FrameSource
+from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
 from bpms.io.timebase import stream_time
-from bpms.io.udp import UdpForwarder, shared_key
+from bpms.io.udp.auth import shared_key
+from bpms.io.udp.sender import UdpForwarder
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
     MAX_BACKLOG_FRAMES,
     PipelineHealth,
-    health_text,
     write_trailing_holes,
     write_with_holes,
 )
 from bpms.pipeline.rate import RateMeter
 from bpms.pipeline.raw_logger import RawLogger
+from bpms.pipeline.sample import PoseSample
 from bpms.pipeline.settings_queue import SettingsQueue
+from bpms.pipeline.status import LiveStatus, RecordingStatus
 from bpms.pipeline.steady import prepare_live_path
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
@@ -62,156 +63,6 @@ _STOP = object()
 #: Processed frames queued before they are written to the filtered file (0.2 s at 50 Hz; the
 #: file is flushed once per flush interval anyway).
 FILTERED_BATCH = 10
-
-
-class _Row:
-    """A PoseSample number: the value given to the constructor, else row ``k`` of the batch's
-    :class:`bpms.filter.result.Result` attribute ``name`` (its field ``part``, for the
-    disturbance record), computed for the whole batch at once when first read."""
-
-    def __init__(self, name: str, part: str | None = None) -> None:
-        self.name = name
-        self.part = part
-
-    def __set_name__(self, owner: type, attr: str) -> None:
-        self.attr = attr
-
-    def __get__(self, sample: PoseSample | None, owner: type) -> np.ndarray | None:
-        if sample is None:
-            return self  # type: ignore[return-value]
-        given = sample._given.get(self.attr)
-        if given is not None or sample._result is None:
-            return given
-        value = getattr(sample._result, self.name)
-        if self.part is not None:
-            value = None if value is None else getattr(value, self.part)
-        return None if value is None else value[sample._k]
-
-
-class PoseSample:
-    """One processed frame. Angles rad, lengths m, frames as docs/filter.md, docs/body-model.md.
-
-    index: frame index in the source; host_time: s since the epoch (receive time);
-    raw ``[18, 9]`` int16 counts; errors ``[18, 3]`` bool; euler ``[18, 3]`` filter roll,
-    pitch, yaw; R ``[18, 3, 3]`` filter DCMs; C ``[18, 3, 3]`` segment orientations after Reset
-    Zero (NaN before the first); joint_angles ``[28]``; joint_positions ``[21, 3]`` (NED, lowest
-    foot on the ground); latency_s: host receive → sample ready; arrival:
-    ``time.perf_counter()`` when the host took the frame in; euler_output ``[18, 3]``: the
-    per-IMU angles to show / write / stream (segment angles after Reset Zero when the
-    corrected output is on, else = ``euler``); reinitialised ``[18]`` bool: the state guard
-    re-initialised that IMU in this frame; mag_disturbed / acc_disturbed ``[18]`` bool
-    (:mod:`bpms.filter.disturbance`); estimates ``[18, 6]``: gyro bias x, y, z (rad/s, sensor
-    axes) and body acceleration north, east, down (m/s²), NaN where the filter has none.
-
-    The session's samples are rows of the processed batch's Result (``result``, row ``k``):
-    a number nobody reads is never computed, and those that are read are computed for the
-    whole batch at once. Given explicitly (a test, a script), the arrays are used as they are.
-    """
-
-    __slots__ = (
-        "_given",
-        "_k",
-        "_result",
-        "arrival",
-        "errors",
-        "frame",
-        "host_time",
-        "index",
-        "latency_s",
-        "raw",
-    )
-
-    euler = _Row("euler")
-    R = _Row("R")
-    C = _Row("C")
-    joint_angles = _Row("joint_angles")
-    joint_positions = _Row("joint_positions")
-    euler_output = _Row("euler_output")
-    reinitialised = _Row("reinitialised")
-    mag_disturbed = _Row("disturbance", "mag")
-    acc_disturbed = _Row("disturbance", "acc")
-    estimates = _Row("estimates")
-
-    def __init__(self, index: int, host_time: float, frame: bytes, raw: np.ndarray,
-                 errors: np.ndarray, euler: np.ndarray | None = None,
-                 R: np.ndarray | None = None, C: np.ndarray | None = None,
-                 joint_angles: np.ndarray | None = None,
-                 joint_positions: np.ndarray | None = None, latency_s: float = 0.0,
-                 euler_output: np.ndarray | None = None,
-                 reinitialised: np.ndarray | None = None, arrival: float = 0.0,
-                 mag_disturbed: np.ndarray | None = None,
-                 acc_disturbed: np.ndarray | None = None,
-                 estimates: np.ndarray | None = None, *, result: Result | None = None,
-                 k: int = 0) -> None:
-        self.index, self.host_time, self.frame = index, host_time, frame
-        self.raw, self.errors, self.latency_s, self.arrival = raw, errors, latency_s, arrival
-        given = {"euler": euler, "R": R, "C": C, "joint_angles": joint_angles,
-                 "joint_positions": joint_positions, "euler_output": euler_output,
-                 "reinitialised": reinitialised, "mag_disturbed": mag_disturbed,
-                 "acc_disturbed": acc_disturbed, "estimates": estimates}
-        self._given = {name: value for name, value in given.items() if value is not None}
-        self._result, self._k = result, k
-
-    def replace(self, **given: np.ndarray) -> PoseSample:
-        """A copy with the numbers ``given`` (by their attribute names) in place of its own."""
-        other = PoseSample(self.index, self.host_time, self.frame, self.raw, self.errors,
-                           latency_s=self.latency_s, arrival=self.arrival, result=self._result,
-                           k=self._k)
-        unknown = set(given) - set(_ROWS)
-        if unknown:
-            raise TypeError(f"PoseSample has no number {', '.join(sorted(unknown))}")
-        other._given = {**self._given, **given}
-        return other
-
-    def __repr__(self) -> str:
-        return f"PoseSample(index={self.index}, host_time={self.host_time:.3f})"
-
-
-_ROWS = tuple(name for name, value in vars(PoseSample).items() if isinstance(value, _Row))
-
-
-@dataclass
-class RecordingStatus:
-    raw_path: Path | None = None
-    filtered_path: Path | None = None
-    raw_records: int = 0  # handed to the file
-    raw_bytes: int = 0
-    raw_received: int = 0  # frames given to the raw logger
-    raw_on_disk: int = 0  # records known to be on the disk (at the end: what a reader finds)
-    raw_lost: int = 0  # at the end: received but not on the disk
-    filtered_rows: int = 0
-    error: str | None = None  # a write error: shown (in red) until logging stops
-
-
-@dataclass
-class LiveStatus:
-    """A snapshot for status lines and the GUI (all counts since the session started)."""
-
-    source: SourceStatus
-    running: bool
-    rate_hz: float
-    frames: int
-    processed: int
-    error_bits: int
-    dropped: int  # display_skipped + not_filtered (both kinds of loss; see below)
-    processing_backlog: int  # frames waiting for the processing thread
-    recording: RecordingStatus | None
-    forwarding: list[str] = field(default_factory=list)
-    forwarded: int = 0
-    forward_errors: int = 0
-    latency_p99_ms: float = 0.0
-    events: list[str] = field(default_factory=list)  # recent notable events, newest last
-    reinit_count: int = 0  # filter re-initialisations by the state guard (all IMUs)
-    # bpms.pipeline.health: frames received (recorded raw) but never filtered (holes in the
-    # filtered file, each marked), and processed samples a slow display did not take.
-    not_filtered: int = 0
-    display_skipped: int = 0
-    holes_marked: int = 0
-
-    def health_line(self) -> str:
-        """``not filtered N  backlog B  display skipped M`` (capitals when frames are lost)."""
-        return health_text(self.not_filtered, self.processing_backlog, self.display_skipped)
-
 
 
 class LiveSession:
