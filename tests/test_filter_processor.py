@@ -12,6 +12,7 @@ from bpms.firmware.sim.session import simulate
 from bpms.io.calib_file import load_factory_calibration
 from bpms.io.options import Options
 from bpms.io.rawfile import new_header, write_raw
+from bpms.io.session_events import SessionEvent
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +41,8 @@ def test_step_equals_process(short_rec):
 
 def test_chunks_equal_one_pass_and_reset_zero_on_request(short_rec):
     rec = short_rec
-    one = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors, zero_at=[300])
+    pressed = SessionEvent("reset_zero", 300, data={"source": "manual", "window": 25})
+    one = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors, [(300, pressed)])
     proc = BodyPoseProcessor(rec.calibration)
     parts = [proc.process(rec.raw[:120], rec.errors[:120]),
              proc.process(rec.raw[120:300], rec.errors[120:300])]

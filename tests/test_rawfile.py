@@ -40,7 +40,7 @@ def test_round_trip_and_header(tmp_path):
     np.testing.assert_array_equal(rec.decode().raw, raw)
     assert rec.header["notes"] == "subject S01, suited 4.3 psi"
     assert rec.header["calibration"] == np.ones((18, 16)).tolist()
-    assert rec.header["format_version"] == 1
+    assert rec.header["format_version"] == 2
 
 
 def test_records_are_fixed_size_and_reachable_directly(tmp_path):

@@ -69,7 +69,7 @@ def find_recordings(folder: str | Path) -> list[Job]:
 
 
 def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
-                options: str | None = None) -> Outcome:
+                options: str | None = None, reset_zero=None) -> Outcome:
     """Worker: filter ``job``'s recording once, write ``outputs`` into ``out_dir`` (per
     subject), reduce the range of motion. Never raises: failures become ``Outcome.error``."""
     import numpy as np
@@ -82,7 +82,7 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
     outcome = Outcome(job)
     writers: list = []
     try:
-        opened = open_for_processing(job.path, None, options)
+        opened = open_for_processing(job.path, None, options, reset_zero)
         if len(opened) == 0:
             raise ValueError("the recording holds no frames")
         target = Path(out_dir) / job.subject
@@ -144,15 +144,16 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
 def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = ("rom",),
               workers: int = 1, options: str | None = None,
               progress: Callable[[int, int, Outcome], None] | None = None,
-              start_method: str | None = None) -> list[Outcome]:
+              start_method: str | None = None, reset_zero=None) -> list[Outcome]:
     """Process ``jobs`` with ``workers`` processes (1 = in this process); outcomes in job
     order. ``progress(done, total, outcome)`` after each recording. ``start_method``: the
-    multiprocessing start method (default: the platform's)."""
+    multiprocessing start method (default: the platform's); ``reset_zero``: which Reset Zero
+    (:mod:`bpms.filter.zero_choice`)."""
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     results: dict[int, Outcome] = {}
     if workers <= 1:
         for k, job in enumerate(jobs):
-            results[k] = process_one(job, str(out_dir), outputs, options)
+            results[k] = process_one(job, str(out_dir), outputs, options, reset_zero)
             if progress:
                 progress(len(results), len(jobs), results[k])
     else:
@@ -162,7 +163,8 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
         if ctx.get_start_method() == "fork":
             _warm_up()  # forked workers inherit the loaded filter kernels
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            futures = {pool.submit(process_one, job, str(out_dir), outputs, options): k
+            futures = {pool.submit(process_one, job, str(out_dir), outputs, options,
+                                   reset_zero): k
                        for k, job in enumerate(jobs)}
             for future in as_completed(futures):
                 k = futures[future]

@@ -58,10 +58,11 @@ def process_recording(path: str | Path, calibration: str | Path | None = None,
                       options: str | Path | Options | None = None,
                       zero_at_s: Sequence[float] = (),
                       progress: Progress | None = stderr_progress,
-                      algorithm: str | None = None, heading: str | None = None) -> Processed:
+                      algorithm: str | None = None, heading: str | None = None,
+                      reset_zero=None) -> Processed:
     """A whole recording through the door, joined into one Result (for small recordings and
-    the Python API)."""
-    opened = open_for_processing(path, calibration, options, algorithm, heading)
+    the Python API); ``reset_zero``: :mod:`bpms.filter.zero_choice`."""
+    opened = open_for_processing(path, calibration, options, algorithm, heading, reset_zero)
     chunks = list(opened.chunks(zero_at_s, progress))
     from bpms.filter.result import Result
 

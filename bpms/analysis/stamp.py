@@ -55,14 +55,9 @@ def recording_utc_start(recording) -> float:
             return float(rec.times[0])
         return float(rec.header.get("start_time", math.nan))
     kind = getattr(recording, "kind", "")
-    if kind == "raw" and recording.n_frames:
-        from bpms.io.rawfile import RECORD_DTYPE, RECORD_SIZE
-
-        with open(recording.path, "rb") as f:
-            f.seek(recording._data_offset)
-            first = np.frombuffer(f.read(RECORD_SIZE), dtype=RECORD_DTYPE)
-        if len(first) and np.isfinite(first["time"][0]):
-            return float(first["time"][0])
+    if kind == "raw":  # the one reader found it when the recording was opened
+        if math.isfinite(recording.first_host_time):
+            return float(recording.first_host_time)
     elif kind == "filtered":
         from bpms.io.filtered_file.reader import FilteredReader
 

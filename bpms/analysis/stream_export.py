@@ -51,14 +51,15 @@ class Opened:
 
 
 def open_for_processing(path: str | Path, calibration: str | Path | None = None,
-                        options: str | Path | Options | None = None) -> Opened:
+                        options: str | Path | Options | None = None,
+                        reset_zero=None) -> Opened:
     """Open a raw recording through the one door (:func:`bpms.filter.door.open_for_processing`:
     the given calibration / options, else the recording's, else the user's default, else
     factory). Raises RawFileError for an unreadable file or a filtered file."""
     from bpms.filter.door import open_for_processing as door_open
     from bpms.io.rawfile import RawFileError
 
-    door = door_open(path, calibration, options)
+    door = door_open(path, calibration, options, reset_zero=reset_zero)
     if not door.has_raw:
         raise RawFileError(f"{path}: a filtered file; give a raw recording")
     proc = door.processor
@@ -71,11 +72,12 @@ def open_for_processing(path: str | Path, calibration: str | Path | None = None,
 def export_recording(path: str | Path, outputs: dict[str, str | Path],
                      calibration: str | Path | None = None,
                      options: str | Path | Options | None = None,
-                     progress: Callable[[str, int, int], None] | None = None) -> ExportSummary:
+                     progress: Callable[[str, int, int], None] | None = None,
+                     reset_zero=None) -> ExportSummary:
     """Filter ``path`` and write each ``outputs[kind] = target`` (kinds of
     :data:`bpms.analysis.binary_out.KINDS`). Raises RawFileError for an unreadable file,
     OSError when a target cannot be written."""
-    opened = open_for_processing(path, calibration, options)
+    opened = open_for_processing(path, calibration, options, reset_zero)
     meta = opened.meta
     writers = {kind: open_writer(kind, target, meta) for kind, target in outputs.items()}
     n = len(opened)

@@ -15,7 +15,7 @@ __all__ = ["add_filter_option", "open_recording_for", "processed", "stream"]
 
 def open_recording_for(command: str, path: str, calibration: str | None = None,
                        options: str | None = None, algorithm: str | None = None,
-                       heading: str | None = None):
+                       heading: str | None = None, reset_zero=None):
     """The door, with one-line errors; prints ``calibration: …; options: …`` and the
     warnings so far on stderr. Returns the :class:`bpms.filter.door.OpenedRecording`."""
     from bpms.filter.door import open_for_processing
@@ -24,7 +24,8 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     from bpms.io.rawfile import RawFileError
 
     try:
-        opened = open_for_processing(path, calibration, options, algorithm, heading)
+        opened = open_for_processing(path, calibration, options, algorithm, heading,
+                                     reset_zero)
     except (RawFileError, FilteredFileError, VqfMissingError) as exc:
         raise CliError(str(exc)) from exc
     except OSError as exc:
@@ -56,7 +57,7 @@ def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
 
 def processed(command: str, path: str, calibration: str | None = None,
               options: str | None = None, zero_at_s: Sequence[float] = (),
-              algorithm: str | None = None, heading: str | None = None):
+              algorithm: str | None = None, heading: str | None = None, reset_zero=None):
     """A whole recording joined into one result (:func:`bpms.analysis.source.
     process_recording`); for small recordings only: the commands stream."""
     from bpms.analysis.source import process_recording
@@ -65,7 +66,7 @@ def processed(command: str, path: str, calibration: str | None = None,
 
     try:
         p = process_recording(path, calibration, options, zero_at_s, algorithm=algorithm,
-                              heading=heading)
+                              heading=heading, reset_zero=reset_zero)
     except (RawFileError, FilteredFileError) as exc:
         raise CliError(str(exc)) from exc
     except OSError as exc:

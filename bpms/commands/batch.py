@@ -19,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
 
 
@@ -33,6 +34,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="worker processes (default: the number of CPU cores)")
     p.add_argument("--options", metavar="options.toml",
                    help="options file (default: each recording's stored options)")
+    add_reset_zero_option(p)
     p.set_defaults(run=run)
     return p
 
@@ -79,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"[{done}/{total}] {outcome.job.subject}/{outcome.job.trial}: {state}",
               flush=True)
 
-    outcomes = run_batch(jobs, out, outputs, workers, args.options, progress)
+    outcomes = run_batch(jobs, out, outputs, workers, args.options, progress,
+                         reset_zero=args.reset_zero)
     elapsed = time.perf_counter() - t0
     rows = write_table(out / TABLE_NAME, outcomes)
     summary = write_summary(out, outcomes, folder, elapsed, workers)

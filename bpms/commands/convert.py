@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
 
 
@@ -32,6 +33,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", metavar="options.toml",
                    help="options file (default: the options stored in the recording)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    add_reset_zero_option(p)
     p.set_defaults(run=run)
     return p
 
@@ -57,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"{target} exists (use --force to overwrite)")
     try:
         summary = export_recording(raw, outputs, args.calibration, args.options,
-                                   stderr_progress)
+                                   stderr_progress, args.reset_zero)
     except RawFileError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:

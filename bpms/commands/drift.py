@@ -35,7 +35,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.io.frames import IMU_NAMES
 
     p = processed("drift", args.raw_file, args.calibration, args.options,
-                  algorithm=args.filter_name, heading=args.heading)
+                  algorithm=args.filter_name, heading=args.heading,
+                  reset_zero=args.reset_zero)
     if p.raw is None:
         raise CliError(f"{args.raw_file}: the drift check needs the sensors: give the raw "
                        "recording, not a filtered file")

@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     raw = Path(args.raw_file)
     out = Path(args.output) if args.output else raw.with_suffix("")
     opened = open_recording_for("export", args.raw_file, args.calibration, args.options,
-                                args.filter_name, args.heading)
+                                args.filter_name, args.heading, args.reset_zero)
     proc = opened.processor
     dt = proc.options.filter.dt
     stamp = recording_stamp(opened)
@@ -102,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
             # memory), the second writes the frames
             steps = walked_steps(open_for_processing(args.raw_file, args.calibration,
                                                      args.options, args.filter_name,
-                                                     args.heading), args.reset_at)
+                                                     args.heading, args.reset_zero),
+                                 args.reset_at)
             bvh = BvhWriter(path, proc.options.body, dt)
             writers.append(bvh)
             for chunk in stream("export", opened, args.reset_at):

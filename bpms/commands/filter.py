@@ -19,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
 from bpms.io.options import FilterOptions
 
@@ -51,6 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="attitude filter for all 18 IMUs: " + ", ".join(FILTER_CHOICES)
                              + " (default: the options' [filter] algorithm, normally mahony; "
                              "docs/filters.md)")
+    add_reset_zero_option(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -67,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     if out_path.exists() and not args.force:
         raise CliError(f"{out_path} exists (use --force to overwrite)")
     opened = open_recording_for("filter", args.raw_file, args.calibration, args.options,
-                                args.filter)
+                                args.filter, reset_zero=args.reset_zero)
     if opened.kind == "filtered":
         raise CliError(f"{args.raw_file}: is a filtered file already; give a raw recording")
     n = 0

@@ -8,6 +8,15 @@ on (with a gap). A write error (disk full, folder removed, device unplugged) is 
 later status line; the final line gives the frames on the disk and the frames lost, and the
 exit code is 1. Without PORT the suit is discovered (a real suit only); ``--sim`` records
 the simulated suit instead, and then every status line says SIMULATED.
+
+Field commands, typed on standard input (for use over SSH), each followed by Enter:
+
+  z        Reset Zero (the subject stands in the calibration pose)
+  v        alignment off/on: the output angles corrected by Reset Zero or the sensor angles
+  m TEXT   a marker note, stored in the recording at this frame
+
+Each goes into the raw recording at the frame it applies at, the event lines and the LSL event
+stream; ``bpms filter`` and ``bpms replay`` of the recording apply them where they happened.
 """
 
 from __future__ import annotations
@@ -15,6 +24,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -76,6 +86,8 @@ def status_line(status: LiveStatus, elapsed: float) -> str:
             f"battery {battery}  {status.health_line()}")
     if status.reinit_count:
         line += f"  filter re-inits {status.reinit_count}"
+    if status.reset_zero.startswith("waiting"):
+        line += f"  Reset Zero {status.reset_zero}"
     if src.state != "streaming" and src.reason:
         line += f"  ({src.reason})"
     if rec is not None and rec.error:
@@ -92,6 +104,41 @@ def summary(status: RecordingStatus) -> tuple[str, int]:
                 f"{status.raw_path}, {status.raw_lost} frames lost", 1)
     lost = f", {status.raw_lost} frames lost" if status.raw_lost else ""
     return f"recorded {status.raw_on_disk} frames to {status.raw_path}{lost}", (1 if lost else 0)
+
+
+FIELD_HELP = "field commands: z + Enter = Reset Zero, v = alignment off/on, m TEXT = marker"
+
+
+def field_command(session, line: str) -> str | None:
+    """Run one line typed on standard input; the reply to print (None: nothing to say)."""
+    text = line.strip()
+    if not text:
+        return None
+    word, _, rest = text.partition(" ")
+    if word == "z":
+        session.reset_zero("manual")
+        return "Reset Zero at the next frame"
+    if word == "v":
+        session.set_corrected_output(None)
+        return "alignment switched at the next frame"
+    if word == "m":
+        if not rest.strip():
+            return "a marker needs a text: m TEXT"
+        session.marker(rest.strip())
+        return None
+    return f"unknown command {word!r}; {FIELD_HELP}"
+
+
+def _read_commands(session, stream) -> None:
+    """Standard input, line by line, until it ends (a recorder started without one, or with
+    /dev/null, simply has no field commands)."""
+    try:
+        for line in stream:
+            reply = field_command(session, line)
+            if reply:
+                print(reply, flush=True)
+    except (OSError, ValueError):  # closed under the thread at exit
+        return
 
 
 def run(args: argparse.Namespace) -> int:
@@ -142,6 +189,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"recording to {recording.raw_path}"
               + (f" and {recording.filtered_path}" if recording.filtered_path else ""),
               flush=True)
+        if sys.stdin is not None and not sys.stdin.closed:
+            print(FIELD_HELP, flush=True)
+            threading.Thread(target=_read_commands, args=(session, sys.stdin),
+                             name="bpms-field-commands", daemon=True).start()
         t0 = time.monotonic()
         shown_events = 0
         while args.seconds is None or time.monotonic() - t0 < args.seconds:

@@ -5,8 +5,11 @@ The recording runs through the same pipeline as a live suit (filters, Reset Zero
 angles, body model), so every output the live path has is sent: UDP raw frames and poses
 (docs/udp.md), LSL streams (docs/lsl.md) and the MVN-compatible stream (docs/mvn.md). The
 calibration and options stored in the recording are used unless ``--options`` is given (the
-one door, docs/opening-recordings.md). With the shared key set (``BPMS_UDP_KEY``) every
-datagram is signed (docs/udp.md).
+one door, docs/opening-recordings.md), and the events recorded live (Reset Zero, alignment,
+filter and gain changes, markers) are applied at their frames, so every pose equals the live
+session's (``--reset-zero`` chooses otherwise). At every speed, as fast as possible included,
+every frame gives one pose. With the shared key set (``BPMS_UDP_KEY``) every datagram is
+signed (docs/udp.md).
 """
 
 from __future__ import annotations
@@ -15,10 +18,11 @@ import argparse
 import sys
 import time
 
+from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
 from bpms.io.frames import FRAME_PERIOD_S
-from bpms.io.rawfile import RawFileError, RawRecording
-from bpms.io.recordings import open_recording
+from bpms.io.rawfile import RawFileError
+from bpms.io.recordings import open_replay
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -41,32 +45,34 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--loop", action="store_true", help="start again at the end")
     p.add_argument("--options", default=None, metavar="FILE",
                    help="options file (default: the options stored in the recording)")
+    add_reset_zero_option(p)
     p.set_defaults(run=run)
     return p
 
 
-def load_recording(path: str) -> RawRecording:
-    """A native or legacy raw recording, or a CliError naming the problem."""
+def load_recording(path: str):
+    """A native (read from disk as it plays) or legacy raw recording, or a CliError naming
+    the problem (also for a recording with no valid frame)."""
     try:
-        return open_recording(path)
+        return open_replay(path)
     except RawFileError as exc:
         raise CliError(str(exc)) from None
 
 
-def _processor(path: str, options_path: str | None):
-    """The processor and its options through the one door (:mod:`bpms.filter.door`): the
-    given options, else the recording's calibration and options, else the user's default,
-    else factory; the sources line goes to stderr."""
+def _opened(path: str, options_path: str | None, reset_zero):
+    """The recording through the one door (:mod:`bpms.filter.door`): the given options, else
+    the recording's calibration and options, else the user's default, else factory; the
+    sources line goes to stderr."""
     from bpms.filter.door import open_for_processing
 
     try:
-        opened = open_for_processing(path, options=options_path)
+        opened = open_for_processing(path, options=options_path, reset_zero=reset_zero)
     except (RawFileError, OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
     if not opened.has_raw:
         raise CliError(f"{path}: a filtered file; give a raw recording")
     print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
-    return opened.processor, opened.processor.options
+    return opened
 
 
 def _wait_for_lsl(bridges: list, seconds: float) -> None:
@@ -94,10 +100,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {problem}", file=sys.stderr)
     if len(recording) == 0:
         raise CliError(f"{args.raw_file}: the recording holds no frames")
-    processor, options = _processor(args.raw_file, args.options)
-    source = ReplaySource(recording, speed=args.speed or None, autoplay=False)
+    opened = _opened(args.raw_file, args.options, args.reset_zero)
+    processor = opened.processor
+    source = ReplaySource(recording, speed=args.speed or None, autoplay=False,
+                          events=opened.replay_events(recording.events))
     source.seek(seconds=args.start_s)
-    session = LiveSession(source, options, processor)
+    session = LiveSession(source, processor.options, processor)
     bridges: list = []
     try:
         if args.udp:

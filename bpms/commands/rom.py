@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     tables = []
     for path, label in zip(args.raw_files, labels, strict=True):
         opened = open_recording_for("rom", path, args.calibration, args.options,
-                                    args.filter_name, args.heading)
+                                    args.filter_name, args.heading, args.reset_zero)
         acc = RomAccumulator(label, args.t0, args.t1)
         for chunk in stream("rom", opened, args.reset_at):
             acc.add(chunk.result.t, chunk.result.joint_angles)

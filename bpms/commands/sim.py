@@ -67,6 +67,9 @@ def add_sim_options(p: argparse.ArgumentParser) -> None:
                    help="IMUs mounted exactly along their segments")
     g.add_argument("--calibration", metavar="Calib.cfg",
                    help="the suit's true calibration (default: the factory table)")
+    g.add_argument("--start-at", type=float, default=0.0, metavar="SECONDS",
+                   help="start the scripted motion this far in (docs/simulated-suit.md; e.g. "
+                        "69.6: the subject is turning when the stream starts)")
     g.add_argument("--battery", type=float, default=3.35, metavar="VOLTS",
                    help="battery voltage at start (default 3.35)")
     g.add_argument("--drain", type=float, default=0.1, metavar="V_PER_H",
@@ -102,10 +105,11 @@ def build_source(args: argparse.Namespace) -> MotionSource:
         table = load_calibration(args.calibration)
         for problem in table.problems:
             print(f"bpms sim: warning: {problem}", file=sys.stderr)
-    return MotionSource.simulated(
+    source = MotionSource.simulated(
         seed=args.seed, mag_disturbance=args.mag_disturbance,
         mounting_errors=not args.no_mounting_errors, noise=not args.no_noise,
         calibration=table)
+    return source.starting_at(round(getattr(args, "start_at", 0.0) / 0.02))
 
 
 def build_arbiter(args: argparse.Namespace) -> Arbiter:

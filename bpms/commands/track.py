@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from bpms.commands._analysis import open_recording_for, stream
 
     opened = open_recording_for("track", args.raw_file, args.calibration, args.options,
-                                args.filter_name, args.heading)
+                                args.filter_name, args.heading, args.reset_zero)
     if not opened.has_raw:
         raise CliError(f"{args.raw_file}: heel strikes need the foot accelerometers: give the "
                        "raw recording, not a filtered file")

@@ -15,6 +15,13 @@ builds the :class:`~bpms.filter.processor.BodyPoseProcessor`, and says which sou
 Results come chunk by chunk (:meth:`OpenedRecording.chunks`) so that callers write or reduce
 them as they are produced and memory stays flat however long the recording.
 
+Native recordings are read by the one reader (:class:`bpms.io.raw_reader.RawFile`): damaged
+frames keep their slots, and the events recorded live (Reset Zero, alignment, filter and gain
+changes, filters re-initialised) are applied at their frames, so that the numbers equal the
+filtered file written live. ``reset_zero`` (:class:`bpms.filter.zero_choice.ResetZeroChoice`,
+``--reset-zero``) overrides the recorded Reset Zero captures; an explicit filter or options
+file overrides the recorded filter and gain changes.
+
 Times: each chunk's ``result.t`` is stream time (:func:`bpms.io.timebase.stream_times`,
 frame index × dt) and ``host_time`` the host receive time (s since the epoch, UTC).
 """
@@ -23,7 +30,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Callable, Iterator, Sequence
+import math
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,10 +39,13 @@ import numpy as np
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.result import Result
+from bpms.filter.zero_choice import ResetZeroChoice, capture_at, identity_zero
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import Options, load_options, options_from_dict
-from bpms.io.rawfile import MAGIC, RECORD_DTYPE, RECORD_SIZE, RawFileError, RawRecording
+from bpms.io.raw_reader import RawFile
+from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
+from bpms.io.session_events import SessionEvent
 
 log = logging.getLogger(__name__)
 
@@ -142,7 +153,12 @@ class OpenedRecording:
     options_source: str
     problems: list[str] = field(default_factory=list)
     recording: RawRecording | None = field(default=None, repr=False)
-    _data_offset: int = field(default=0, repr=False)
+    file: RawFile | None = field(default=None, repr=False)
+    reset_zero: ResetZeroChoice = field(default_factory=ResetZeroChoice)
+    #: an explicit filter or options file: the recorded filter and gain changes do not apply
+    settings_given: bool = False
+    #: host receive time of the first valid frame (s since the epoch; NaN unknown)
+    first_host_time: float = math.nan
 
     @property
     def has_raw(self) -> bool:
@@ -153,26 +169,37 @@ class OpenedRecording:
         """``calibration: <source>; options: <source>`` (the CLI prints it on stderr)."""
         return f"calibration: {self.calibration_source}; options: {self.options_source}"
 
+    @property
+    def has_events(self) -> bool:
+        """The recording stores its session's events (raw format version 2)."""
+        return self.file is not None and self.file.has_events
+
     def chunks(self, zero_at_s: Sequence[float] = (), progress: Progress | None = None,
                chunk_frames: int = CHUNK_FRAMES,
                zero_at_frames: Sequence[int] = ()) -> Iterator[Chunk]:
-        """Filter the recording as one stream, ``chunk_frames`` at a time.
+        """Filter the recording as one stream, ``chunk_frames`` at a time, the recorded
+        events applied at their frames (as :attr:`reset_zero` chooses).
 
         zero_at_s: extra Reset Zero captures at these stream times (s); zero_at_frames: the
         same as frame indices. progress(label, done, total) after each chunk."""
-        dt = self.processor.options.filter.dt
-        zero = sorted({round(t / dt) for t in zero_at_s} | {int(k) for k in zero_at_frames})
+        proc = self.processor
+        dt = proc.options.filter.dt
+        choice = self.reset_zero
+        extra = sorted({round(t / dt) for t in zero_at_s} | {int(k) for k in zero_at_frames}
+                       | set(choice.frames(dt)))
         label = f"filtering {self.path.name}"
-        self.processor.restart()
+        proc.pose.auto = choice.automatic(self.has_events)
+        proc.pose.provisional = choice.provisional(self.has_events)
+        proc.restart()
         if self.kind == "filtered":
-            source = self._filtered_chunks(zero, chunk_frames)
+            source = self._filtered_chunks(extra, chunk_frames)
         else:
-            source = self._raw_chunks(zero, chunk_frames)
+            source = self._raw_chunks(extra, chunk_frames)
         for chunk in source:
             yield chunk
             if progress:
                 progress(label, chunk.start + len(chunk), self.n_frames)
-        self.problems.extend(p for p in self.processor.problems if p not in self.problems)
+        self.problems.extend(p for p in proc.problems if p not in self.problems)
 
     def raw_chunks(self, chunk_frames: int = CHUNK_FRAMES
                    ) -> Iterator[tuple[int, np.ndarray, DecodedFrames]]:
@@ -180,62 +207,62 @@ class OpenedRecording:
         epoch, decoded frames) per chunk. Raises ValueError for a filtered file."""
         if not self.has_raw:
             raise ValueError(f"{self.path}: a filtered file holds no raw frames")
-        for lo, host, frames in self._raw_records(chunk_frames):
+        for lo, host, frames, _ in self._raw_records(chunk_frames):
             yield lo, host, decode_frames(frames)
 
-    def _frames_in(self, zero: list[int], lo: int, n: int) -> list[int]:
-        return [k - lo for k in zero if lo <= k < lo + n]
+    def _events_in(self, recorded: list[tuple[int, SessionEvent]], extra: list[int], lo: int,
+                   n: int) -> list[tuple[int, SessionEvent]]:
+        """The events to apply in frames ``lo .. lo+n-1``, as (index into the chunk, event)."""
+        planned = planned_events(recorded, self.reset_zero, self.settings_given,
+                                 [k for k in extra if lo <= k < lo + n], start=lo == 0)
+        self._skipped_settings += planned.skipped
+        return [(slot - lo, event) for slot, event in planned]
 
-    def _raw_chunks(self, zero: list[int], chunk_frames: int) -> Iterator[Chunk]:
+    def replay_events(self, recorded: list[tuple[int, SessionEvent]]
+                      ) -> list[tuple[int, SessionEvent]]:
+        """The events replay applies (``bpms replay``, GUI playback): the same rules as
+        :meth:`chunks`, for the whole recording's events ``(slot, event)``."""
+        dt = self.processor.options.filter.dt
+        return planned_events(recorded, self.reset_zero, self.settings_given,
+                              self.reset_zero.frames(dt), start=True)
+
+    def _raw_chunks(self, extra: list[int], chunk_frames: int) -> Iterator[Chunk]:
         proc = self.processor
-        for lo, host, frames in self._raw_records(chunk_frames):
+        self._skipped_settings = 0
+        for lo, host, frames, recorded in self._raw_records(chunk_frames):
             decoded = decode_frames(frames)
-            result = proc.process(decoded.raw, decoded.errors, self._frames_in(zero, lo,
-                                                                              len(host)))
+            events = self._events_in(recorded, extra, lo, len(host))
+            result = proc.process(decoded.raw, decoded.errors, events)
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
                         np.zeros(len(host), dtype=bool))
+        if self._skipped_settings:
+            self._note(f"{self.path}: {self._skipped_settings} recorded filter/gain change(s) "
+                       "not applied (a filter or options file was given)")
 
-    def _raw_records(self, chunk_frames: int) -> Iterator[tuple[int, np.ndarray, bytes]]:
-        """(first index, host times, frame bytes) per chunk; native files stream from disk."""
+    def _raw_records(self, chunk_frames: int
+                     ) -> Iterator[tuple[int, np.ndarray, bytes, list[tuple[int, SessionEvent]]]]:
+        """(first index, host times, frame bytes, recorded events) per chunk; native files
+        stream from disk through the one reader."""
         if self.recording is not None:
             rec = self.recording
             for lo in range(0, len(rec), chunk_frames):
                 hi = min(len(rec), lo + chunk_frames)
-                yield lo, rec.times[lo:hi].copy(), rec.frames[lo:hi].tobytes()
+                yield lo, rec.times[lo:hi].copy(), rec.frames[lo:hi].tobytes(), []
             return
-        index = 0
-        damaged = 0
-        with open(self.path, "rb") as f:
-            f.seek(self._data_offset)
-            while True:
-                data = f.read(RECORD_SIZE * chunk_frames)
-                if not data:
-                    break
-                torn = len(data) % RECORD_SIZE
-                if torn:
-                    self._note(f"{self.path}: the last record is incomplete ({torn} of "
-                               f"{RECORD_SIZE} bytes, the recording was cut off): ignored")
-                    data = data[: len(data) - torn]
-                records = np.frombuffer(data, dtype=RECORD_DTYPE)
-                good = ((records["frame"]["start"] == b"$#")
-                        & (records["frame"]["end"] == b"#$"))
-                if not good.all():
-                    damaged += int((~good).sum())
-                    records = records[good]
-                if len(records):
-                    yield index, records["time"].copy(), records["frame"].tobytes()
-                    index += len(records)
-                if torn:
-                    break
-        if damaged:
-            self._note(f"{self.path}: {damaged} damaged record(s) without frame markers: "
-                       "skipped")
+        assert self.file is not None
+        for chunk in self.file.chunks(chunk_frames):
+            yield chunk.start, chunk.times.copy(), chunk.frame_bytes(), chunk.events
+        for p in self.file.problems:
+            self._note(p, logged=True)
 
-    def _note(self, message: str) -> None:
-        log.warning("%s", message)
+    def _note(self, message: str, logged: bool = False) -> None:
+        if message in self.problems:
+            return
+        if not logged:
+            log.warning("%s", message)
         self.problems.append(message)
 
-    def _filtered_chunks(self, zero: list[int], chunk_frames: int) -> Iterator[Chunk]:
+    def _filtered_chunks(self, extra: list[int], chunk_frames: int) -> Iterator[Chunk]:
         """R from the logged sensor Euler angles (``R = Rz Ry Rx``), then Reset Zero, joints
         and positions as the processor does."""
         from bpms.filter.rotations import euler_to_dcm
@@ -254,7 +281,9 @@ class OpenedRecording:
                 euler = block.groups[name]
                 R = euler_to_dcm(euler[..., 0], euler[..., 1], euler[..., 2])
                 before = len(proc.pose.captures)
-                C = proc.pose.apply(R, self._frames_in(zero, lo, len(block)))
+                if lo == 0 and self.reset_zero.mode == "none":
+                    proc.pose.adopt(np.tile(np.eye(3), (R.shape[1], 1, 1)), 0.0, "re-analysis")
+                C = proc.pose.apply(R, [k - lo for k in extra if lo <= k < lo + len(block)])
                 result = Result(t=block.t, R=R, euler=euler, C=C, body=proc.options.body,
                                 zeros=list(proc.pose.captures[before:]),
                                 convention=proc.options.joints.convention)
@@ -290,20 +319,51 @@ class OpenedRecording:
         return result
 
 
+class _Planned(list):
+    skipped = 0  # recorded filter/gain changes left out
+
+
+def planned_events(recorded: Iterable[tuple[int, SessionEvent]], choice: ResetZeroChoice,
+                   settings_given: bool, extra: Sequence[int] = (), start: bool = False
+                   ) -> _Planned:
+    """The events a door applies, ``(slot, event)`` in slot order: the recorded ones ``choice``
+    keeps (filter and gain changes only when no filter or options file was given), the
+    ``none`` choice's identity zero at the start (``start``) and after each restart, and a
+    re-analysis capture at each ``extra`` frame."""
+    out = _Planned()
+    none = choice.mode == "none"
+    if none and start:
+        out.append((0, identity_zero()))
+    for slot, event in recorded:
+        if settings_given and event.kind in ("filter", "gains"):
+            out.skipped += 1
+            continue
+        if choice.keeps(event):
+            out.append((slot, event))
+            if none and event.kind == "filters" and event.data.get("action") == "restart":
+                out.append((slot, identity_zero(slot)))
+    out.extend((k, capture_at(k)) for k in extra)
+    out.sort(key=lambda item: item[0])
+    return out
+
+
 def process_file(path: str | Path, calibration: str | Path | CalibrationTable | None = None,
                  options: str | Path | Options | None = None, *,
                  zero_at_s: Sequence[float] = (), zero_at_frames: Sequence[int] = (),
                  algorithm: str | None = None, heading: str | None = None,
-                 auto_zero: bool = True, progress: Progress | None = None) -> Result:
+                 reset_zero: str | ResetZeroChoice | None = None,
+                 progress: Progress | None = None) -> Result:
     """Filter a whole recording (native raw, the original suite's pickled raw, or a filtered
     CSV) through :func:`open_for_processing`: calibration and options given here, else the
     recording's header, else the user's default, else factory (the result's
-    ``calibration_source`` / ``options_source`` say which). ``zero_at_s`` /
-    ``zero_at_frames``: extra Reset Zero captures. Raises :class:`bpms.io.rawfile.RawFileError`
-    for an unreadable file. For long recordings in constant memory iterate
+    ``calibration_source`` / ``options_source`` say which); the recorded events applied at
+    their frames. ``reset_zero``: ``events`` (default), ``auto``, ``at SECONDS``, ``none``
+    (:mod:`bpms.filter.zero_choice`); ``zero_at_s`` / ``zero_at_frames``: extra Reset Zero
+    captures. Raises :class:`bpms.io.rawfile.RawFileError` for an unreadable file or one with
+    no valid frame. For long recordings in constant memory iterate
     ``open_for_processing(path).chunks()`` instead."""
     opened = open_for_processing(path, calibration, options, algorithm=algorithm,
-                                 heading=heading, auto_zero=auto_zero)
+                                 heading=heading, reset_zero=reset_zero)
     return opened.result(zero_at_s, progress, zero_at_frames=zero_at_frames)
 
 
@@ -323,16 +383,19 @@ def is_raw_recording(path: str | Path) -> bool:
 def open_for_processing(path: str | Path, calibration: str | Path | CalibrationTable | None = None,
                         options: str | Path | Options | None = None,
                         algorithm: str | None = None, heading: str | None = None,
-                        auto_zero: bool = True) -> OpenedRecording:
+                        reset_zero: str | ResetZeroChoice | None = None) -> OpenedRecording:
     """Open a recording and build its processor (the module docstring has the precedence).
 
     path: a native raw recording, a legacy pickled raw file, or a filtered CSV file;
     calibration / options: explicit choices (a file path or an object), None to follow the
     precedence; algorithm: the attitude filter (``FilterOptions.algorithm``) and heading: the
-    Reset Zero heading reference (``PoseOptions.heading_reference``), overriding the options.
-    Raises :class:`bpms.io.rawfile.RawFileError` / :class:`bpms.io.filtered_file.
-    FilteredFileError` for an unreadable file, ``VqfMissingError`` for vqf without the package.
+    Reset Zero heading reference (``PoseOptions.heading_reference``), overriding the options;
+    reset_zero: which Reset Zero (:class:`bpms.filter.zero_choice.ResetZeroChoice` or its
+    text). Raises :class:`bpms.io.rawfile.RawFileError` / :class:`bpms.io.filtered_file.
+    FilteredFileError` for an unreadable file or one with no valid frame, ValueError for a bad
+    ``reset_zero``, ``VqfMissingError`` for vqf without the package.
     """
+    choice = ResetZeroChoice.parse(reset_zero)
     path = Path(path)
     problems: list[str] = []
     try:
@@ -341,14 +404,16 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     except OSError as exc:
         raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     recording = None
-    offset = 0
+    file = None
+    first_time = math.nan
     if head == MAGIC:
-        from bpms.io.rawfile import read_header
-
         kind = "raw"
-        header, offset = read_header(path)
-        size = path.stat().st_size - offset
-        n = size // RECORD_SIZE
+        file = RawFile(path)
+        header = file.header
+        n, valid, first_time = file.survey()
+        if not valid:
+            raise RawFileError(f"{path}: holds no valid frame"
+                               + (f" ({n} damaged slots)" if n else ""))
     elif is_raw_recording(path):
         from bpms.io.legacy_raw import read_legacy_raw
 
@@ -356,6 +421,9 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         recording = read_legacy_raw(path)
         header, n = recording.header, len(recording)
         problems.extend(recording.problems)
+        if not recording.valid_frames:
+            raise RawFileError(f"{path}: holds no valid frame")
+        first_time = float(recording.times[0])
     elif path.suffix.lower() in FILTERED_SUFFIXES:
         from bpms.io.filtered_file.reader import FilteredReader
 
@@ -371,6 +439,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         changes.append(f"filter {algorithm}")
     if heading is not None and heading != opts.pose.heading_reference:
         changes.append(f"heading {heading}")
+    settings_given = options is not None or bool(algorithm is not None
+                                                 and "filter" in " ".join(changes))
     if changes:
         opts = dataclasses.replace(opts)  # never change the caller's object
         opts.filter = dataclasses.replace(opts.filter, algorithm=algorithm or opts.filter.algorithm)
@@ -382,10 +452,14 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         calibration_source = "not used (filtered file: angles as logged)"
     else:
         cal, calibration_source = resolve_calibration(calibration, header, str(path), problems)
-    processor = BodyPoseProcessor(cal, opts, auto_zero=auto_zero)
+    processor = BodyPoseProcessor(cal, opts)
+    has_events = file is not None and file.has_events
+    processor.pose.auto = choice.automatic(has_events)  # (in force from its next restart)
+    processor.pose.provisional = choice.provisional(has_events)
     problems.extend(processor.problems)
     return OpenedRecording(path, kind, header, int(n), processor, calibration_source,
-                           options_source, problems, recording, offset)
+                           options_source, problems, recording, file, choice, settings_given,
+                           first_time)
 
 
 def _count_rows(path: Path) -> int:

@@ -18,11 +18,19 @@ filtered in one call and the same frames pushed one by one give identical output
 
 1. *provisional*: on the first frame where all 18 IMUs are initialised, a one-frame capture, so
    that segment orientations exist from the start of the stream;
-2. *automatic*: at frame ``settle + window - 1`` of the stream (defaults: 0.5 s settling after
-   the filters initialise, then the 0.5 s ``Options.pose.reset_window_s`` window, i.e. the
-   capture completes 1.0 s into the stream), averaged over the window;
-3. *on request* (Reset Zero pressed, or ``zero_at`` frames on replayed data): at the next frame,
-   averaged over the window that ends there.
+2. *automatic*: from frame ``settle + window - 1`` of the stream on (defaults: 0.5 s settling
+   after the filters initialise, then the 0.5 s ``Options.pose.reset_window_s`` window, i.e.
+   1.0 s into the stream), at the first frame whose window is still — no IMU turned more than
+   :data:`STILL_DEG` during it (:func:`window_motion`, the check a manual Reset Zero reports) —
+   averaged over that window; while the subject moves it waits (:attr:`PoseCalibrator.waiting`).
+   An explicit capture before it cancels it;
+3. *on request* (Reset Zero pressed, a recorded Reset Zero replayed, ``zero_at`` frames): at
+   the next frame, averaged over the window that ends there;
+4. *adopted* (a zero received over the network, the zero in force when a recording started):
+   the given ``R0`` and ψ0 from the next frame on (:meth:`PoseCalibrator.adopt`).
+
+Each capture is a :class:`Zero`, which also says where it came from, its window and the motion
+measured during it (:meth:`Zero.event_data`: what the recording stores).
 
 Reset Zero only changes filtered outputs; raw data and the filter states are untouched.
 """
@@ -38,6 +46,7 @@ import numpy as np
 from bpms.filter.body_model import joint_positions
 from bpms.filter.joints import joint_angles
 from bpms.filter.rotations import dcm_to_euler, rot_z
+from bpms.io.frames import N_IMUS
 from bpms.io.options import BodyOptions
 
 HIP_IMU = 6
@@ -60,18 +69,79 @@ def average_dcm(Rs: np.ndarray) -> np.ndarray:
     return out
 
 
+#: A window is still when no IMU's filter attitude turned more than this during it, deg.
+STILL_DEG = 5.0
+
+
+def window_motion(R_window: np.ndarray) -> tuple[float, int]:
+    """(deg, IMU): the largest rotation of one IMU's DCM away from its first frame over the
+    window ``R_window[W, 18, 3, 3]``, and which IMU (-1 when no IMU has data)."""
+    deg = _motions(np.moveaxis(np.asarray(R_window, dtype=np.float64), 0, -1)[None])[0]
+    if not np.isfinite(deg).any():
+        return 0.0, -1
+    imu = int(np.nanargmax(deg))
+    return float(deg[imu]), imu
+
+
+def _motions(windows: np.ndarray) -> np.ndarray:
+    """``[C, 18]`` deg: per window ``windows[C, 18, 3, 3, W]`` (frames last) and IMU, the
+    largest rotation away from the window's first frame (NaN: no data)."""
+    first = windows[..., 0]
+    trace = np.einsum("ciab,ciabw->ciw", first, windows)
+    angle = np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
+    with np.errstate(invalid="ignore"):
+        out = np.fmax.reduce(angle, axis=-1)
+    return out
+
+
 @dataclass
 class Zero:
-    """One capture: ``R0[18, 3, 3]``, hip yaw ``yaw0`` rad, and ``offset = R0^T Rz(ψ0)``."""
+    """One capture: ``R0[18, 3, 3]``, heading ``yaw0`` rad, and ``offset = R0^T Rz(ψ0)``;
+    ``frame`` its stream frame index, ``source`` (:data:`bpms.io.session_events.ZERO_SOURCES`),
+    ``window`` frames averaged, ``motion_deg`` / ``motion_imu`` the largest rotation of one IMU
+    during the window (:func:`window_motion`), ``waited`` frames the automatic capture waited
+    for a still pose, ``heading`` where ψ0 came from."""
 
     R0: np.ndarray
     yaw0: float
-    frame: int  # stream frame index of the capture
+    frame: int
+    source: str = "automatic"
+    window: int = 1
+    motion_deg: float = 0.0
+    motion_imu: int = -1
+    waited: int = 0
+    heading: str = "hip"
 
     @cached_property
     def offset(self) -> np.ndarray:
         # once per capture, not once per frame (a capture is never changed after it is made)
         return np.swapaxes(self.R0, -1, -2) @ rot_z(self.yaw0)
+
+    @property
+    def moved(self) -> bool:
+        """The subject moved during the window (more than :data:`STILL_DEG`)."""
+        return self.motion_deg > STILL_DEG
+
+    def event_data(self) -> dict:
+        """What a recording stores of this capture (the ``reset_zero`` event's data)."""
+        return {"source": self.source, "window": int(self.window), "R0": self.R0,
+                "yaw0": float(self.yaw0), "heading": self.heading,
+                "motion_deg": round(float(self.motion_deg), 3),
+                "motion_imu": int(self.motion_imu), "waited": int(self.waited)}
+
+
+def zero_values(data: dict) -> tuple[np.ndarray, float] | None:
+    """(``R0[18, 3, 3]``, ψ0) stored in a ``reset_zero`` event's data (null → NaN), or None
+    when they are missing or malformed."""
+    try:
+        R0 = np.array([[[np.nan if v is None else float(v) for v in row] for row in imu]
+                       for imu in data["R0"]], dtype=np.float64)
+        yaw0 = float(data["yaw0"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    if R0.shape != (N_IMUS, 3, 3) or not np.isfinite(yaw0):
+        return None
+    return R0, yaw0
 
 
 HEADING_REFERENCES = ("hip", "mean")
@@ -94,7 +164,7 @@ def body_heading(R0: np.ndarray, reference: str = "hip", hip: int = HIP_IMU) -> 
 
 
 def capture_zero(R_window: np.ndarray, previous: Zero | None = None, frame: int = 0,
-                 hip: int = HIP_IMU, heading: str = "hip") -> Zero:
+                 hip: int = HIP_IMU, heading: str = "hip", source: str = "automatic") -> Zero:
     """A capture from the DCMs ``R_window[W, 18, 3, 3]`` (see the module docstring);
     ``heading``: where ψ0 comes from (:func:`body_heading`)."""
     R0 = average_dcm(R_window)
@@ -104,7 +174,8 @@ def capture_zero(R_window: np.ndarray, previous: Zero | None = None, frame: int 
     yaw0 = body_heading(R0, heading, hip)
     if yaw0 is None:
         yaw0 = previous.yaw0 if previous is not None else 0.0
-    return Zero(R0, yaw0, frame)
+    moved, imu = window_motion(R_window)
+    return Zero(R0, yaw0, frame, source, len(R_window), moved, imu, 0, heading)
 
 
 def segment_orientations(R: np.ndarray, zero: Zero | None) -> np.ndarray:
@@ -131,38 +202,72 @@ class PoseCalibrator:
     """Decides when Reset Zero captures happen and turns DCMs into segment orientations.
 
     ``window`` frames per averaged capture (≥ 1), ``settle`` frames before the automatic
-    capture window starts; ``auto`` enables the provisional and automatic captures.
+    capture window starts; ``auto`` enables the automatic capture, ``provisional`` (default:
+    as ``auto``) the provisional one. Changes to both take effect at :meth:`restart`.
     """
 
     def __init__(self, window: int = 25, settle: int = 25, auto: bool = True,
-                 hip: int = HIP_IMU, heading: str = "hip") -> None:
+                 hip: int = HIP_IMU, heading: str = "hip",
+                 provisional: bool | None = None) -> None:
         self.window = max(1, int(window))
         self.settle = max(0, int(settle))
         self.auto = auto
+        self.provisional = auto if provisional is None else provisional
         self.hip = hip
         self.heading = heading
         self.restart()
 
-    def restart(self) -> None:
-        """A new stream: forget the zero and the frame count (auto captures run again)."""
+    def restart(self, origin: int = 0) -> None:
+        """A new stream: forget the zero and the frame count (auto captures run again);
+        ``origin``: the processor's frame number of the stream's first frame (captures'
+        :attr:`Zero.frame` count from the processor's first frame)."""
         self.zero: Zero | None = None
+        self.origin = int(origin)
         self.frames = 0  # frames seen in this stream
         # the last window-1 frames of R, a ring: frame by frame costs one copy of a frame
         self._ring: np.ndarray | None = None
         self._held = 0  # frames in the ring
         self._next = 0  # where the next frame goes (the oldest, once the ring is full)
         self._provisional_done = False
-        self._requested = False
+        self._auto_pending = self.auto
+        #: While the automatic capture waits for a still pose: (deg, IMU) of the last window.
+        self.waiting: tuple[float, int] | None = None
+        self._pending: list[tuple] = []  # captures asked for at the next frame, in order
         self.captures: list[Zero] = []
 
-    def request(self) -> None:
-        """Reset Zero pressed: capture at the next frame over the window ending there."""
-        self._requested = True
+    def request(self, source: str = "manual", window: int | None = None) -> None:
+        """Reset Zero pressed: capture at the next frame over the window ending there
+        (``window`` frames, default :attr:`window`)."""
+        self._pending.append(("capture", source, self.window if window is None else
+                              max(1, int(window))))
+
+    def adopt(self, R0: np.ndarray, yaw0: float, source: str = "network",
+              window: int = 1, motion: tuple[float, int] = (0.0, -1)) -> None:
+        """Use a zero made elsewhere (``R0[18, 3, 3]``, ψ0 rad) from the next frame on; an IMU
+        with no data in ``R0`` keeps its present zero."""
+        self._pending.append(("adopt", source, int(window), np.array(R0, dtype=np.float64),
+                              float(yaw0), motion))
 
     @property
     def auto_frame(self) -> int:
-        """Stream frame index of the automatic capture."""
+        """Stream frame index from which the automatic capture may happen."""
         return self.settle + self.window - 1
+
+    def state_text(self, dt: float = 0.02) -> str:
+        """The Reset Zero in force, for labels: ``waiting for a still pose (moved 12.0° on
+        IMU 6)``, ``manual at 10.32 s`` (the processor's stream time), or ``none yet``."""
+        waiting = self.waiting
+        if waiting is not None:
+            return f"waiting for a still pose (moved {waiting[0]:.1f}° on IMU {waiting[1]})"
+        zero = self.zero
+        if zero is None:
+            return "none yet"
+        return f"{zero.source} at {zero.frame * dt:.2f} s"
+
+    @property
+    def auto_pending(self) -> bool:
+        """The automatic capture has not happened yet (and was not cancelled)."""
+        return self._auto_pending
 
     @property
     def _buffer(self) -> np.ndarray | None:
@@ -196,50 +301,104 @@ class PoseCalibrator:
         self._next = (self._next + n) % keep
         self._held = min(self._held + n, keep)
 
-    def _window_ending_at(self, R: np.ndarray, k: int) -> np.ndarray:
-        """The last ``window`` frames up to batch frame ``k``, reaching into earlier batches."""
-        lo = k - self.window + 1
+    def _window_ending_at(self, R: np.ndarray, k: int, window: int | None = None
+                          ) -> np.ndarray:
+        """The last ``window`` frames up to batch frame ``k``, reaching into earlier batches
+        (at most ``self.window`` frames back)."""
+        lo = k - (self.window if window is None else min(window, self.window)) + 1
         earlier = None if lo >= 0 else self._buffer
         if earlier is None:
             return R[max(lo, 0):k + 1]
         return np.concatenate([earlier[max(len(earlier) + lo, 0):], R[:k + 1]])
+
+    def _still_frame(self, R: np.ndarray, lo: int, hi: int) -> int | None:
+        """The first batch frame in ``lo .. hi-1`` whose window is still (None: none;
+        :attr:`waiting` then holds the motion of the last window looked at)."""
+        if hi <= lo:
+            return None
+        earlier = self._buffer
+        full = R if earlier is None else np.concatenate([earlier, R])
+        shift = len(full) - len(R)
+        w = self.window
+        views = np.lib.stride_tricks.sliding_window_view(full, w, axis=0)  # [.., 18, 3, 3, w]
+        for a in range(lo, hi, 256):
+            b = min(hi, a + 256)
+            starts = np.arange(a, b) + shift - w + 1
+            motion = _motions(views[np.maximum(starts, 0)])
+            worst = np.where(np.isfinite(motion), motion, 0.0)
+            still = worst.max(axis=1) <= STILL_DEG
+            if still.any():
+                self.waiting = None
+                return a + int(np.argmax(still))
+            last = worst[-1]
+            self.waiting = (float(last.max()), int(np.argmax(last)))
+        return None
 
     def apply(self, R: np.ndarray, zero_at: Iterable[int] = ()) -> np.ndarray:
         """Segment orientations ``C[N, 18, 3, 3]`` of the next N frames' DCMs
         ``R[N, 18, 3, 3]``; ``zero_at``: extra capture frames, indices into this batch."""
         R = np.asarray(R, dtype=np.float64)
         n = len(R)
-        first = self.frames
-        events = {int(k) for k in zero_at if 0 <= int(k) < n}
-        if self._requested and n:
-            events.add(0)
-            self._requested = False
-        if self.auto and first <= self.auto_frame < first + n:
-            events.add(self.auto_frame - first)
-        provisional = None
-        if self.auto and not self._provisional_done:
+        first = self.frames + self.origin  # the processor's frame number of R[0]
+        ops: dict[int, list[tuple]] = {}
+        for k in zero_at:
+            if 0 <= int(k) < n:
+                ops.setdefault(int(k), []).append(("capture", "re-analysis", self.window))
+        if self._pending and n:
+            ops[0] = [*self._pending, *ops.get(0, [])]
+            self._pending = []
+        if self.provisional and not self._provisional_done:
             ok = np.isfinite(R[:, :, 0, 0]).all(axis=1)
             if ok.any():
-                provisional = int(np.argmax(ok))
+                k = int(np.argmax(ok))
                 self._provisional_done = True
-        captures = events if provisional is None else events | {provisional}
-        if not captures:  # most frames: no capture in this batch
+                if k not in ops:  # an explicit capture at the same frame stands for it
+                    ops[k] = [("provisional",)]
+        if self._auto_pending and n:
+            explicit = [k for k, todo in ops.items() if todo[0][0] != "provisional"]
+            stop = min(explicit) if explicit else n
+            found = self._still_frame(R, max(self.auto_frame - self.frames, 0), stop)
+            if found is not None:
+                ops.setdefault(found, []).append(("automatic",))
+            if found is not None or explicit:
+                self._auto_pending = False
+                self.waiting = None
+        if not ops:  # most frames: no capture in this batch
             C = segment_orientations(R, self.zero)
             self._remember(R)
             self.frames += n
             return C
         C = np.empty_like(R)
         start = 0
-        for k in sorted(captures):
+        for k in sorted(ops):
             C[start:k] = segment_orientations(R[start:k], self.zero)
-            if k == provisional and k not in events:
-                window = R[k:k + 1]
-            else:
-                window = self._window_ending_at(R, k)
-            self.zero = capture_zero(window, self.zero, first + k, self.hip, self.heading)
-            self.captures.append(self.zero)
+            for op in ops[k]:
+                self.zero = self._capture(op, R, k, first)
+                self.captures.append(self.zero)
             start = k
         C[start:] = segment_orientations(R[start:], self.zero)
         self._remember(R)
         self.frames += n
         return C
+
+    def _capture(self, op: tuple, R: np.ndarray, k: int, first: int) -> Zero:
+        kind = op[0]
+        if kind == "provisional":
+            zero = capture_zero(R[k:k + 1], self.zero, first + k, self.hip, self.heading,
+                                "provisional")
+            return zero
+        if kind == "adopt":
+            _, source, window, R0, yaw0, motion = op
+            if self.zero is not None:
+                missing = ~np.isfinite(R0).all(axis=(-1, -2))
+                R0[missing] = self.zero.R0[missing]
+            return Zero(R0, yaw0, first + k, source, window, motion[0], motion[1], 0,
+                        self.heading)
+        if kind == "automatic":
+            zero = capture_zero(self._window_ending_at(R, k), self.zero, first + k, self.hip,
+                                self.heading, "automatic")
+            zero.waited = first + k - self.origin - self.auto_frame
+            return zero
+        _, source, window = op
+        return capture_zero(self._window_ending_at(R, k, window), self.zero, first + k,
+                            self.hip, self.heading, source)

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -58,12 +59,13 @@ from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.disturbance import DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process
-from bpms.filter.pose import PoseCalibrator
+from bpms.filter.pose import PoseCalibrator, zero_values
 from bpms.filter.result import Result
 from bpms.filter.warmup import ensure_kernels
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
 from bpms.io.options import Options, check_option, load_options
+from bpms.io.session_events import SessionEvent
 from bpms.io.timebase import stream_times
 
 #: Seconds the filters settle after the stream starts before the automatic Reset Zero window.
@@ -143,14 +145,16 @@ class BodyPoseProcessor:
         return self.guard.count.copy()
 
     # -- controls -----------------------------------------------------------------------
-    def restart(self) -> None:
+    def restart(self, keep_time: bool = False) -> None:
         """A new stream: every filter re-initialises on its next valid frame, Reset Zero
-        forgets its capture and the automatic captures run again."""
+        forgets its capture and the automatic captures run again. ``keep_time``: the stream
+        time goes on (a restart replayed inside a recording), else it starts again at 0."""
         self.bank.reset()
         self.guard.forget()
-        self.pose.restart()
+        if not keep_time:
+            self.frames = 0
+        self.pose.restart(self.frames)
         self.disturbance.reset()
-        self.frames = 0
 
     def reset_filter(self, imu: int | None = None) -> None:
         """Re-initialise one IMU's filter (all when None) at its next valid frame."""
@@ -164,9 +168,57 @@ class BodyPoseProcessor:
         self.corrected_output = (not self.corrected_output) if on is None else bool(on)
         return self.corrected_output
 
-    def reset_zero(self) -> None:
-        """Reset Zero: capture at the next frame, averaged over the window ending there."""
-        self.pose.request()
+    def reset_zero(self, source: str = "manual") -> None:
+        """Reset Zero: capture at the next frame, averaged over the window ending there;
+        ``source``: who asked (:data:`bpms.io.session_events.ZERO_SOURCES`)."""
+        self.pose.request(source)
+
+    def adopt_zero(self, R0: np.ndarray, yaw0: float, source: str = "network") -> None:
+        """Use a zero made elsewhere (``R0[18, 3, 3]``, heading ψ0 rad: e.g. the sender's,
+        received over UDP) from the next frame on."""
+        self.pose.adopt(R0, yaw0, source)
+
+    def apply_event(self, event: SessionEvent) -> bool:
+        """Apply a recorded event (:class:`bpms.io.session_events.SessionEvent`) before the
+        next frame, through the same calls a live session makes: a Reset Zero captures over
+        its recorded window when this stream holds it, else its recorded zero is adopted;
+        alignment, filter, gains, filters re-initialised or restarted. Returns False (and
+        notes a problem) when the event cannot be applied; other kinds change nothing."""
+        d = event.data
+        try:
+            if event.kind == "reset_zero":
+                self._replay_zero(d)
+            elif event.kind == "alignment":
+                self.set_corrected_output(bool(d["on"]))
+            elif event.kind == "filter":
+                self.select_filter(str(d["algorithm"]))
+            elif event.kind == "gains":
+                self.set_gains(**{str(k): float(v) for k, v in dict(d["values"]).items()})
+            elif event.kind == "filters":
+                if d.get("action") == "restart":
+                    self.restart(keep_time=True)
+                else:
+                    self.reset_filter()
+            return True
+        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+            problem = f"{event.describe(self.options.filter.dt)}: not applied ({exc})"
+            if problem not in self.problems:
+                self.problems.append(problem)
+            return False
+
+    def _replay_zero(self, d: dict) -> None:
+        source = str(d.get("source", "manual"))
+        window = int(d.get("window", self.pose.window))
+        values = zero_values(d)
+        adopt = (bool(d.get("adopt")) or source in ("network", "in force")
+                 or self.pose.frames < window - 1)  # its window is not in this stream
+        if adopt and values is not None:
+            motion = (float(d.get("motion_deg", 0.0)), int(d.get("motion_imu", -1)))
+            self.pose.adopt(values[0], values[1], source, window, motion)
+        elif adopt and source in ("network", "in force"):
+            raise ValueError("no zero stored")
+        else:
+            self.pose.request(source, window)
 
     def set_gains(self, **gains: float) -> None:
         """Change ``kp_rollpitch``, ``ki_rollpitch``, ``kp_yaw``, ``ki_yaw``, ``dt`` (s)
@@ -207,12 +259,30 @@ class BodyPoseProcessor:
         return self.sensor_calibration.calibrate(raw)
 
     def process(self, raw: np.ndarray, errors: np.ndarray | None = None,
-                zero_at: list[int] | tuple[int, ...] = ()) -> Result:
+                events: Sequence[tuple[int, SessionEvent]] = ()) -> Result:
         """Filter N frames (``raw[N, 18, 9]`` counts, ``errors[N, 18, 3]`` bool), continuing
         the stream of earlier calls: calibration, the 18 filters with the state guard, Reset
         Zero, the disturbance indicators; the body's numbers follow from the Result when read.
-        ``zero_at``: frame indices (into this batch) where Reset Zero captures happen, e.g. to
-        re-zero replayed data. A live frame is N = 1."""
+        ``events``: ``(k, SessionEvent)``, each applied (:meth:`apply_event`) just before
+        frame k of this batch (k ≥ N: after the last), e.g. a recording's events on replay.
+        A live frame is N = 1."""
+        if not events:
+            return self._process(raw, errors)
+        raw = np.asarray(raw)
+        errors = None if errors is None else np.asarray(errors)
+        parts = []
+        lo = 0
+        for k, event in sorted(events, key=lambda item: item[0]):
+            k = min(max(int(k), 0), len(raw))
+            if k > lo:
+                parts.append(self._process(raw[lo:k], None if errors is None else errors[lo:k]))
+                lo = k
+            self.apply_event(event)
+        if lo < len(raw) or not parts:
+            parts.append(self._process(raw[lo:], None if errors is None else errors[lo:]))
+        return Result.concat(parts)
+
+    def _process(self, raw: np.ndarray, errors: np.ndarray | None) -> Result:
         raw = np.asarray(raw)
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
@@ -226,7 +296,7 @@ class BodyPoseProcessor:
         out, reinitialised = guarded_process(self.bank, self.guard, acc, mag, gyr, errors,
                                              **terms)
         before = len(self.pose.captures)
-        C = self.pose.apply(out.R, zero_at)
+        C = self.pose.apply(out.R)
         n = len(raw)
         t = stream_times(self.frames, n, self.options.filter.dt)
         self.frames += n
@@ -249,13 +319,14 @@ class BodyPoseProcessor:
         return self.process(np.asarray(raw)[None],
                             None if errors is None else np.asarray(errors)[None])
 
-    def step_wire(self, frame: bytes) -> tuple[Result, np.ndarray, np.ndarray]:
+    def step_wire(self, frame: bytes, events: Sequence[tuple[int, SessionEvent]] = ()
+                  ) -> tuple[Result, np.ndarray, np.ndarray]:
         """Decode (:func:`bpms.io.frames.decode_frames`) and filter (:meth:`process`) live
         340-byte frames as they came off the wire: (a Result, raw ``[N, 18, 9]`` int16 counts,
         errors ``[N, 18, 3]`` bool). Raises :class:`bpms.io.frames.FrameError` for a frame
         without its markers."""
         decoded = decode_frames(frame)
-        return self.process(decoded.raw, decoded.errors), decoded.raw, decoded.errors
+        return self.process(decoded.raw, decoded.errors, events), decoded.raw, decoded.errors
 
 
 __all__ = ["SETTLE_S", "BodyPoseProcessor", "Result"]

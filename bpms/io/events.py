@@ -19,6 +19,9 @@ class FrameEvent:
     preroll: on replay after a seek, the frames just before the seek point (concatenated), to
         run the filters through without output so the pose is right at once.
     arrival: ``time.perf_counter()`` when the host took the frame in (latency measurements).
+    marks: session events to apply just before this frame
+        (:class:`bpms.io.session_events.SessionEvent`: a recording's events on replay, the
+        sender's Reset Zero from a UDP stream).
     """
 
     host_time: float
@@ -27,6 +30,7 @@ class FrameEvent:
     discontinuity: bool = False
     preroll: bytes = b""
     arrival: float = field(default_factory=time.perf_counter)
+    marks: tuple = ()
 
 
 @dataclass

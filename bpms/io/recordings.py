@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bpms.io.raw_reader import RawFrames
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording, read_raw
 
 
@@ -24,3 +25,21 @@ def open_recording(path: str | Path) -> RawRecording:
         return read_legacy_raw(path)
     raise RawFileError(f"{path}: not a BPMS raw recording (neither the native format nor a "
                        "legacy pickled raw file)")
+
+
+def open_replay(path: str | Path) -> RawFrames | RawRecording:
+    """A recording to play (``bpms replay``, GUI playback): a native one read from disk as it
+    plays (:class:`bpms.io.raw_reader.RawFrames`: memory flat however long), a legacy one in
+    memory. Raises :class:`RawFileError` with a one-line reason, also when the recording holds
+    no valid frame."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            head = f.read(len(MAGIC))
+    except OSError as exc:
+        raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    recording = RawFrames(path) if head == MAGIC else open_recording(path)
+    if recording.valid_frames == 0:
+        raise RawFileError(f"{path}: holds no valid frame"
+                           + (f" ({len(recording)} damaged slots)" if len(recording) else ""))
+    return recording

@@ -4,11 +4,19 @@ Pacing uses the suit's nominal period (20 ms per frame) divided by the speed, no
 recorded host times: those carry the Bluetooth jitter and bursts of the live session, while
 the frames themselves were sampled every 20 ms. ``speed=None`` plays as fast as possible.
 
+The recording's events (:class:`bpms.io.session_events.SessionEvent`: Reset Zero, alignment,
+filter and gain changes, filters re-initialised, markers) ride on the frames they apply at
+(``FrameEvent.marks``), so the session applies them where the live session did.
+
 Seeking re-initialises the filters: the first frame after a seek carries
 ``discontinuity=True`` and, as ``preroll``, up to ``preroll_s`` seconds of the frames before
 the seek point, which the processor runs through (without output) so the filters have
-converged and the pose is right from the first displayed frame. The Reset Zero of the session
-stays in force across seeks (it is relative to the absolute filter attitude).
+converged and the pose is right from the first displayed frame. It also carries the state the
+recording's events left in force at the seek point: the last Reset Zero (its recorded zero,
+adopted), the alignment, the filter and its gains.
+
+The frames are read from the recording as they are played (:class:`bpms.io.raw_reader.
+RawFrames` streams them from disk; a :class:`bpms.io.raw_reader.RawRecording` is in memory).
 
 All controls are thread-safe; :meth:`read` wakes up at once when a control changes the state.
 """
@@ -17,11 +25,27 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
+from typing import Protocol
+
+import numpy as np
 
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE
-from bpms.io.rawfile import RawRecording
+from bpms.io.session_events import SessionEvent
 from bpms.io.timebase import frame_at, stream_time
+
+
+class Slots(Protocol):
+    """What replay reads: ``len``, ``path``, ``events`` ``(slot, SessionEvent)`` and
+    ``read(lo, hi)`` → (host times, frame bytes)."""
+
+    path: str
+    events: list[tuple[int, SessionEvent]]
+
+    def __len__(self) -> int: ...
+
+    def read(self, lo: int, hi: int) -> tuple[np.ndarray, bytes]: ...
 
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, None)  # None: as fast as possible
 
@@ -32,10 +56,19 @@ class ReplaySource:
     #: A file can wait: the pipeline applies back-pressure instead of dropping frames.
     can_wait = True
 
-    def __init__(self, recording: RawRecording, speed: float | None = 1.0, *,
-                 autoplay: bool = True, preroll_s: float = 5.0, batch: int = 256) -> None:
+    def __init__(self, recording: Slots, speed: float | None = 1.0, *,
+                 autoplay: bool = True, preroll_s: float = 5.0, batch: int = 256,
+                 events: Sequence[tuple[int, SessionEvent]] | None = None) -> None:
+        """``events``: the events to apply, ``(slot, event)`` (default: the recording's)."""
         self.recording = recording
-        self._frames = recording.frames.tobytes()
+        self._length = len(recording)
+        self.events = sorted(recording.events if events is None else events,
+                             key=lambda item: item[0])
+        self._marks: dict[int, tuple[SessionEvent, ...]] = {}
+        for slot, event in self.events:
+            if 0 <= slot < self._length:
+                self._marks[slot] = (*self._marks.get(slot, ()), event)
+        self._carried: tuple[SessionEvent, ...] = ()
         self._cond = threading.Condition()
         self._speed = speed
         self._playing = autoplay
@@ -49,7 +82,7 @@ class ReplaySource:
 
     # -- state ------------------------------------------------------------------------
     def __len__(self) -> int:
-        return len(self.recording)
+        return self._length
 
     @property
     def position(self) -> int:
@@ -113,6 +146,7 @@ class ReplaySource:
             index = frame_at(seconds)
         with self._cond:
             self._pos = max(0, min(int(index or 0), len(self)))
+            self._carried = state_before(self.events, self._pos)
             self._discontinuity = True
             self._steps = 0
             self._reanchor()
@@ -125,18 +159,25 @@ class ReplaySource:
 
     # -- delivery ---------------------------------------------------------------------
     def _take(self, count: int) -> list[FrameEvent]:
+        lo = self._pos
+        hi = min(len(self), lo + count)
+        if hi <= lo:
+            return []
+        times, frames = self.recording.read(lo, hi)
         out = []
-        times = self.recording.times
-        for _ in range(min(count, len(self) - self._pos)):
-            k = self._pos
+        for j, k in enumerate(range(lo, hi)):
             preroll = b""
+            marks = self._marks.get(k, ())
             if self._discontinuity and k > 0:
                 first = max(0, k - self._preroll_frames)
-                preroll = self._frames[first * FRAME_SIZE:k * FRAME_SIZE]
-            frame = self._frames[k * FRAME_SIZE:(k + 1) * FRAME_SIZE]
-            out.append(FrameEvent(float(times[k]), frame, k, self._discontinuity, preroll))
+                preroll = self.recording.read(first, k)[1]
+                marks = (*self._carried, *marks)
+            frame = frames[j * FRAME_SIZE:(j + 1) * FRAME_SIZE]
+            out.append(FrameEvent(float(times[j]), frame, k, self._discontinuity, preroll,
+                                  marks=marks))
             self._discontinuity = False
-            self._pos += 1
+            self._carried = ()
+        self._pos = hi
         return out
 
     def read(self, timeout: float = 0.1) -> list[FrameEvent]:
@@ -163,3 +204,28 @@ class ReplaySource:
                     return []
                 self._cond.wait(min(wake, deadline) - now)
             return []
+
+
+def state_before(events: Sequence[tuple[int, SessionEvent]], slot: int
+                 ) -> tuple[SessionEvent, ...]:
+    """The state the ``events`` (slot order) left in force before ``slot``, as events to apply
+    there: the filter, its gains (merged), the alignment and the last Reset Zero (its recorded
+    zero, adopted)."""
+    last: dict[str, SessionEvent] = {}
+    gains: dict = {}
+    for at, event in events:
+        if at >= slot:
+            break
+        if event.kind == "gains" and isinstance(event.data.get("values"), dict):
+            gains.update(event.data["values"])
+        elif event.kind in ("filter", "alignment", "reset_zero"):
+            last[event.kind] = event
+        elif event.kind == "filters" and event.data.get("action") == "restart":
+            last.pop("reset_zero", None)
+    out = [last[k].at(slot) for k in ("filter", "alignment") if k in last]
+    if gains:
+        out.append(SessionEvent("gains", slot, data={"values": gains}))
+    if "reset_zero" in last:
+        zero = last["reset_zero"]
+        out.append(SessionEvent("reset_zero", slot, zero.time, {**zero.data, "adopt": True}))
+    return tuple(out)

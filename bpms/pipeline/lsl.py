@@ -13,9 +13,12 @@ Streams (docs/lsl.md lists every channel):
 - ``BPMS Disturbance`` (type ``Misc``, 36 int8 channels, 50 Hz): per IMU 1 when its
   magnetometer is disturbed, then per IMU 1 when its acceleration has been far from gravity
   for long (:mod:`bpms.filter.disturbance`); -1 when not computed;
-- ``BPMS Events`` (type ``Markers``, one string channel, irregular): ``reset zero``,
-  ``logging start``, ``logging stop``, ``link lost``, ``link recovered``,
-  ``filter re-initialised``.
+- ``BPMS Events`` (type ``Markers``, one string channel, irregular): the session's events
+  (:mod:`bpms.pipeline.events`, the lines of the event log and of the raw recording), each
+  stamped at the frame it applies at: ``Reset Zero (manual) at 12.30 s, window 0.50 s, moved
+  1.2° (IMU 4)``, ``alignment off (sensor angles) at 20.00 s``, ``marker at 21.40 s: TEXT``,
+  ``filter …``, ``filter settings …``, ``filters re-initialised …``, ``logging start``,
+  ``logging stop``, warnings; and ``link lost``, ``link recovered``.
 
 Time stamps are on LSL's clock (``pylsl.local_clock``): each frame's sampling time from the
 de-jittered frame clock (:mod:`bpms.pipeline.frame_clock`), minus the configured link delay
@@ -50,8 +53,9 @@ STREAM_NAMES = {"segments": "BPMS Segments", "joints": "BPMS Joint Angles",
 #: "link lost" is what a UDP client source reports).
 LINK_LOST_STATES = frozenset({"silent", "gone", "reopening", "link lost"})
 
-MARKERS = ("reset zero", "logging start", "logging stop", "link lost", "link recovered",
-           "filter re-initialised")
+MARKERS = ("Reset Zero (source) at T s, ...", "alignment on/off", "marker at T s: TEXT",
+           "filter NAME", "filter settings ...", "filters re-initialised", "logging start",
+           "logging stop", "link lost", "link recovered", "warnings")
 _QUAT = ("W", "X", "Y", "Z")
 _SENSOR_AXES = (("Acceleration", "accel", "m/s^2"), ("MagneticField", "mag", "gauss"),
                 ("AngularVelocity", "gyro", "rad/s"))
@@ -218,8 +222,9 @@ class LslBridge:
             convention or session.processor.options.joints.convention,
             period or FRAME_PERIOD_S,
             options.lsl.link_delay_s if link_delay is None else link_delay)
-        self._samples = session.subscribe(maxlen=3000)
-        self._markers = session.markers.subscribe(maxlen=500)
+        self._samples = session.subscribe(maxlen=3000, lossless=True)
+        self._markers = session.events.subscribe(maxlen=500)
+        self._dt = session.processor.options.filter.dt
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="bpms-lsl", daemon=True)
         self._last_index: int | None = None
@@ -236,7 +241,7 @@ class LslBridge:
         self._stop.set()
         self._thread.join(timeout)
         self.session.unsubscribe(self._samples)
-        self.session.markers.unsubscribe(self._markers)
+        self.session.events.unsubscribe(self._markers)
         self.outlets.close()
 
     @property
@@ -262,7 +267,8 @@ class LslBridge:
     def _send_markers(self, flush: bool) -> None:
         """A frame-tied marker waits (up to 1 s) until its frame has been stamped."""
         now = time.monotonic()
-        self._pending += [(text, index, now) for text, index in self._markers.drain()]
+        self._pending += [(event.describe(self._dt), event.frame, now)
+                          for event in self._markers.drain()]
         keep = []
         for text, index, since in self._pending:
             waiting = index >= 0 and (self._last_index is None or index > self._last_index)

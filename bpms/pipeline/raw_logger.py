@@ -5,10 +5,13 @@ every :data:`BATCH_S` (or a fifth of the flush interval, when shorter) whatever 
 writes everything queued since, and syncs to the disk within ``flush_interval_s`` of a frame's
 arrival, so a crash during a silence loses no frame received more than the interval before.
 Waking a few times a second instead of once per frame keeps this thread off the live path (one
-thread switch per frame less). A write error (disk full, folder gone, device removed) stops
-the writing for good; the error stays in :class:`RecordingStatus`-like ``status.error`` until
-logging stops, later frames are counted as lost, and at the end ``status.raw_on_disk`` says
-what a reader will find in the file.
+thread switch per frame less). Session events (:mod:`bpms.pipeline.events`) come through the
+same queue, after the frames queued before them, and are written between the frame records
+at the slot of the frame they name (:class:`SlotMap`: source frame index → slot in the file).
+A write error (disk full, folder gone, device removed) stops the writing for good; the error
+stays in :class:`RecordingStatus`-like ``status.error`` until logging stops, later frames are
+counted as lost, and at the end ``status.raw_on_disk`` says what a reader will find in the
+file.
 """
 
 from __future__ import annotations
@@ -20,9 +23,43 @@ from typing import Any
 
 from bpms.io.events import FrameEvent
 from bpms.io.rawfile import RawWriter, RecordingError
+from bpms.io.session_events import SessionEvent
 
 STOP = object()
 BATCH_S = 0.1  # longest wait between two batches of records, s
+
+
+class SlotMap:
+    """Which slot of the file each source frame index went to: runs of consecutive indices
+    (one comparison per frame), the older ones forgotten once far behind."""
+
+    #: Slots behind the newest for which an event may still arrive (the processing backlog
+    #: and a batch, docs/pipeline.md, with margin).
+    KEEP_SLOTS = 20_000
+
+    def __init__(self) -> None:
+        self.runs: list[list[int]] = []  # [first index, first slot, count]
+        self.slots = 0
+        self._next_index: int | None = None
+
+    def add(self, index: int) -> None:
+        if index == self._next_index:
+            self.runs[-1][2] += 1
+        else:
+            self.runs.append([index, self.slots, 1])
+            if len(self.runs) > 512:
+                self.runs = [r for r in self.runs
+                             if r[1] + r[2] > self.slots - self.KEEP_SLOTS] or self.runs[-1:]
+        self._next_index = index + 1
+        self.slots += 1
+
+    def slot_of(self, index: int) -> int:
+        """The slot of source frame ``index`` (the next frame written after it when it was
+        not written; 0 when it came before the recording started)."""
+        for first, slot, count in reversed(self.runs):
+            if index >= first:
+                return slot + min(index - first, count)
+        return self.runs[0][1] if self.runs else 0
 
 
 class RawLogger(threading.Thread):
@@ -36,7 +73,8 @@ class RawLogger(threading.Thread):
         self.writer = writer
         self.status = status
         self.on_error = on_error
-        self.queue: queue.SimpleQueue[FrameEvent | object] = queue.SimpleQueue()
+        self.queue: queue.SimpleQueue[FrameEvent | SessionEvent | object] = queue.SimpleQueue()
+        self.slots = SlotMap()
         self._wake = threading.Event()
         # a fifth of the flush interval at most: flush_if_due flushes at 0.8 of it
         self.batch_s = min(BATCH_S, writer.flush_interval_s / 5)
@@ -52,12 +90,24 @@ class RawLogger(threading.Thread):
 
     def _write(self, item: FrameEvent) -> None:
         self.status.raw_received += 1
+        self.slots.add(item.index)
         if self.writer.failed:
             return
         try:
             self.writer.write(item.host_time, item.frame)
         except RecordingError as exc:
             self._failed(exc)
+
+    def _write_event(self, event: SessionEvent) -> None:
+        if self.writer.failed:
+            return
+        if event.frame >= 0:
+            event = event.at(self.slots.slot_of(event.frame))
+        try:
+            self.writer.write_event(event, event.time if event.time == event.time else None)
+        except (RecordingError, ValueError) as exc:
+            if isinstance(exc, RecordingError):
+                self._failed(exc)
 
     def run(self) -> None:
         writer, status, items = self.writer, self.status, self.queue
@@ -73,8 +123,11 @@ class RawLogger(threading.Thread):
                     if item is STOP:
                         stopping = True
                         break
-                    assert isinstance(item, FrameEvent)
-                    self._write(item)
+                    if isinstance(item, SessionEvent):
+                        self._write_event(item)
+                    else:
+                        assert isinstance(item, FrameEvent)
+                        self._write(item)
                 if not writer.failed:
                     try:
                         writer.flush_if_due()

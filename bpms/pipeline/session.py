@@ -13,11 +13,15 @@ Threads and queues (docs/pipeline.md has the picture):
   slow subscriber loses its oldest samples, counted; it never blocks anything).
 
 Commands (Reset Zero, gains, logging, forwarding) may come from any thread; the ones that touch
-the processor are queued and run in the processing thread between two frames.
+the processor are queued and run in the processing thread between two frames. Every notable
+event goes through one source, :attr:`LiveSession.events` (:mod:`bpms.pipeline.events`), to the
+raw recording, the event log and the LSL event stream.
 """
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import functools
 import logging
 import queue
@@ -36,9 +40,11 @@ from bpms.io.frames import decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
+from bpms.io.session_events import SessionEvent
 from bpms.io.timebase import stream_time
 from bpms.io.udp.auth import shared_key
 from bpms.io.udp.sender import UdpForwarder
+from bpms.pipeline.events import SessionEvents
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
@@ -110,7 +116,9 @@ class LiveSession:
         self._processed = 0
         self._error_bits = 0
         self._latencies: list[float] = []
-        self._events: list[str] = []
+        #: the session's one source of events (raw file, event log, LSL)
+        self.events = SessionEvents(processor.options.filter.dt)
+        self._zero_wait_noted = False
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
@@ -119,8 +127,6 @@ class LiveSession:
         self._pending_frames = 0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
-        # Session markers (text, source frame index or -1) for LSL/other consumers (i16).
-        self.markers: Fanout[tuple[str, int]] = Fanout()
 
     # -- life cycle ---------------------------------------------------------------------
     def start(self) -> None:
@@ -155,23 +161,36 @@ class LiveSession:
         self.stop()
 
     def note(self, message: str) -> None:
-        """Record a notable event (logged, and kept for the status display)."""
-        log.warning("%s", message)
-        with self._lock:
-            self._events = [*self._events[-49:], f"{time.strftime('%H:%M:%S')} {message}"]
+        """Record a notable event (a warning: logged, kept for the status display, written
+        into the raw recording)."""
+        self.events.note(message)
 
     # -- consumers ------------------------------------------------------------------------
-    def subscribe(self, maxlen: int = 500) -> Subscription[PoseSample]:
-        """A bounded mailbox of every processed frame from now on."""
-        return self._fanout.subscribe(maxlen)
+    def subscribe(self, maxlen: int = 500, lossless: bool = False
+                  ) -> Subscription[PoseSample]:
+        """A bounded mailbox of every processed frame from now on. ``lossless``: when the
+        source can wait (a recording played), the processing waits for room instead of
+        dropping (the network streams of a replay: one sample per frame at every speed)."""
+        return self._fanout.subscribe(maxlen, lossless and self.source_can_wait)
+
+    @property
+    def source_can_wait(self) -> bool:
+        """The source is a recording (it waits for the processing instead of losing frames)."""
+        return bool(getattr(self.source, "can_wait", False))
 
     def unsubscribe(self, sub: Subscription[PoseSample]) -> None:
         self._fanout.unsubscribe(sub)
 
     # -- commands -------------------------------------------------------------------------
-    def reset_zero(self) -> None:
-        """Reset Zero at the next processed frame (docs/body-model.md)."""
-        self.settings.reset_zero()
+    def reset_zero(self, source: str = "manual") -> None:
+        """Reset Zero at the next processed frame (docs/body-model.md); ``source``: who asked
+        (``manual``, ``3d-view``), written with the capture into the recording."""
+        self.settings.reset_zero(source)
+
+    def marker(self, text: str) -> None:
+        """A marker note at the next processed frame: in the raw recording, the event log and
+        the LSL event stream."""
+        self.events.at_next_frame(SessionEvent("marker", data={"text": str(text)}))
 
     def set_gains(self, **gains: float) -> None:
         """Change filter settings from the next frame on (see BodyPoseProcessor.set_gains).
@@ -205,12 +224,14 @@ class LiveSession:
             # filtered again with the same numbers
             header = new_header(calibration=self.processor.table.values,
                                 options=_options_dict(self.processor.options), notes=self.notes,
-                                source=self.source.status().description)
+                                source=self.source.status().description,
+                                extra={"session_events": True})
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
             logger = RawLogger(writer, status, self.note)
             logger.start()
             status.raw_path = raw_path
             self._raw_logger = logger
+            self.events.sinks.append(logger.queue.put)
         if filtered:
             from bpms.filter.door import filtered_convention, filtered_layout  # not the GUI
 
@@ -225,16 +246,38 @@ class LiveSession:
                 status.filtered_path = filtered_path
                 self._commands.put(lambda: setattr(self, "_filtered", writer))
         self._recording = status
-        self.markers.publish(("logging start", -1))
+        self.events.emit(SessionEvent("logging", data={
+            "action": "start", "raw": raw_path.name if raw else None,
+            "filtered": status.filtered_path.name if status.filtered_path else None}))
+        self._commands.put(self._state_in_force)
         return status
+
+    def _state_in_force(self) -> None:
+        """At the first frame processed after logging started: the settings in force and the
+        zero, as events (a recording then holds its start state, whatever the header)."""
+        proc = self.processor
+        values = {k: v for k, v in dataclasses.asdict(proc.options.filter).items()
+                  if k != "algorithm"}
+        for event in (SessionEvent("filter", data={"algorithm": proc.options.filter.algorithm,
+                                                   "source": "in force"}),
+                      SessionEvent("gains", data={"values": values, "source": "in force"}),
+                      SessionEvent("alignment", data={"on": bool(proc.corrected_output),
+                                                      "source": "in force"})):
+            self.events.at_next_frame(event)
+        zero = proc.pose.zero
+        if zero is not None:
+            data = {**zero.event_data(), "source": "in force"}
+            self.events.at_next_frame(SessionEvent("reset_zero", data=data))
 
     def stop_logging(self) -> RecordingStatus | None:
         """Stop recording; files are flushed and closed. Returns the final status."""
         status, self._recording = self._recording, None
         if status is not None:
-            self.markers.publish(("logging stop", -1))
+            self.events.emit(SessionEvent("logging", data={"action": "stop"}))
         logger, self._raw_logger = self._raw_logger, None
         if logger is not None:
+            with contextlib.suppress(ValueError):
+                self.events.sinks.remove(logger.queue.put)
             logger.stop()
             logger.join(10.0)
         done = threading.Event()
@@ -279,7 +322,7 @@ class LiveSession:
         fstats = fwd.stats if fwd is not None else None
         with self._lock:
             lat = sorted(self._latencies[-500:])
-            events = list(self._events)
+        events = self.events.lines()
         return LiveStatus(
             source=self.source.status(), running=self.running, rate_hz=self._rate.rate_hz(),
             frames=self._frames, processed=self._processed, error_bits=self._error_bits,
@@ -291,7 +334,8 @@ class LiveSession:
             latency_p99_ms=1e3 * lat[int(0.99 * (len(lat) - 1))] if lat else 0.0,
             events=events, reinit_count=self._reinit_seen,
             not_filtered=self.health.not_filtered,
-            display_skipped=self._fanout.dropped, holes_marked=self.health.holes_marked)
+            display_skipped=self._fanout.dropped, holes_marked=self.health.holes_marked,
+            reset_zero=self.processor.pose.state_text(self.processor.options.filter.dt))
 
     # -- threads ----------------------------------------------------------------------------
     def _acquire(self) -> None:
@@ -372,7 +416,8 @@ class LiveSession:
                 break
 
     def _run_commands(self) -> None:
-        self.settings.apply(self.processor, self.note)
+        for event in self.settings.apply(self.processor, self.note):
+            self.events.at_next_frame(event)  # they hold from the next frame on
         while not self._commands.empty():
             try:
                 command = self._commands.get_nowait()
@@ -387,18 +432,31 @@ class LiveSession:
         """Filter a run of frames (a discontinuity, if any, is on the first)."""
         proc = self.processor
         head = events[0]
+        marks = [(k, m) for k, e in enumerate(events) if e.marks for m in e.marks]
         if head.discontinuity:
             if head.preroll:
+                # the state in force at the seek point first, then the pre-roll runs with it
+                for m in head.marks:
+                    proc.apply_event(m)
+                marks = [(k, m) for k, m in marks if k > 0]
                 proc.reset_filter()
                 decoded = decode_frames(head.preroll)
                 proc.process(decoded.raw, decoded.errors)
+                action, reason = "reinit", "seek"
             elif head.index <= 0:
                 proc.restart()
+                self._zero_wait_noted = False
+                action, reason = "restart", "stream start"
             else:
                 proc.reset_filter()
-            self.markers.publish(("filter re-initialised", head.index))
+                action, reason = "reinit", "the stream resumed after a gap"
+            self.events.at_next_frame(SessionEvent("filters", data={"action": action,
+                                                                    "reason": reason}))
+        if self.events.waiting:
+            self.events.frame_reached(head.index)
         # one frame live at 50 Hz, several when behind: the same call
-        result, raw, errors = proc.step_wire(b"".join(e.frame for e in events))
+        result, raw, errors = proc.step_wire(b"".join(e.frame for e in events),
+                                             [(k, m) for k, m in marks if m.changes_numbers])
         done = time.perf_counter()
         samples = [PoseSample(e.index, e.host_time, e.frame, raw[k], errors[k],
                               latency_s=done - e.arrival, arrival=e.arrival, result=result, k=k)
@@ -406,7 +464,14 @@ class LiveSession:
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
         for z in result.zeros:
-            self.markers.publish(("reset zero", head.index + z.frame - first))
+            self.events.emit(SessionEvent("reset_zero", head.index + z.frame - first,
+                                          data=z.event_data()), warning=z.moved)
+        for k, m in marks:
+            if m.kind != "reset_zero":
+                self.events.emit(m.at(events[k].index))
+        if proc.pose.waiting is not None and not self._zero_wait_noted:
+            at = proc.pose.origin + proc.pose.auto_frame - first  # the frame it first could
+            self._note_zero_wait(head.index + min(max(at, 0), len(events) - 1))
         self._processed += len(events)
         self._error_bits += int(errors.sum())
         forwarder = self._forwarder
@@ -419,6 +484,15 @@ class LiveSession:
         for sample in samples:
             self._fanout.publish(sample)
         self._log_filtered(events, result)  # after the pose went out: off the latency path
+
+    def _note_zero_wait(self, index: int) -> None:
+        """The automatic Reset Zero waits for a still pose: said once, with the motion."""
+        self._zero_wait_noted = True
+        moved, imu = self.processor.pose.waiting
+        window_s = self.processor.pose.window * self.processor.options.filter.dt
+        self.events.note(f"Reset Zero (automatic) waiting for a still pose: moved "
+                         f"{moved:.1f}° (IMU {imu}) within {window_s:.2f} s", index,
+                         warning=False)
 
     @staticmethod
     def _forward_poses(forwarder: UdpForwarder, events: list[FrameEvent], result: Result
@@ -505,6 +579,4 @@ def _filtered_rows() -> tuple[Callable, Callable]:
 
 
 def _options_dict(options: Options) -> dict:
-    import dataclasses
-
     return {name: dataclasses.asdict(section) for name, section in options.sections().items()}

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bpms.io.options import check_option
+from bpms.io.session_events import SessionEvent
 
 
 @dataclass(frozen=True)
@@ -47,36 +48,40 @@ class SettingsQueue:
         another name raises OptionRangeError)."""
         self._queue.put(Change("filter", check_option("filter", "algorithm", algorithm)))
 
-    def reset_zero(self) -> None:
-        """Queue a Reset Zero capture."""
-        self._queue.put(Change("reset_zero"))
+    def reset_zero(self, source: str = "manual") -> None:
+        """Queue a Reset Zero capture (``source``: who asked, e.g. ``3d-view``)."""
+        self._queue.put(Change("reset_zero", source))
 
     def set_corrected_output(self, on: bool | None = None) -> None:
         """Queue the corrected-output switch: True (segment angles), False (sensor angles),
         None toggles (the original's ``v`` key)."""
         self._queue.put(Change("corrected_output", on))
 
-    def apply(self, processor: Any, on_error: Callable[[str], None] | None = None) -> int:
+    def apply(self, processor: Any, on_error: Callable[[str], None] | None = None
+              ) -> list[SessionEvent]:
         """Apply every queued change to ``processor`` (a BodyPoseProcessor), in order; call
         from the processing thread between two frames. A change that fails (e.g. the vqf
         package missing) is reported through ``on_error`` and the others still apply.
-        Returns how many changes were applied."""
-        done = 0
+        Returns the session events of the changes applied (no frame yet: they hold from the
+        next frame; a Reset Zero becomes an event when it is captured)."""
+        done: list[SessionEvent] = []
         while not self._queue.empty():  # (checked first: no exception per frame)
             try:
                 change = self._queue.get_nowait()
             except queue.Empty:
-                return done
+                break
             try:
                 if change.kind == "gains":
                     processor.set_gains(**change.value)
+                    done.append(SessionEvent("gains", data={"values": dict(change.value)}))
                 elif change.kind == "filter":
                     processor.select_filter(change.value)
+                    done.append(SessionEvent("filter", data={"algorithm": change.value}))
                 elif change.kind == "reset_zero":
-                    processor.reset_zero()
+                    processor.reset_zero(change.value or "manual")
                 elif change.kind == "corrected_output":
-                    processor.set_corrected_output(change.value)
-                done += 1
+                    on = processor.set_corrected_output(change.value)
+                    done.append(SessionEvent("alignment", data={"on": bool(on)}))
             except Exception as exc:  # reported, never kills the processing thread
                 if on_error is not None:
                     on_error(f"setting {change.kind} not applied: {exc}")

@@ -46,6 +46,8 @@ class LiveStatus:
     not_filtered: int = 0
     display_skipped: int = 0
     holes_marked: int = 0
+    #: the Reset Zero in force, from the processor (``PoseCalibrator.state_text``)
+    reset_zero: str = ""
 
     def health_line(self) -> str:
         """``not filtered N  backlog B  display skipped M`` (capitals when frames are lost)."""

@@ -25,7 +25,7 @@ class MvnBridge:
         self.session = session
         self.sender = MvnSender(targets)
         self.convention = session.processor.options.joints.convention
-        self._sub = session.subscribe(maxlen=3000)
+        self._sub = session.subscribe(maxlen=3000, lossless=True)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="bpms-mvn", daemon=True)
 

@@ -112,6 +112,16 @@ class MotionSource:
     def __len__(self) -> int:
         return len(self.raw)
 
+    def starting_at(self, sample: int) -> MotionSource:
+        """The same loop begun at motion sample ``sample`` (``bpms sim --start-at``)."""
+        k = int(sample) % len(self.raw)
+        if not k:
+            return self
+        frames = (self._frames[k * FRAME_SIZE:] + self._frames[:k * FRAME_SIZE]
+                  if self._frames is not None else None)
+        return MotionSource(np.roll(self.raw, -k, axis=0), np.roll(self.errors, -k, axis=0),
+                            frames)
+
     def reading(self, j: int) -> tuple[np.ndarray, np.ndarray]:
         """(raw ``[18, 9]``, errors ``[18, 3]``) of motion sample ``j`` (looped)."""
         k = j % len(self.raw)

@@ -1,0 +1,95 @@
+"""Which Reset Zero a recording is filtered with: ``--reset-zero events|auto|at SECONDS|none``
+(docs/opening-recordings.md), for every door (the analysis commands, the Python API, GUI
+playback and ``bpms replay``).
+
+- ``events`` (the default): the Reset Zero captures recorded in the file, at their frames (the
+  numbers the investigator saw live); a recording without events (format version 1, a legacy
+  file, a filtered file) gets the automatic ones;
+- ``auto``: the recorded captures are ignored; the provisional capture and the automatic one
+  (once the subject is still, docs/body-model.md) are made again;
+- ``at T[,T2...]``: the provisional capture, then captures at these stream times (s) only;
+- ``none``: no Reset Zero: each segment orientation is its IMU's own attitude (R0 = identity,
+  heading 0).
+
+Only Reset Zero is chosen here: the other recorded events (alignment, filter, gains, filters
+re-initialised) always apply, except that an explicit filter or options file overrides the
+recorded filter and gain changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpms.io.frames import N_IMUS
+from bpms.io.session_events import SessionEvent
+
+MODES = ("events", "auto", "at", "none")
+
+
+@dataclass(frozen=True)
+class ResetZeroChoice:
+    """``mode`` (:data:`MODES`) and, for ``at``, the stream ``times`` (s)."""
+
+    mode: str = "events"
+    times: tuple[float, ...] = ()
+
+    @classmethod
+    def parse(cls, text: str | ResetZeroChoice | None) -> ResetZeroChoice:
+        """``events``, ``auto``, ``none``, ``at 12.5`` or ``at 12.5,30`` (None: events).
+        Raises ValueError naming the choices."""
+        if text is None:
+            return cls()
+        if isinstance(text, ResetZeroChoice):
+            return text
+        words = str(text).replace("=", " ").split(None, 1)
+        mode = words[0].lower() if words else ""
+        if mode in ("events", "auto", "none") and len(words) == 1:
+            return cls(mode)
+        if mode == "at" and len(words) == 2:
+            try:
+                times = tuple(float(t) for t in words[1].replace(",", " ").split())
+            except ValueError:
+                times = ()
+            if times and all(np.isfinite(t) and t >= 0 for t in times):
+                return cls("at", times)
+        raise ValueError(f"--reset-zero: '{text}' is not one of events, auto, none, "
+                         "'at SECONDS' (e.g. 'at 12.5' or 'at 12.5,30')")
+
+    def automatic(self, has_events: bool) -> bool:
+        """Whether the processor makes its own provisional and automatic captures."""
+        return self.mode == "auto" or (self.mode == "events" and not has_events)
+
+    def provisional(self, has_events: bool) -> bool:
+        """Whether the processor makes its provisional capture (``at`` keeps it)."""
+        return self.automatic(has_events) or self.mode == "at"
+
+    def keeps(self, event: SessionEvent) -> bool:
+        """Whether a recorded event applies under this choice."""
+        return event.kind != "reset_zero" or self.mode == "events"
+
+    def frames(self, dt: float) -> list[int]:
+        """The capture frames of ``at``."""
+        return sorted({round(t / dt) for t in self.times}) if self.mode == "at" else []
+
+    def describe(self) -> str:
+        if self.mode == "at":
+            return "Reset Zero at " + ", ".join(f"{t:g} s" for t in self.times)
+        return {"events": "Reset Zero as recorded", "auto": "automatic Reset Zero",
+                "none": "no Reset Zero"}[self.mode]
+
+
+def identity_zero(frame: int = 0) -> SessionEvent:
+    """The ``none`` choice as an event: R0 = identity, heading 0, adopted at ``frame``."""
+    return SessionEvent("reset_zero", frame, data={
+        "source": "re-analysis", "adopt": True, "window": 1, "yaw0": 0.0,
+        "R0": np.tile(np.eye(3), (N_IMUS, 1, 1)).tolist()})
+
+
+def capture_at(frame: int) -> SessionEvent:
+    """A re-analysis capture at ``frame`` (the options' window)."""
+    return SessionEvent("reset_zero", frame, data={"source": "re-analysis"})
+
+
+__all__ = ["MODES", "ResetZeroChoice", "capture_at", "identity_zero"]

@@ -1,0 +1,146 @@
+"""What happened during a session, at which frame: :class:`SessionEvent` (docs/raw-format.md).
+
+A session event is anything that changes a derived number from a given frame on (a Reset
+Zero, the alignment switched, the filter or a gain changed, the filters re-initialised), or
+that an investigator wants beside the data (a marker note, logging started, a warning). Live,
+:mod:`bpms.pipeline.events` makes them; the raw recording stores them between its frame
+records (:mod:`bpms.io.raw_layout`), so that replay and re-analysis apply them at their frames
+and the GUI's event log and the LSL event stream show the same lines.
+
+``frame`` is the first frame the event affects: in a recording, the slot index of that frame
+in the file (frame k at stream time k × 0.02 s); in a live session, the source's frame index
+(the session converts it when it writes the file). ``data`` holds the kind's values, plain
+JSON (numbers, strings, booleans, lists; NaN is written as null).
+
+Kinds and their ``data``:
+
+- ``reset_zero``: ``source`` (:data:`ZERO_SOURCES`), ``window`` (frames averaged, ending at
+  ``frame``), ``R0`` (18 × 3 × 3 captured DCMs, null for an IMU with no data), ``yaw0`` (rad,
+  the heading ψ0), ``heading`` (``hip``/``mean``), ``motion_deg`` and ``motion_imu`` (the
+  largest rotation of one IMU during the window and which IMU), ``waited`` (automatic: frames
+  it waited for a still pose after its nominal frame);
+- ``alignment``: ``on`` (output angles corrected by Reset Zero, the original's ``v`` key);
+- ``filter``: ``algorithm``; ``gains``: ``values`` (``[filter]`` option names → numbers);
+- ``filters``: ``action`` (``restart``: a new stream, the automatic Reset Zero runs again;
+  ``reinit``: the filters re-initialise, Reset Zero kept) and ``reason``;
+- ``marker``: ``text``; ``logging``: ``action`` (``start``/``stop``); ``note``: ``text``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+#: Kinds whose events change derived numbers (re-analysis applies them at their frames).
+CHANGE_KINDS = frozenset({"reset_zero", "alignment", "filter", "gains", "filters"})
+KINDS = (*sorted(CHANGE_KINDS), "marker", "logging", "note")
+#: Where a Reset Zero came from. ``provisional``: one frame, the first where every IMU has
+#: data; ``automatic``: the window after the filters settled, once the subject is still;
+#: ``in force``: the zero already in force when logging started; ``network``: the sender's,
+#: received over UDP; ``re-analysis``: asked for when a recording is filtered again.
+ZERO_SOURCES = ("manual", "automatic", "provisional", "3d-view", "network", "in force",
+                "re-analysis")
+
+
+@dataclass(frozen=True)
+class SessionEvent:
+    """One event: ``kind`` (:data:`KINDS`), ``frame`` (the first frame it affects; -1: none),
+    ``time`` (host time s since the epoch when it happened; NaN unknown) and ``data``."""
+
+    kind: str
+    frame: int = -1
+    time: float = float("nan")
+    data: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def changes_numbers(self) -> bool:
+        return self.kind in CHANGE_KINDS
+
+    def at(self, frame: int) -> SessionEvent:
+        """The same event at another frame index."""
+        return replace(self, frame=int(frame))
+
+    def to_json(self) -> bytes:
+        """The event as one UTF-8 JSON object (NaN → null)."""
+        body = {"kind": self.kind, "frame": int(self.frame),
+                "time": _plain(self.time), "data": _plain(dict(self.data))}
+        return json.dumps(body, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+    @classmethod
+    def from_json(cls, text: bytes | str) -> SessionEvent:
+        """Parse :meth:`to_json`'s output. Raises ValueError for anything else."""
+        try:
+            body = json.loads(text)
+        except (RecursionError, UnicodeDecodeError) as exc:
+            raise ValueError(f"not an event ({type(exc).__name__})") from None
+        if not isinstance(body, dict) or not isinstance(body.get("kind"), str):
+            raise ValueError("not an event (no kind)")
+        frame = body.get("frame", -1)
+        when = body.get("time")
+        data = body.get("data", {})
+        if (not isinstance(frame, int) or isinstance(frame, bool)
+                or not isinstance(data, dict)
+                or not (when is None or isinstance(when, int | float))):
+            raise ValueError("not an event (bad frame, time or data)")
+        return cls(body["kind"], frame, float("nan") if when is None else float(when), data)
+
+    def describe(self, dt: float = 0.02) -> str:
+        """One line for the event log, the record command and the LSL marker text."""
+        at = f"{max(self.frame, 0) * dt:.2f} s" if self.frame >= 0 else ""
+        d = self.data
+        if self.kind == "reset_zero":
+            line = f"Reset Zero ({d.get('source', '?')})" + (f" at {at}" if at else "")
+            window = d.get("window")
+            if isinstance(window, int | float) and window > 1:
+                line += f", window {window * dt:.2f} s"
+                moved, imu = d.get("motion_deg"), d.get("motion_imu")
+                if isinstance(moved, int | float) and isinstance(imu, int) and imu >= 0:
+                    line += f", moved {moved:.1f}° (IMU {imu})"
+            waited = d.get("waited")
+            if isinstance(waited, int | float) and waited > 0:
+                line += f", after waiting {waited * dt:.2f} s for a still pose"
+            return line
+        if self.kind == "alignment":
+            state = "on (segment angles)" if d.get("on") else "off (sensor angles)"
+            force = " in force" if d.get("source") == "in force" else ""
+            return f"alignment {state}{force}" + (f" at {at}" if at else "")
+        if self.kind == "filter":
+            force = " in force" if d.get("source") == "in force" else ""
+            return (f"filter {d.get('algorithm')}{force} on all 18 IMUs"
+                    + (f" at {at}" if at else ""))
+        if self.kind == "gains" and d.get("source") == "in force":
+            return "filter settings in force" + (f" at {at}" if at else "")
+        if self.kind == "gains":
+            values = d.get("values", {})
+            text = ", ".join(f"{k} {v:g}" if isinstance(v, int | float) else f"{k} {v}"
+                             for k, v in (values.items() if isinstance(values, dict) else ()))
+            return f"filter settings {text}" + (f" at {at}" if at else "")
+        if self.kind == "filters":
+            what = ("filters restarted" if d.get("action") == "restart"
+                    else "filters re-initialised")
+            reason = d.get("reason")
+            return what + (f" ({reason})" if reason else "") + (f" at {at}" if at else "")
+        if self.kind == "marker":
+            return f"marker at {at}: {d.get('text', '')}" if at else f"marker: {d.get('text')}"
+        if self.kind == "logging":
+            return f"logging {d.get('action', '?')}"
+        return str(d.get("text", self.kind))
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready: NaN/inf → None, numpy numbers and arrays → Python numbers and lists."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if hasattr(value, "tolist"):  # numpy array or scalar
+        return _plain(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+__all__ = ["CHANGE_KINDS", "KINDS", "ZERO_SOURCES", "SessionEvent"]
