@@ -156,7 +156,7 @@ def test_health_panel_shows_losses_write_errors_and_the_source_reason(qtbot, tmp
     # when the session's own event line says it, the window does not say it again
     said = "12:00:00 filter re-initialised (state not a rotation): IMU 4; 5 so far"
     window._on_status(dataclasses.replace(base, reinit_count=5, events=[said]))
-    lines = [t for t in _texts(window) if "re-initialised" in t]
+    lines = [t for t in _texts(window) if "filter re-initialised" in t]
     assert lines[-1] == said.partition(" ")[2] and len(lines) == 3
     window.set_data(False)
     window.close()

@@ -43,7 +43,7 @@ from bpms.filter.zero_choice import ResetZeroChoice, capture_at, identity_zero
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import Options, load_options, options_from_dict
-from bpms.io.raw_reader import RawFile
+from bpms.io.raw_reader import RawFile, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
 from bpms.io.session_events import SessionEvent
 
@@ -412,8 +412,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         header = file.header
         n, valid, first_time = file.survey()
         if not valid:
-            raise RawFileError(f"{path}: holds no valid frame"
-                               + (f" ({n} damaged slots)" if n else ""))
+            raise RawFileError(no_frame_message(path, n))
     elif is_raw_recording(path):
         from bpms.io.legacy_raw import read_legacy_raw
 
@@ -422,7 +421,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         header, n = recording.header, len(recording)
         problems.extend(recording.problems)
         if not recording.valid_frames:
-            raise RawFileError(f"{path}: holds no valid frame")
+            raise RawFileError(no_frame_message(path, len(recording)))
         first_time = float(recording.times[0])
     elif path.suffix.lower() in FILTERED_SUFFIXES:
         from bpms.io.filtered_file.reader import FilteredReader

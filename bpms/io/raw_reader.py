@@ -457,6 +457,15 @@ class RawFile:
                             self.counts.skipped, events)
 
 
+def no_frame_message(path: str | Path, slots: int) -> str:
+    """The one-line error for a recording without a valid frame (``slots``: how many it has,
+    all placeholders for damage)."""
+    if not slots:
+        return f"{path}: the recording holds no frames"
+    return (f"{path}: holds no valid frame (its {slots} frame slot(s) are all damaged: no "
+            "record with intact markers)")
+
+
 def read_raw(path: str | Path) -> RawRecording:
     """Read a whole native raw recording (the same reader as :meth:`RawFile.chunks`): a torn
     last record is dropped with a warning; damaged records keep their slots as placeholder
@@ -552,4 +561,4 @@ class RawFrames:
 
 
 __all__ = ["CHUNK_FRAMES", "LOOKAHEAD", "RawChunk", "RawFile", "RawFrames", "RawRecording",
-           "read_raw"]
+           "no_frame_message", "read_raw"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bpms.io.raw_reader import RawFrames
+from bpms.io.raw_reader import RawFrames, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording, read_raw
 
 
@@ -40,6 +40,5 @@ def open_replay(path: str | Path) -> RawFrames | RawRecording:
         raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     recording = RawFrames(path) if head == MAGIC else open_recording(path)
     if recording.valid_frames == 0:
-        raise RawFileError(f"{path}: holds no valid frame"
-                           + (f" ({len(recording)} damaged slots)" if len(recording) else ""))
+        raise RawFileError(no_frame_message(path, len(recording)))
     return recording
