@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bpms.io.bounded import BoundError, read_config_bytes
 from bpms.io.frames import N_IMUS
 from bpms.io.paths import factory_calibration_path
 from bpms.io.problems import FileProblem, report
@@ -174,7 +175,12 @@ def load_calibration(path: str | Path | None) -> CalibrationTable:
         return load_factory_calibration()
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = read_config_bytes(path).decode("utf-8", errors="replace")
+    except BoundError as exc:
+        table = load_factory_calibration().copy()
+        report(table.problems, path, "file", str(exc), "factory calibration used")
+        table.source = f"factory ({path} too big)"
+        return table
     except OSError as exc:
         table = load_factory_calibration().copy()
         report(table.problems, path, "file", f"cannot be read ({exc.strerror or exc})",

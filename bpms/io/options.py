@@ -20,6 +20,7 @@ from typing import Any
 
 import tomli_w
 
+from bpms.io.bounded import BoundError, read_config_bytes
 from bpms.io.problems import FileProblem, report
 
 
@@ -475,8 +476,8 @@ def load_options(path: str | Path | None) -> Options:
         return Options()
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_config_bytes(path).decode("utf-8")
+    except (OSError, UnicodeDecodeError, BoundError) as exc:
         options = Options(source=f"factory ({path} unreadable)")
         report(options.problems, path, "file", f"cannot be read ({exc})", "factory options used")
         return options
