@@ -27,9 +27,9 @@ def legacy_text(values: np.ndarray) -> str:
     return ";\n".join(",".join(repr(float(v)) for v in row) for row in values) + "\n"
 
 
-FIELD = {name: k for k, name in enumerate(
-    "Gravity AxMin AxMax AyMin AyMax AzMin AzMax MxMin MxMax MyMin MyMax MzMin MzMax "
-    "GxAvg GyAvg GzAvg".split())}
+FIELD = {name: k for k, name in enumerate((
+    "Gravity", "AxMin", "AxMax", "AyMin", "AyMax", "AzMin", "AzMax", "MxMin", "MxMax", "MyMin",
+    "MyMax", "MzMin", "MzMax", "GxAvg", "GyAvg", "GzAvg"))}
 
 # (field, value, refused?): just inside and just outside each data-sheet bound.
 CASES = [

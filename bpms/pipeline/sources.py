@@ -305,6 +305,7 @@ class SuitFrameSource:
                 with contextlib.suppress(LinkError):  # the reason is kept in the status
                     self.connect()
             return []
+        gone: DeviceGoneError | None = None
         try:
             self._apply_stream_request(link)
             frames = link.read_frames(timeout)
@@ -314,12 +315,15 @@ class SuitFrameSource:
         except LinkClosedError:
             return []
         except DeviceGoneError as exc:
-            if self._state is not LinkState.CLOSED:
-                self._event(LinkEvent.DEVICE_GONE, str(exc))
+            # frames that came before the end (read while a command waited) still count
+            frames, gone = link.take_pending(), exc
+        if gone is not None and not frames:
+            self._gone(gone)
             return []
         if not frames:
             return []
-        if self._state is LinkState.STOPPED and self._clock() - self._stop_sent > STOP_REPEAT_S:
+        if (gone is None and self._state is LinkState.STOPPED
+                and self._clock() - self._stop_sent > STOP_REPEAT_S):
             # Frames long after Stop Data: the suit did not hear it (it was out of range)
             try:
                 link.send_stop()
@@ -337,7 +341,13 @@ class SuitFrameSource:
                 events.append(FrameEvent(host_time, frame, self._count, self._discontinuity))
                 self._discontinuity = False
                 self._count += 1
+        if gone is not None:
+            self._gone(gone)
         return events
+
+    def _gone(self, exc: DeviceGoneError) -> None:
+        if self._state is not LinkState.CLOSED:
+            self._event(LinkEvent.DEVICE_GONE, str(exc))
 
     def _watchdog(self, link: SuitLink) -> None:
         """No frame in this read: maybe the link went quiet, maybe it is time to probe."""
