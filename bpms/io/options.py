@@ -98,7 +98,9 @@ VALID_RANGES: dict[str, dict[str, Range]] = {
     },
     "udp": {"multicast_ttl": Range(0, 255)},
     "logging": {"flush_interval_s": Range(0.05, 60.0, why="data on disk within a minute "
-                                                      "at the latest")},
+                                                      "at the latest"),
+                "disk_reserve_s": Range(0.0, 1e8, why="seconds of raw data (17.4 kB/s); 1e8 s "
+                                                      "is more than any disk")},
     "pose": {
         "reset_window_s": Range(0.0, 10.0),
         "heading_reference": Range(choices=("hip", "mean")),
@@ -237,6 +239,10 @@ class LoggingOptions:
     raw: bool = _opt(True, "record raw frames")
     filtered: bool = _opt(True, "record filtered angles")
     flush_interval_s: float = _opt(1.0, "data reach the disk at least this often, s")
+    disk_reserve_s: float = _opt(
+        120.0, "free disk space kept for the raw recording, in seconds of raw data (17.4 kB "
+        "per second): below it the filtered file stops first, the raw file goes on until the "
+        "disk is full; 0 = no reserve (docs/pipeline.md)")
 
 
 @dataclass

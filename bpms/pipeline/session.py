@@ -18,6 +18,7 @@ the processor are queued and run in the processing thread between two frames.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import queue
@@ -38,6 +39,7 @@ from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
 from bpms.io.udp import UdpForwarder, shared_key
+from bpms.pipeline.disk_reserve import DiskReserve
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
@@ -109,6 +111,7 @@ class RecordingStatus:
     raw_lost: int = 0  # at the end: received but not on the disk
     filtered_rows: int = 0
     error: str | None = None  # a write error: shown (in red) until logging stops
+    filtered_stopped: str | None = None  # set by the raw logger: the disk reserve is reached
 
 
 @dataclass
@@ -284,7 +287,8 @@ class LiveSession:
                                 options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description)
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
-            logger = RawLogger(writer, status, self.note)
+            logger = RawLogger(writer, status, self.note, DiskReserve(
+                raw_path.parent, self.options.logging.disk_reserve_s))
             logger.start()
             status.raw_path = raw_path
             self._raw_logger = logger
@@ -563,6 +567,8 @@ class LiveSession:
         else:
             arrays = {g: np.concatenate([p[1][g] for p in pending]) for g in pending[0][1]}
         try:
+            if self._recording is not None and self._recording.filtered_stopped:
+                raise OSError(self._recording.filtered_stopped)  # the raw file goes first
             rows, marked, self._holes = write_with_holes(
                 writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
             self.health.holes_marked += marked
@@ -574,6 +580,8 @@ class LiveSession:
                 self._filtered_flushed = now
         except OSError as exc:
             self._filtered = None
+            with contextlib.suppress(OSError):
+                writer.close()
             self.note(f"filtered recording stopped: {exc}")
 
 
