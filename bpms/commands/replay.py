@@ -66,6 +66,8 @@ def _processor(path: str, options_path: str | None):
     if not opened.has_raw:
         raise CliError(f"{path}: a filtered file; give a raw recording")
     print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
+    for problem in opened.problems:
+        print(f"bpms replay: warning: {problem}", file=sys.stderr)
     return opened.processor, opened.processor.options
 
 

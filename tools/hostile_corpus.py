@@ -1,0 +1,770 @@
+"""Hostile-input corpus: damaged recordings and absurd configurations through every command
+that reads one (issue 26.7), run in one interpreter.
+
+    python tools/hostile_corpus.py                 # build in a temporary folder, run, print
+    python tools/hostile_corpus.py --keep DIR      # build into DIR and keep it
+    python tools/hostile_corpus.py --only filter   # one command
+
+The corpus holds, beside an intact 6 s recording of the simulated suit (the control):
+truncations, random bytes, inserted and deleted bytes, lost record markers, a header nested
+200,000 levels deep, a 200 MB header, empty files, directories, absurd headers, legacy pickles
+whose ``__reduce__`` would run code, and absurd calibration and options files.
+
+Every case knows what a correct command does with it, from how it was built (not from the
+code under test): a *refused* input gives exit 2 with a one-line ``bpms CMD: ...`` message;
+an input that still holds frames gives exactly that many frames (3 deleted bytes cost one
+frame and keep its slot, docs/raw-format.md), each at its time index × 0.02 s; an absurd
+configuration gives a warning naming the bad value and the factory fallback. Commands that
+print no frame count (rom, track, drift) must give the same output as for the recording
+``bpms.io.rawfile.read_raw`` reads from the damaged file, written back intact. A traceback
+is always a failure; so is exit 0 with wrong output, and a pickle that ran code.
+
+Commands run in this process through :func:`bpms.cli.main` (stdout and stderr captured), so
+the whole corpus costs seconds, not a process start per case. tests/test_hostile_corpus.py
+runs every (command, case) pair; bench/hostile_input.py prints the totals.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import os
+import pickle
+import re
+import shutil
+import socket
+import struct
+import sys
+import tempfile
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+N_FRAMES = 300  # the intact recording: 6 s at 50 Hz
+RECORD = 348  # bytes per raw record: float64 time + 340-byte frame (docs/raw-format.md)
+PREAMBLE = struct.Struct("<8sHI")  # magic, version, header length (docs/raw-format.md)
+MAGIC = b"BPMSRAW\0"
+#: The file a pickle's ``__reduce__`` would create if the reader ran it.
+MARKER = "PICKLE_RAN_CODE"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One hostile input. ``frames``: the frames a correct reader finds (None: the input must
+    be refused); ``warns``: text that a warning line must contain (configurations and absurd
+    headers); ``kind``: what the file is (recording, calibration, options)."""
+
+    name: str
+    damage: str  # the damage class (one line of the figures table)
+    frames: int | None
+    kind: str = "recording"
+    warns: tuple[str, ...] = ()
+    suffix: str = ".bpmsraw"
+
+
+R = "recording"
+CASES: tuple[Case, ...] = (
+    Case("intact", "control", N_FRAMES),
+    Case("torn_tail", "truncation", N_FRAMES - 1),
+    Case("truncated_half", "truncation", 150),
+    Case("header_cut", "truncation", None),
+    Case("preamble_only", "truncation", None),
+    Case("deleted_3_bytes", "deleted bytes", N_FRAMES),
+    Case("inserted_5_bytes", "inserted bytes", N_FRAMES),
+    Case("markers_lost_5", "lost markers", N_FRAMES),
+    Case("markers_lost_all", "lost markers", None),
+    Case("random_body", "random bytes", None),
+    Case("random_file", "random bytes", None),
+    Case("empty", "empty file", None),
+    Case("header_only", "empty file", None),
+    Case("directory", "directory", None),
+    Case("nested_header", "nested header", None),
+    Case("huge_header", "200 MB header", None),
+    Case("huge_length", "200 MB header", None),
+    Case("header_not_json", "absurd header", None),
+    Case("header_not_object", "absurd header", None),
+    Case("newer_version", "absurd header", None),
+    Case("absurd_times", "random bytes", N_FRAMES),
+    Case("header_absurd_values", "absurd header", N_FRAMES,
+         warns=("IMU 4", "kp_rollpitch")),
+    Case("header_wrong_types", "absurd header", N_FRAMES, warns=("calibration",)),
+    Case("legacy_intact", "control", 40, suffix=".txt"),
+    Case("legacy_reduce_exec", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_system", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_in_record", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_after_good", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_protocol_2", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_random", "random bytes", None, suffix=".txt"),
+    Case("legacy_empty", "empty file", None, suffix=".txt"),
+    # configurations, used with the intact recording
+    Case("calib_gravity_tiny", "absurd calibration", N_FRAMES, "calibration", ("IMU 4",),
+         ".cfg"),
+    Case("calib_gyro_huge", "absurd calibration", N_FRAMES, "calibration", ("IMU 9",), ".cfg"),
+    Case("calib_nan", "absurd calibration", N_FRAMES, "calibration", ("IMU 2",), ".cfg"),
+    Case("calib_min_above_max", "absurd calibration", N_FRAMES, "calibration", ("IMU 5",),
+         ".cfg"),
+    Case("calib_17_records", "absurd calibration", N_FRAMES, "calibration",
+         ("17 IMU records",), ".cfg"),
+    Case("calib_random", "random bytes", N_FRAMES, "calibration", ("IMU records",), ".cfg"),
+    Case("calib_empty", "empty file", N_FRAMES, "calibration", ("0 IMU records",), ".cfg"),
+    Case("calib_directory", "directory", N_FRAMES, "calibration", ("cannot be read",), ".cfg"),
+    Case("calib_huge", "200 MB header", N_FRAMES, "calibration", ("MiB",), ".cfg"),
+    Case("calib_json_nested", "nested header", N_FRAMES, "calibration", ("nests",), ".cfg"),
+    Case("options_gain_huge", "absurd options", N_FRAMES, "options", ("kp_rollpitch",),
+         ".toml"),
+    Case("options_gain_nan", "absurd options", N_FRAMES, "options", ("kp_yaw",), ".toml"),
+    Case("options_wrong_types", "absurd options", N_FRAMES, "options",
+         ("kp_rollpitch", "[display]"), ".toml"),
+    Case("options_nested", "nested header", N_FRAMES, "options", ("nested too deeply",),
+         ".toml"),
+    Case("options_huge", "200 MB header", N_FRAMES, "options", ("MiB",), ".toml"),
+    Case("options_random", "random bytes", N_FRAMES, "options", ("cannot be read",), ".toml"),
+    Case("options_directory", "directory", N_FRAMES, "options", ("cannot be read",), ".toml"),
+)
+BY_NAME = {c.name: c for c in CASES}
+RECORDING_CASES = tuple(c for c in CASES if c.kind == R)
+CONFIG_CASES = tuple(c for c in CASES if c.kind != R)
+
+#: Commands that read a recording; "export-bvh" is ``bpms export bvh`` and so on.
+RECORDING_COMMANDS = ("filter", "export-matlab", "export-bvh", "export-opensim", "rom",
+                      "track", "drift", "convert", "extract", "batch", "replay")
+#: Commands given each configuration case: (command, takes calibration, takes options).
+CONFIG_COMMANDS = {
+    "filter": (True, True), "export-matlab": (True, True), "rom": (True, True),
+    "track": (True, True), "drift": (True, True), "convert": (True, True),
+    "extract": (True, False), "batch": (False, True), "replay": (False, True),
+    "config": (True, True), "record": (True, True),
+}
+#: ``bpms record --sim`` runs a live session for a second: one configuration per damage class.
+RECORD_CASES = ("calib_gravity_tiny", "calib_random", "calib_empty", "calib_directory",
+                "options_gain_huge", "options_nested", "options_huge")
+#: (command, case) pairs with nothing to check: ``bpms config`` shows the Calib.cfg in force and
+#: does not read the ellipsoid companion (Calib.json), which the filter reads.
+PAIRS_NOT_APPLICABLE: frozenset[tuple[str, str]] = frozenset({("config", "calib_json_nested")})
+
+
+def pairs() -> list[tuple[str, Case]]:
+    """Every (command, case) pair the corpus runs."""
+    out = [(cmd, c) for c in RECORDING_CASES for cmd in RECORDING_COMMANDS]
+    for c in CONFIG_CASES:
+        for cmd, (cal, opt) in CONFIG_COMMANDS.items():
+            if cmd == "record" and c.name not in RECORD_CASES:
+                continue
+            if (c.kind == "calibration" and cal) or (c.kind == "options" and opt):
+                out.append((cmd, c))
+    return [(cmd, c) for cmd, c in out if (cmd, c.name) not in PAIRS_NOT_APPLICABLE]
+
+
+# --------------------------------------------------------------------------- building
+
+
+class _Reduce:
+    """A pickled object whose ``__reduce__`` calls ``func(*args)`` when unpickled."""
+
+    def __init__(self, func: Callable, *args: object) -> None:
+        self.func, self.args = func, args
+
+    def __reduce__(self):
+        return self.func, self.args
+
+
+def _write_raw_file(path: Path, header: bytes, body: bytes, version: int = 1,
+                    length: int | None = None) -> None:
+    pad = (-(PREAMBLE.size + len(header))) % 16
+    header = header + b" " * pad
+    path.write_bytes(PREAMBLE.pack(MAGIC, version, len(header) if length is None else length)
+                     + header + body)
+
+
+class Corpus:
+    """The corpus built in ``folder``: :meth:`path` of each case, :meth:`run` / :meth:`check`
+    a command on it."""
+
+    def __init__(self, folder: str | Path) -> None:
+        import numpy as np
+
+        from bpms.firmware.sim.session import simulate
+        from bpms.io.rawfile import new_header, write_raw
+
+        self.folder = Path(folder)
+        self.cases_dir = self.folder / "cases"
+        self.out_dir = self.folder / "out"
+        for d in (self.cases_dir, self.out_dir):
+            d.mkdir(parents=True, exist_ok=True)
+        rec = simulate(N_FRAMES * 0.02, seed=26)
+        assert len(rec.t) == N_FRAMES
+        self.frames = [rec.frames[k * 340:(k + 1) * 340] for k in range(N_FRAMES)]
+        self.times = 1.7e9 + np.arange(N_FRAMES) * 0.02
+        self.header = new_header(calibration=rec.calibration.values, source="hostile corpus")
+        (self.folder / "intact").mkdir(exist_ok=True)
+        self.intact = self.folder / "intact" / "Raw_corpus_1.bpmsraw"
+        write_raw(self.intact, self.times, rec.frames, self.header)
+        self._paths: dict[str, Path] = {}
+        self._repaired: dict[str, Path] = {}
+        self._baseline: dict[str, Outcome] = {}
+        rng = np.random.default_rng(26)
+        self._rng = rng
+        for case in CASES:
+            where = self.cases_dir / case.name
+            where.mkdir(exist_ok=True)
+            stem = "Raw_corpus_1" if case.kind == R else {"calibration": "Calib",
+                                                          "options": "options"}[case.kind]
+            path = where / (stem + case.suffix)
+            getattr(self, f"_make_{case.name}")(path)
+            self._paths[case.name] = path
+
+    def path(self, case: Case) -> Path:
+        return self._paths[case.name]
+
+    # -- recordings ----------------------------------------------------------------------
+    def _intact_bytes(self) -> tuple[bytearray, int]:
+        data = bytearray(self.intact.read_bytes())
+        length = PREAMBLE.unpack_from(data)[2]
+        return data, PREAMBLE.size + length
+
+    def _edit(self, path: Path, edit: Callable[[bytearray, int], None]) -> None:
+        data, offset = self._intact_bytes()
+        edit(data, offset)
+        path.write_bytes(bytes(data))
+
+    def _make_intact(self, path: Path) -> None:
+        shutil.copyfile(self.intact, path)
+
+    def _make_torn_tail(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(len(d) - 100, None)))
+
+    def _make_truncated_half(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o + 150 * RECORD + 200, None)))
+
+    def _make_header_cut(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o // 2, None)))
+
+    def _make_preamble_only(self, path: Path) -> None:
+        path.write_bytes(PREAMBLE.pack(MAGIC, 1, 1000))
+
+    def _make_deleted_3_bytes(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o + 150 * RECORD + 100,
+                                                          o + 150 * RECORD + 103)))
+
+    def _make_inserted_5_bytes(self, path: Path) -> None:
+        def insert(d: bytearray, o: int) -> None:
+            d[o + 150 * RECORD + 100:o + 150 * RECORD + 100] = b"\x55" * 5
+
+        self._edit(path, insert)
+
+    def _make_markers_lost_5(self, path: Path) -> None:
+        def lose(d: bytearray, o: int) -> None:
+            for k in range(100, 105):
+                d[o + k * RECORD + 8:o + k * RECORD + 10] = b"\0\0"
+                d[o + k * RECORD + 346:o + k * RECORD + 348] = b"\0\0"
+
+        self._edit(path, lose)
+
+    def _make_markers_lost_all(self, path: Path) -> None:
+        def lose(d: bytearray, o: int) -> None:
+            for k in range(N_FRAMES):
+                d[o + k * RECORD + 8:o + k * RECORD + 10] = b"\0\0"
+
+        self._edit(path, lose)
+
+    def _make_random_body(self, path: Path) -> None:
+        def randomise(d: bytearray, o: int) -> None:
+            d[o:] = self._rng.bytes(len(d) - o)
+
+        self._edit(path, randomise)
+
+    def _make_absurd_times(self, path: Path) -> None:
+        """Intact records whose receive times are damaged: 1e300 s in the first (the
+        recording's start), NaN in another."""
+        def times(d: bytearray, o: int) -> None:
+            struct.pack_into("<d", d, o, 1e300)
+            struct.pack_into("<d", d, o + 10 * RECORD, float("nan"))
+
+        self._edit(path, times)
+
+    def _make_random_file(self, path: Path) -> None:
+        path.write_bytes(self._rng.bytes(100_000))
+
+    def _make_empty(self, path: Path) -> None:
+        path.write_bytes(b"")
+
+    def _make_header_only(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o, None)))
+
+    def _make_directory(self, path: Path) -> None:
+        path.mkdir()
+
+    def _make_nested_header(self, path: Path) -> None:
+        _write_raw_file(path, b"[" * 200_000, b"")
+
+    def _make_huge_header(self, path: Path) -> None:
+        """A 200 MB header, sparse on the disk (the readers must refuse it unread)."""
+        length = 200 * 1000 * 1000
+        with path.open("wb") as f:
+            f.write(PREAMBLE.pack(MAGIC, 1, length) + b'{"notes": "')
+            f.seek(PREAMBLE.size + length - 2)
+            f.write(b'"}')
+
+    def _make_huge_length(self, path: Path) -> None:
+        _write_raw_file(path, b"{}", b"", length=0xFFFFFFFF)
+
+    def _make_header_not_json(self, path: Path) -> None:
+        _write_raw_file(path, b"\xff\xfe not json {{{", self._body())
+
+    def _make_header_not_object(self, path: Path) -> None:
+        _write_raw_file(path, b"[1, 2, 3]", self._body())
+
+    def _make_newer_version(self, path: Path) -> None:
+        _write_raw_file(path, self._header_json(), self._body(), version=999)
+
+    def _make_header_absurd_values(self, path: Path) -> None:
+        header = dict(self.header)
+        cal = [list(row) for row in header["calibration"]]
+        cal[4][0] = 1e-300  # Gravity of IMU 4
+        header["calibration"] = cal
+        header["options"] = {"filter": {"kp_rollpitch": 1e300}}
+        header["frame_rate_hz"] = "fast"
+        header["notes"] = 5
+        _write_raw_file(path, self._header_json(header), self._body())
+
+    def _make_header_wrong_types(self, path: Path) -> None:
+        header = dict(self.header)
+        header["calibration"] = "all of them"
+        header["options"] = [1, 2]
+        header["start_time"] = "yesterday"
+        _write_raw_file(path, self._header_json(header), self._body())
+
+    def _header_json(self, header: dict | None = None) -> bytes:
+        import json
+
+        return json.dumps(header or self.header).encode()
+
+    def _body(self) -> bytes:
+        return self.intact.read_bytes()[self._intact_bytes()[1]:]
+
+    # -- legacy pickles ------------------------------------------------------------------
+    def _legacy_records(self, n: int, protocol: int = 0) -> bytes:
+        return b"".join(pickle.dumps([float(self.times[k]), self.frames[k].decode("latin1")],
+                                     protocol=protocol) for k in range(n))
+
+    def _evil(self, path: Path) -> _Reduce:
+        target = path.parent / MARKER
+        return _Reduce(exec, f"open({str(target)!r}, 'w').close()")
+
+    def _make_legacy_intact(self, path: Path) -> None:
+        path.write_bytes(self._legacy_records(40))
+
+    def _make_legacy_reduce_exec(self, path: Path) -> None:
+        path.write_bytes(pickle.dumps(self._evil(path), protocol=0))
+
+    def _make_legacy_reduce_system(self, path: Path) -> None:
+        target = path.parent / MARKER
+        path.write_bytes(pickle.dumps(_Reduce(os.system, f"echo > {str(target)!r}"), 0))
+
+    def _make_legacy_reduce_in_record(self, path: Path) -> None:
+        path.write_bytes(pickle.dumps([1.7e9, self._evil(path)], protocol=0))
+
+    def _make_legacy_reduce_after_good(self, path: Path) -> None:
+        path.write_bytes(self._legacy_records(10)
+                         + pickle.dumps([1.7e9, self._evil(path)], protocol=0))
+
+    def _make_legacy_reduce_protocol_2(self, path: Path) -> None:
+        path.write_bytes(pickle.dumps([1.7e9, self._evil(path)], protocol=2))
+
+    def _make_legacy_random(self, path: Path) -> None:
+        path.write_bytes(b"(lp0\n" + self._rng.bytes(5000))
+
+    def _make_legacy_empty(self, path: Path) -> None:
+        path.write_bytes(b"")
+
+    # -- calibration files ---------------------------------------------------------------
+    def _calib_rows(self) -> list[list[float]]:
+        return [list(map(float, row)) for row in self.header["calibration"]]
+
+    def _write_calib(self, path: Path, rows: list[list[float]]) -> None:
+        path.write_text(";\n".join(",".join(repr(v) for v in row) for row in rows) + "\n")
+
+    def _make_calib_gravity_tiny(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[4][0] = 1e-300
+        self._write_calib(path, rows)
+
+    def _make_calib_gyro_huge(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[9][13] = 30000.0
+        self._write_calib(path, rows)
+
+    def _make_calib_nan(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[2][4] = float("nan")
+        self._write_calib(path, rows)
+
+    def _make_calib_min_above_max(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[5][7], rows[5][8] = 400.0, -400.0
+        self._write_calib(path, rows)
+
+    def _make_calib_17_records(self, path: Path) -> None:
+        self._write_calib(path, self._calib_rows()[:17])
+
+    def _make_calib_random(self, path: Path) -> None:
+        path.write_bytes(self._rng.bytes(3000).replace(b";", b"."))
+
+    def _make_calib_empty(self, path: Path) -> None:
+        path.write_bytes(b"")
+
+    def _make_calib_directory(self, path: Path) -> None:
+        path.mkdir()
+
+    def _make_calib_huge(self, path: Path) -> None:
+        self._write_calib(path, self._calib_rows())
+        with path.open("a") as f:
+            f.write("#" * (2 * 1024 * 1024))
+
+    def _make_calib_json_nested(self, path: Path) -> None:
+        """A good Calib.cfg whose modern companion Calib.json nests 200,000 levels."""
+        self._write_calib(path, self._calib_rows())
+        path.with_suffix(".json").write_text("[" * 200_000)
+
+    # -- options files -------------------------------------------------------------------
+    def _make_options_gain_huge(self, path: Path) -> None:
+        path.write_text("[filter]\nkp_rollpitch = 1e300\n")
+
+    def _make_options_gain_nan(self, path: Path) -> None:
+        path.write_text("[filter]\nkp_yaw = nan\n")
+
+    def _make_options_wrong_types(self, path: Path) -> None:
+        path.write_text('display = 5\n[filter]\nkp_rollpitch = "fast"\n')
+
+    def _make_options_nested(self, path: Path) -> None:
+        path.write_text("a = " + "[" * 100_000 + "]" * 100_000 + "\n")
+
+    def _make_options_huge(self, path: Path) -> None:
+        path.write_text("[filter]\nkp_yaw = 1.2\n" + "#" * (2 * 1024 * 1024) + "\n")
+
+    def _make_options_random(self, path: Path) -> None:
+        path.write_bytes(b"\xff\xfe" + self._rng.bytes(3000))
+
+    def _make_options_directory(self, path: Path) -> None:
+        path.mkdir()
+
+    # -- running -------------------------------------------------------------------------
+    def recording_for(self, case: Case) -> Path:
+        return self.path(case) if case.kind == R else self.intact
+
+    def repaired(self, case: Case) -> Path:
+        """What ``read_raw`` reads from the damaged file, written back as an intact file of
+        the same name (so that outputs naming the recording compare equal)."""
+        if case.name not in self._repaired:
+            from bpms.io.rawfile import write_raw
+            from bpms.io.recordings import open_recording
+
+            rec = open_recording(self.path(case))  # read_raw, or the legacy reader
+            where = self.folder / "repaired" / case.name
+            where.mkdir(parents=True, exist_ok=True)
+            path = where / (self.path(case).stem + ".bpmsraw")
+            write_raw(path, rec.times, rec.frames.tobytes(), rec.header)
+            self._repaired[case.name] = path
+        return self._repaired[case.name]
+
+    def run(self, command: str, case: Case, *, recording: Path | None = None,
+            tag: str = "") -> Outcome:
+        """Run ``command`` on ``case`` in this process."""
+        rec = recording or self.recording_for(case)
+        out = self.out_dir / f"{command}-{case.name}{tag}"
+        if out.exists():
+            shutil.rmtree(out)
+        out.mkdir(parents=True)
+        calib = str(self.path(case)) if case.kind == "calibration" else None
+        opts = str(self.path(case)) if case.kind == "options" else None
+        sock = None
+        if command == "replay":
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
+            sock.bind(("127.0.0.1", 0))
+        try:
+            argv = _argv(command, rec, out, calib, opts, sock)
+            outcome = run_cli(argv)
+            outcome.out_dir = out
+            if sock is not None:
+                outcome.datagrams = _drain(sock)
+        finally:
+            if sock is not None:
+                sock.close()
+        outcome.code_ran = (self.path(case).parent / MARKER).exists()
+        return outcome
+
+    def baseline(self, command: str) -> Outcome:
+        """``command`` on the intact recording, with no configuration given."""
+        if command not in self._baseline:
+            self._baseline[command] = self.run(command, BY_NAME["intact"], tag="-baseline")
+        return self._baseline[command]
+
+    def check(self, command: str, case: Case) -> Verdict:
+        """Run ``command`` on ``case`` and judge the outcome."""
+        outcome = self.run(command, case)
+        verdict = Verdict(command, case, outcome)
+        if outcome.traceback:
+            verdict.traceback = outcome.traceback.strip().splitlines()[-1]
+            return verdict
+        problems = verdict.problems
+        if outcome.code_ran:
+            problems.append("the pickle ran code (its marker file exists)")
+        expected_code = 0 if case.frames is not None else 2
+        if case.frames is not None and command in ("drift", "config", "record"):
+            expected_code = self.baseline(command).code
+        if command == "batch" and case.frames is None:
+            if not (outcome.code == 2 or re.search(r"^0 processed, 1 skipped", outcome.stdout,
+                                                   re.MULTILINE)):
+                problems.append(f"batch: exit {outcome.code} and not reported skipped")
+            return verdict
+        if outcome.code != expected_code:
+            problems.append(f"exit {outcome.code}, expected {expected_code}"
+                            + _last(outcome.stderr))
+            return verdict
+        if expected_code == 2:
+            last = outcome.stderr.strip().splitlines()[-1:] or [""]
+            name = command.split("-")[0]
+            if not last[0].startswith(f"bpms {name}: "):
+                problems.append(f"the error is not one 'bpms {name}: ...' line: {last[0]!r}")
+            return verdict
+        for text in case.warns:
+            if not any(text in line and "warning" in line.lower()
+                       for line in (outcome.stderr + outcome.stdout).splitlines()):
+                problems.append(f"no warning mentioning {text!r}")
+        if command not in ("config", "record") and case.frames is not None:
+            problems += _frames_problems(command, outcome, case.frames, self)
+            if command in ("rom", "track", "drift") and case.kind == R:
+                problems += self._same_as_repaired(command, case, outcome)
+        return verdict
+
+    def _same_as_repaired(self, command: str, case: Case, outcome: Outcome) -> list[str]:
+        other = self.run(command, case, recording=self.repaired(case), tag="-repaired")
+        if other.code != outcome.code:
+            return [f"exit {outcome.code}, but {other.code} for what read_raw reads"]
+        mine = _outputs_text(outcome)
+        theirs = _outputs_text(other)
+        if mine != theirs:
+            return ["its output differs from the output for what read_raw reads"]
+        return []
+
+
+@dataclass
+class Outcome:
+    code: int
+    stdout: str
+    stderr: str
+    traceback: str = ""
+    seconds: float = 0.0
+    out_dir: Path | None = None
+    datagrams: list[bytes] = field(default_factory=list)
+    code_ran: bool = False
+
+
+@dataclass
+class Verdict:
+    command: str
+    case: Case
+    outcome: Outcome
+    traceback: str = ""
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.traceback and not self.problems
+
+    def __str__(self) -> str:
+        what = (self.traceback and f"TRACEBACK {self.traceback}") or "; ".join(self.problems)
+        return f"{self.command} {self.case.name}: {what or 'ok'}"
+
+
+def run_cli(argv: list[str]) -> Outcome:
+    """``bpms ARGV`` in this process: exit code, output, and any uncaught exception."""
+    from bpms.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    t0 = time.perf_counter()
+    tb = ""
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse
+            code = exc.code if isinstance(exc.code, int) else 2
+        except Exception:  # a traceback: what the user would have seen
+            code = 1
+            tb = traceback.format_exc()
+    stderr = err.getvalue()
+    if not tb and "Traceback (most recent call last)" in stderr:
+        tb = stderr[stderr.index("Traceback (most recent call last)"):]
+    return Outcome(code, out.getvalue(), stderr, tb, time.perf_counter() - t0)
+
+
+def _argv(command: str, rec: Path, out: Path, calib: str | None, opts: str | None,
+          sock: socket.socket | None) -> list[str]:
+    name, _, fmt = command.partition("-")
+    extra = [*(["--calibration", calib] if calib else []), *(["--options", opts] if opts else [])]
+    if name == "filter":
+        return ["filter", str(rec), "-o", str(out / "f.csv"), "--force", *extra]
+    if name == "export":
+        target = {"matlab": "m.csv", "bvh": "m.bvh", "opensim": "os"}[fmt]
+        return ["export", fmt, str(rec), "-o", str(out / target), "--force", *extra]
+    if name == "rom":
+        return ["rom", str(rec), "-o", str(out), "--no-figures", *extra]
+    if name == "track":
+        return ["track", str(rec), "-o", str(out / "t.csv"), *extra]
+    if name == "drift":
+        return ["drift", str(rec), "-o", str(out / "d.csv"), *extra]
+    if name == "convert":
+        return ["convert", str(rec), "-o", str(out / "cv"), "--force", *extra]
+    if name == "extract":
+        cal = ["--calibrated", "--calibration", calib] if calib else []
+        return ["extract", "raw", str(rec), "--imu", "all", "-o", str(out / "x.csv"),
+                "--force", *cal]
+    if name == "batch":
+        return ["batch", str(rec.parent), "-o", str(out / "b"), "--workers", "1",
+                *(["--options", opts] if opts else [])]
+    if name == "replay":
+        assert sock is not None
+        host, port = sock.getsockname()
+        return ["replay", str(rec), "--speed", "0", "--udp", f"{host}:{port}",
+                *(["--options", opts] if opts else [])]
+    if name == "config":
+        return ["config", "show", *extra]
+    if name == "record":
+        return ["record", "--sim", "--seconds", "1", "-o", str(out), "--name", "corpus", *extra]
+    raise ValueError(f"unknown command {command!r}")
+
+
+def _drain(sock: socket.socket) -> list[bytes]:
+    sock.settimeout(0.0)
+    out = []
+    while True:
+        try:
+            out.append(sock.recv(65535))
+        except (BlockingIOError, TimeoutError):
+            return out
+
+
+def _last(text: str) -> str:
+    lines = text.strip().splitlines()
+    return f" ({lines[-1][:160]})" if lines else ""
+
+
+_COUNTS = {
+    "filter": re.compile(r": (\d+) frames filtered"),
+    "export": re.compile(r"bpms export: (\d+) frames in"),
+    "convert": re.compile(r"\((\d+) frames, "),
+    "extract": re.compile(r": (\d+) rows × "),
+    "batch": re.compile(r"\]\s.*: (\d+) frames, "),
+    "replay": re.compile(r"replaying (\d+) frames"),
+}
+
+
+def _frames_problems(command: str, outcome: Outcome, frames: int, corpus: Corpus) -> list[str]:
+    """The frame count the command reports (and, for filter, the time of every row)."""
+    name = command.split("-")[0]
+    pattern = _COUNTS.get(name)
+    problems = []
+    if pattern is not None:
+        found = pattern.findall(outcome.stdout + outcome.stderr)
+        if not found:
+            problems.append("no frame count in its output")
+        elif int(found[-1]) != frames:
+            problems.append(f"{found[-1]} frames, expected {frames}")
+    if name == "filter" and outcome.out_dir is not None:
+        times = _csv_times(outcome.out_dir / "f.csv")
+        expected = [round(k * 0.02, 6) for k in range(frames)]
+        if times != expected[:len(times)] or len(times) != frames:
+            problems.append(f"{len(times)} rows whose times are not k × 0.02 s "
+                            f"for k = 0..{frames - 1}")
+    if name == "replay":
+        raw = [g for g in outcome.datagrams if len(g) > 5 and g[5] == 1]
+        if len(raw) != frames:
+            problems.append(f"{len(raw)} RAW_FRAME datagrams, expected {frames}")
+    return problems
+
+
+def _csv_times(path: Path) -> list[float]:
+    """The time column of a filtered CSV, read with nothing but the text (docs/filtered-file.md):
+    '#' lines are the header, then the column names, then one row per frame."""
+    if not path.exists():
+        return []
+    rows = [line for line in path.read_text().splitlines() if line and not line.startswith("#")]
+    return [round(float(line.split(",", 1)[0]), 6) for line in rows[1:]]
+
+
+def _outputs_text(outcome: Outcome) -> str:
+    """Output files and stdout with paths and durations taken out (for comparison)."""
+    parts = []
+    assert outcome.out_dir is not None
+    for path in sorted(outcome.out_dir.rglob("*")):
+        if path.is_file() and path.suffix in (".csv", ".md", ".sto", ".bvh"):
+            parts.append(f"{path.relative_to(outcome.out_dir)}\n{path.read_text()}")
+    text = "\n".join(parts) + "\n" + outcome.stdout
+    text = re.sub(r"/\S+", "PATH", text)
+    return re.sub(r"\d+\.\d+ s\b", "T s", text)
+
+
+# --------------------------------------------------------------------------- the table
+
+
+@dataclass
+class Totals:
+    tried: int = 0
+    tracebacks: int = 0
+    wrong: int = 0
+    failures: list[str] = field(default_factory=list)
+
+
+def run_all(corpus: Corpus, commands: tuple[str, ...] | None = None,
+            known: Callable[[str, str], bool] | None = None) -> Totals:
+    """Every pair; ``known(command, case)``: a failure already filed elsewhere (counted, and
+    listed with a note)."""
+    totals = Totals()
+    for command, case in pairs():
+        if commands and command.split("-")[0] not in commands and command not in commands:
+            continue
+        verdict = corpus.check(command, case)
+        totals.tried += 1
+        if verdict.ok:
+            continue
+        note = " [issue 25]" if known is not None and known(command, case.name) else ""
+        if verdict.traceback:
+            totals.tracebacks += 1
+        else:
+            totals.wrong += 1
+        totals.failures.append(str(verdict) + note)
+    return totals
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--keep", metavar="DIR", help="build the corpus into DIR and keep it")
+    parser.add_argument("--only", action="append", metavar="COMMAND", help="only this command")
+    args = parser.parse_args(argv)
+    with contextlib.ExitStack() as stack:
+        folder = Path(args.keep) if args.keep else Path(stack.enter_context(
+            tempfile.TemporaryDirectory(prefix="bpms-corpus-")))
+        if args.keep and (folder / "cases").is_dir():
+            shutil.rmtree(folder)  # an earlier corpus: built anew
+        elif args.keep and folder.exists() and any(folder.iterdir()):
+            parser.error(f"{folder} is not empty (and not an earlier corpus)")
+        t0 = time.perf_counter()
+        corpus = Corpus(folder)
+        totals = run_all(corpus, tuple(args.only or ()))
+        print(f"bad inputs tried {totals.tried}, tracebacks {totals.tracebacks}, wrong outputs "
+              f"{totals.wrong} ({time.perf_counter() - t0:.1f} s)")
+        for line in totals.failures:
+            print("  " + line)
+    return 1 if totals.tracebacks or totals.wrong else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
