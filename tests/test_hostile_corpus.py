@@ -34,16 +34,7 @@ def _load_tool():
 
 tool = _load_tool()
 
-#: Pairs that fail today because the analysis commands read through filter/door.py's own
-#: reader (fixed 348-byte steps: no resynchronisation, damaged records dropped instead of
-#: kept, no error for a recording without a valid frame). Issue 25 replaces it by read_raw.
-_DOOR = ("filter", "export-matlab", "export-bvh", "export-opensim", "rom", "extract", "batch")
-_NO_FRAME = ("export-matlab", "export-bvh", "export-opensim", "track", "convert", "extract",
-             "replay")
-ISSUE_25 = frozenset(
-    {(cmd, "deleted_3_bytes") for cmd in (*_DOOR, "convert")}
-    | {(cmd, case) for case in ("inserted_5_bytes", "markers_lost_5") for cmd in _DOOR}
-    | {(cmd, case) for case in ("markers_lost_all", "random_body") for cmd in _NO_FRAME})
+ISSUE_25 = tool.ISSUE_25
 XFAIL = pytest.mark.xfail(strict=True, reason="issue 25: one reader per format")
 
 

@@ -3,21 +3,17 @@ suit's end closes right after a frame, whether the transport reports the data an
 one call or in two, over a real TCP connection (pyserial's socket://, ≥ 20 runs, since the
 loss showed in one run of five) and over a real pseudo-terminal whose other end closes.
 
-The suits here are small scripted peers, not the simulated arbiter: they stream numbered
-frames (fake_suit.frame) and close the connection at a chosen frame, so the expected frames
-are known exactly."""
+The suits here are small scripted peers (tests/fake_suit.py, tools/hostile_peers.py), not the
+simulated arbiter: they stream numbered frames and close the connection at a chosen frame, so
+the expected frames are known exactly."""
 
 from __future__ import annotations
 
-import contextlib
 import errno
-import os
-import select
-import socket
+import importlib.util
+import signal
 import subprocess
 import sys
-import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -25,7 +21,7 @@ from fake_suit import STALE, FakeClock, FakeTransport, ScriptedSuit, frame, samp
 from waiting import wait_until
 
 from bpms.firmware.sim.server import pty_available
-from bpms.io.link import DeviceGoneError, SerialTransport, SuitLink, TransportEndedError
+from bpms.io.link import DeviceGoneError, SuitLink, TransportEndedError
 from bpms.io.link_states import LinkState
 from bpms.io.options import SerialOptions
 from bpms.io.rawfile import read_raw
@@ -33,6 +29,9 @@ from bpms.pipeline.sources import SuitFrameSource
 
 pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("hostile_peers", ROOT / "tools" / "hostile_peers.py")
+peers = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(peers)
 SERIAL = SerialOptions(link_lost_after_s=1.0, discovery_timeout_s=0.5, read_timeout_s=0.05)
 
 
@@ -119,93 +118,19 @@ def test_frames_that_arrive_during_a_probe_survive_the_end():
 # --------------------------------------------------------------------------- TCP
 
 
-class ClosingSuit:
-    """A suit on 127.0.0.1 that answers 0x02 / 0x01 / 0x00 like the arbiter, streams
-    ``frames`` numbered frames (the stale one first) at 50 Hz and closes the connection right
-    after the last one, which it sends with the ``burst - 1`` before it in one write. Further
-    connections are refused (the listener is closed)."""
-
-    def __init__(self, frames: int, burst: int = 3) -> None:
-        self.frames = frames
-        self.burst = burst
-        self.listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self.listener.bind(("127.0.0.1", 0))
-        self.listener.listen(1)
-        self.url = f"socket://127.0.0.1:{self.listener.getsockname()[1]}"
-        self.done = threading.Event()
-        self.thread = threading.Thread(target=self._serve, daemon=True)
-        self.thread.start()
-
-    def _serve(self) -> None:
-        try:
-            conn, _ = self.listener.accept()
-        except OSError:
-            return
-        self.listener.close()
-        with conn:
-            while True:
-                ready, _, _ = select.select([conn], [], [], 10.0)
-                if not ready:
-                    return
-                data = conn.recv(64)
-                if not data:
-                    return
-                for byte in data:
-                    if byte == 0x02:
-                        conn.sendall(b"BPMS")
-                    elif byte == 0x01:
-                        conn.sendall(b"V3.30\n")
-                    elif byte == 0x00:
-                        self._stream(conn)
-                        return
-
-    def _stream(self, conn: socket.socket) -> None:
-        conn.sendall(frame(STALE))
-        for k in range(self.frames - self.burst):
-            time.sleep(0.02)
-            conn.sendall(frame(k))
-        time.sleep(0.02)
-        conn.sendall(b"".join(frame(k) for k in range(self.frames - self.burst, self.frames)))
-        conn.shutdown(socket.SHUT_WR)  # right after the frame: FIN follows the data
-        self.done.set()
-
-    def close(self) -> None:
-        with contextlib.suppress(OSError):
-            self.listener.close()
-        self.thread.join(5)
-
-
-def read_until_gone(source: SuitFrameSource, timeout: float = 10.0) -> list[int]:
-    got: list[int] = []
-
-    def step() -> bool:
-        got.extend(sample(e.frame) for e in source.read(0.05))
-        return source.state is LinkState.GONE
-
-    assert wait_until(step, timeout), source.status()
-    return got
-
-
 def test_a_tcp_suit_that_closes_right_after_a_frame_loses_nothing_in_20_runs():
     losses = []
     for _ in range(20):
-        suit = ClosingSuit(frames=8)
-        source = SuitFrameSource(suit.url, SERIAL, retry_s=60.0)
-        try:
-            source.connect()
-            got = read_until_gone(source)
-        finally:
-            source.close()
-            suit.close()
-        assert suit.done.is_set()
-        losses.append(8 - len(got))
+        got, state = peers.closing_tcp_run(frames=8, burst=3)
+        assert state is LinkState.GONE
         assert got == list(range(len(got)))  # in order, nothing stale or doubled
+        losses.append(8 - len(got))
     assert losses == [0] * 20
 
 
 def test_bpms_record_keeps_the_last_frames_of_a_tcp_suit_that_closes(tmp_path):
     """The field recorder as a real process: the file holds every frame sent."""
-    suit = ClosingSuit(frames=60, burst=5)
+    suit = peers.ClosingTcpSuit(frames=60, burst=5)
     proc = subprocess.Popen([sys.executable, "-m", "bpms", "record", suit.url, "-o",
                              str(tmp_path), "--name", "closing"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -219,7 +144,7 @@ def test_bpms_record_keeps_the_last_frames_of_a_tcp_suit_that_closes(tmp_path):
 
         assert wait_until(gone, 30), "".join(lines)
     finally:
-        proc.send_signal(__import__("signal").SIGINT)
+        proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
         suit.close()
     assert "Traceback" not in err
@@ -230,71 +155,11 @@ def test_bpms_record_keeps_the_last_frames_of_a_tcp_suit_that_closes(tmp_path):
 # --------------------------------------------------------------------------- pseudo-terminal
 
 
-class CountingTransport:
-    """pyserial's transport, counting the bytes the host has read (so that the suit's end can
-    close exactly when everything it wrote has been read)."""
-
-    def __init__(self, port: str, baud: int) -> None:
-        self.inner = SerialTransport(port, baud)
-        self.read_bytes = 0
-
-    def read(self, wait_s: float) -> bytes:
-        data = self.inner.read(wait_s)
-        self.read_bytes += len(data)
-        return data
-
-    def write(self, data: bytes) -> None:
-        self.inner.write(data)
-
-    def close(self, goodbye: bytes = b"") -> None:
-        self.inner.close(goodbye)
-
-
 @pytest.mark.skipif(not pty_available(), reason="this platform has no pseudo-terminals")
 def test_a_pseudo_terminal_whose_other_end_closes_after_a_frame():
-    """The suit's end of a real pty writes frames and closes as soon as the host has read the
-    last one (the kernel discards what is still unread when a pty closes, as a radio loses
-    what is in flight): every frame the host read is delivered, then the link is gone."""
-    import tty
-
+    """The suit's end of a real pty closes as soon as the host has read the last frame: every
+    frame the host read is delivered, then the link is gone (5 runs)."""
     for run in range(5):
-        master, slave = os.openpty()
-        tty.setraw(master)
-        tty.setraw(slave)
-        path = os.ttyname(slave)
-        n = 10 + run
-        opened: list[CountingTransport] = []
-
-        def opener(port: str, baud: int, opened: list = opened) -> CountingTransport:
-            opened.append(CountingTransport(port, baud))
-            return opened[-1]
-
-        def serve(master: int = master, n: int = n, opened: list = opened) -> None:
-            written = 0
-            while True:
-                ready, _, _ = select.select([master], [], [], 10.0)
-                if not ready:
-                    return
-                for byte in os.read(master, 64):
-                    reply = {0x02: b"BPMS", 0x01: b"V3.30\n"}.get(byte, b"")
-                    written += os.write(master, reply) if reply else 0
-                    if byte == 0x00:
-                        written += os.write(master, frame(STALE))
-                        for k in range(n):
-                            time.sleep(0.02)
-                            written += os.write(master, frame(k))
-                        wait_until(lambda total=written: opened[-1].read_bytes >= total, 5.0)
-                        os.close(master)  # right after the host read the last frame
-                        return
-
-        thread = threading.Thread(target=serve, daemon=True)
-        thread.start()
-        source = SuitFrameSource(path, SERIAL, retry_s=60.0, opener=opener)
-        try:
-            source.connect()
-            got = read_until_gone(source)
-        finally:
-            source.close()
-            thread.join(5)
-            os.close(slave)
-        assert got == list(range(n))
+        got, state = peers.closing_pty_run(frames=10 + run)
+        assert state is LinkState.GONE
+        assert got == list(range(10 + run))

@@ -150,6 +150,20 @@ RECORD_CASES = ("calib_gravity_tiny", "calib_random", "calib_empty", "calib_dire
 PAIRS_NOT_APPLICABLE: frozenset[tuple[str, str]] = frozenset({("config", "calib_json_nested")})
 
 
+#: Pairs that fail today because the analysis commands read ``.bpmsraw`` through
+#: filter/door.py's own reader (fixed 348-byte steps: no resynchronisation, damaged records
+#: dropped instead of kept, no error for a recording without a valid frame). Issue 25 replaces
+#: it by the one reader; then each pair passes, and must leave this set (the test marks them
+#: ``xfail(strict=True)``).
+_DOOR = ("filter", "export-matlab", "export-bvh", "export-opensim", "rom", "extract", "batch")
+_NO_FRAME = ("export-matlab", "export-bvh", "export-opensim", "track", "convert", "extract",
+             "replay")
+ISSUE_25: frozenset[tuple[str, str]] = frozenset(
+    {(cmd, "deleted_3_bytes") for cmd in (*_DOOR, "convert")}
+    | {(cmd, case) for case in ("inserted_5_bytes", "markers_lost_5") for cmd in _DOOR}
+    | {(cmd, case) for case in ("markers_lost_all", "random_body") for cmd in _NO_FRAME})
+
+
 def pairs() -> list[tuple[str, Case]]:
     """Every (command, case) pair the corpus runs."""
     out = [(cmd, c) for c in RECORDING_CASES for cmd in RECORDING_COMMANDS]
@@ -720,13 +734,13 @@ class Totals:
     tried: int = 0
     tracebacks: int = 0
     wrong: int = 0
+    known: int = 0  # of the failures: ISSUE_25 pairs
     failures: list[str] = field(default_factory=list)
 
 
-def run_all(corpus: Corpus, commands: tuple[str, ...] | None = None,
-            known: Callable[[str, str], bool] | None = None) -> Totals:
-    """Every pair; ``known(command, case)``: a failure already filed elsewhere (counted, and
-    listed with a note)."""
+def run_all(corpus: Corpus, commands: tuple[str, ...] | None = None) -> Totals:
+    """Every pair (or those of ``commands``); failures of :data:`ISSUE_25` pairs are counted
+    and listed with a note."""
     totals = Totals()
     for command, case in pairs():
         if commands and command.split("-")[0] not in commands and command not in commands:
@@ -735,7 +749,10 @@ def run_all(corpus: Corpus, commands: tuple[str, ...] | None = None,
         totals.tried += 1
         if verdict.ok:
             continue
-        note = " [issue 25]" if known is not None and known(command, case.name) else ""
+        note = ""
+        if (command, case.name) in ISSUE_25:
+            note = " [issue 25]"
+            totals.known += 1
         if verdict.traceback:
             totals.tracebacks += 1
         else:
@@ -760,10 +777,11 @@ def main(argv: list[str] | None = None) -> int:
         corpus = Corpus(folder)
         totals = run_all(corpus, tuple(args.only or ()))
         print(f"bad inputs tried {totals.tried}, tracebacks {totals.tracebacks}, wrong outputs "
-              f"{totals.wrong} ({time.perf_counter() - t0:.1f} s)")
+              f"{totals.wrong} ({totals.known} of them issue 25's; "
+              f"{time.perf_counter() - t0:.1f} s)")
         for line in totals.failures:
             print("  " + line)
-    return 1 if totals.tracebacks or totals.wrong else 0
+    return 1 if totals.tracebacks or totals.wrong > totals.known else 0
 
 
 if __name__ == "__main__":
