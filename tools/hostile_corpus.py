@@ -140,7 +140,7 @@ CONFIG_COMMANDS = {
     "filter": (True, True), "export-matlab": (True, True), "rom": (True, True),
     "track": (True, True), "drift": (True, True), "convert": (True, True),
     "extract": (True, False), "batch": (False, True), "replay": (False, True),
-    "config": (True, True), "record": (True, True),
+    "config": (True, True), "record": (True, True), "calibrate": (True, False),
 }
 #: ``bpms record --sim`` runs a live session for a second: one configuration per damage class.
 RECORD_CASES = ("calib_gravity_tiny", "calib_random", "calib_empty", "calib_directory",
@@ -534,6 +534,8 @@ class Corpus:
         expected_code = 0 if case.frames is not None else 2
         if case.frames is not None and command in ("drift", "config", "record"):
             expected_code = self.baseline(command).code
+        if command == "calibrate" and case.name == "calib_directory":
+            expected_code = 2  # --existing must name a file: refused in one line
         if command == "batch" and case.frames is None:
             if not (outcome.code == 2 or re.search(r"^0 processed, 1 skipped", outcome.stdout,
                                                    re.MULTILINE)):
@@ -553,7 +555,7 @@ class Corpus:
             if not any(text in line and "warning" in line.lower()
                        for line in (outcome.stderr + outcome.stdout).splitlines()):
                 problems.append(f"no warning mentioning {text!r}")
-        if command not in ("config", "record") and case.frames is not None:
+        if command not in ("config", "record", "calibrate") and case.frames is not None:
             problems += _frames_problems(command, outcome, case.frames, self)
             if command in ("rom", "track", "drift") and case.kind == R:
                 problems += self._same_as_repaired(command, case, outcome)
@@ -651,6 +653,9 @@ def _argv(command: str, rec: Path, out: Path, calib: str | None, opts: str | Non
                 *(["--options", opts] if opts else [])]
     if name == "config":
         return ["config", "show", *extra]
+    if name == "calibrate":  # a gyro calibration of the simulated suit merged into the file
+        return ["calibrate", "--sim", "--sim-speed", "0", "--sensor", "gyro", "--gyro-samples",
+                "50", "--yes", "--existing", str(calib), "-o", str(out / "Calib.cfg")]
     if name == "record":
         return ["record", "--sim", "--seconds", "1", "-o", str(out), "--name", "corpus", *extra]
     raise ValueError(f"unknown command {command!r}")
