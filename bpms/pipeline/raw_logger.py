@@ -10,10 +10,10 @@ the writing for good; the error stays in :class:`RecordingStatus`-like ``status.
 logging stops, later frames are counted as lost, and at the end ``status.raw_on_disk`` says
 what a reader will find in the file.
 
-Disk space goes to the raw file first: with a :class:`bpms.pipeline.disk_reserve.DiskReserve`
-the logger checks the free space five times a second, and when it falls below the reserve it sets
-``status.filtered_stopped``: the session then stops the filtered file; the raw file goes on
-until the disk is full.
+Disk space goes to the raw file first: with a reserve (seconds of raw data,
+:class:`bpms.pipeline.disk_reserve.DiskReserve`) the logger checks the free space five times
+a second, and when it falls below the reserve it sets ``status.filtered_stopped``: the session
+then stops the filtered file; the raw file goes on until the disk is full.
 """
 
 from __future__ import annotations
@@ -35,16 +35,17 @@ class RawLogger(threading.Thread):
     """Writes raw records from :attr:`queue` until :meth:`stop` (or :data:`STOP` is put and
     the next batch is due). ``status`` gets ``raw_received``, ``raw_records``,
     ``raw_on_disk``, ``raw_lost``, ``raw_bytes``, ``error`` and ``filtered_stopped``;
-    ``on_error(message)`` is called once, when the writing fails. With a ``reserve``,
-    ``filtered_stopped`` is set (to the reason) once the free space falls below it."""
+    ``on_error(message)`` is called once, when the writing fails. With ``reserve_s`` (seconds
+    of raw data, :class:`DiskReserve`), ``filtered_stopped`` is set (to the reason) once the
+    free space falls below it."""
 
     def __init__(self, writer: RawWriter, status: Any, on_error: Callable[[str], None],
-                 reserve: DiskReserve | None = None) -> None:
+                 reserve_s: float = 0.0) -> None:
         super().__init__(name="bpms-raw-logger", daemon=True)
         self.writer = writer
         self.status = status
         self.on_error = on_error
-        self.reserve = reserve
+        self.reserve = DiskReserve(writer.path.parent, reserve_s) if reserve_s > 0 else None
         self.queue: queue.SimpleQueue[FrameEvent | object] = queue.SimpleQueue()
         self._wake = threading.Event()
         # a fifth of the flush interval at most: flush_if_due flushes at 0.8 of it

@@ -33,13 +33,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpms.io.events import FrameEvent, FrameSource, SourceStatus
-from bpms.io.filtered_file import FilteredWriter
+from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import FRAME_PERIOD_S, decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
-from bpms.io.udp import UdpForwarder, shared_key
-from bpms.pipeline.disk_reserve import DiskReserve
+from bpms.io.udp.auth import shared_key
+from bpms.io.udp.sender import UdpForwarder
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
@@ -287,8 +287,7 @@ class LiveSession:
                                 options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description)
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
-            logger = RawLogger(writer, status, self.note, DiskReserve(
-                raw_path.parent, self.options.logging.disk_reserve_s))
+            logger = RawLogger(writer, status, self.note, self.options.logging.disk_reserve_s)
             logger.start()
             status.raw_path = raw_path
             self._raw_logger = logger
