@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.rawfile import read_raw
 
 pytestmark = pytest.mark.timeout(120)

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from bpms.analysis.binary_out import SUFFIX, MissingPackageError, check_available
     from bpms.analysis.source import stderr_progress
     from bpms.analysis.stream_export import export_recording
-    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
 
     t0 = time.perf_counter()
