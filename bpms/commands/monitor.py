@@ -187,12 +187,14 @@ def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
 
 
 def udp_status_line(elapsed: float, rate: float, frames: int, status: SourceStatus) -> str:
-    """One status line of a UDP stream: counters, then the state and "another sender"."""
+    """One status line of a UDP stream: counters, then the state and the warnings (another
+    sender on this port or on this session, a sender that took over)."""
     c = status.counters
     line = (f"t {elapsed:6.1f} s  rate {rate:5.1f} Hz  frames {frames:7d}  lost {c['lost']}  "
             f"duplicated {c['duplicated']}  reordered {c['reordered']}  "
             f"malformed {c['malformed']}  foreign {c['foreign']}  "
-            f"unauthenticated {c['unauthenticated']}  {status.state}")
+            f"unauthenticated {c['unauthenticated']}  replayed {c['replayed']}  "
+            f"implausible {c['implausible']}  conflicts {c['conflicts']}  {status.state}")
     if status.warning:
         line += f"  WARNING: {status.warning}"
     return line
@@ -206,8 +208,9 @@ def _monitor_udp(args: argparse.Namespace) -> int:
         from bpms.io.defaults import default_options
         from bpms.io.udp.auth import shared_key
 
-        source = UdpFrameSource(args.listen,
-                                key=shared_key(default_options(announce=False).udp.key_file))
+        udp = default_options(announce=False).udp
+        source = UdpFrameSource(args.listen, key=shared_key(udp.key_file),
+                                takeover_after_s=udp.takeover_after_s)
     except (UdpConfigError, OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
     signal.signal(signal.SIGTERM, _sigterm)

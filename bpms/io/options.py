@@ -96,7 +96,9 @@ VALID_RANGES: dict[str, dict[str, Range]] = {
         "read_timeout_s": Range(0.001, 10.0),
         "link_lost_after_s": Range(0.1, 600.0),
     },
-    "udp": {"multicast_ttl": Range(0, 255)},
+    "udp": {"multicast_ttl": Range(0, 255),
+            "takeover_after_s": Range(1.0, 3600.0, why="a pause of the sender followed "
+                                      "shorter than this never hands the receiver over")},
     "logging": {"flush_interval_s": Range(0.05, 60.0, why="data on disk within a minute "
                                                       "at the latest"),
                 "disk_reserve_s": Range(0.0, 1e8, why="seconds of raw data (17.4 kB/s); 1e8 s "
@@ -230,6 +232,9 @@ class UdpOptions:
     key_file: str = _opt("", "file holding the shared UDP key that signs and checks every "
                          "datagram (docs/udp.md); empty = no key; the BPMS_UDP_KEY "
                          "environment variable wins")
+    takeover_after_s: float = _opt(
+        5.0, "UDP client: another sender takes over only after the one followed has been "
+        "silent this long, s, and then only after 25 consecutive datagrams (docs/udp.md)")
 
 
 @dataclass
