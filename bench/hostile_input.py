@@ -9,7 +9,11 @@ The figures table (issue 26), each figure beside a reference measured in the sam
 - bad inputs: the hostile-input corpus (tools/hostile_corpus.py) through every command that
   reads a recording or a configuration: inputs tried, tracebacks, wrong outputs (those that
   issue 25's one reader per format will fix are counted apart); reference: the intact control
-  recording through the same commands.
+  recording through the same commands;
+- datagrams: the UDP attacks of tools/hostile_peers.py (one datagram during a pause, a replayed
+  signed run, a spoofer on the real session, floods, fuzz) against a real receiver, with and
+  without a shared key: datagrams forged, forged frames accepted; reference: the real sender's
+  frames delivered.
 
 ``--quick`` skips the cost section. Then the cost of hostile input:
 
@@ -66,7 +70,8 @@ def legacy() -> None:
 
 def udp() -> None:
     n = 20_000
-    for label, step in (("in order (reference)", 1), ("jump of 40,000", 40_000)):
+    for label, step in (("in order (reference)", 1), ("gaps of 2,999 (plausible)", 3000),
+                        ("jumps of 40,000 (held)", 40_000)):
         t = SequenceTracker()
         seq = 0
         start = time.perf_counter()
@@ -124,9 +129,26 @@ def bad_inputs() -> tuple[str, str]:
             f"({totals.known} of them issue 25's)", f"control {ok}/{len(control)} correct")
 
 
+def datagrams() -> list[tuple[str, str, str]]:
+    peers = _tool("hostile_peers")
+    results = peers.udp_attacks()
+    for r in results:
+        print(f"  {r.name}: forged {r.forged}, accepted {r.accepted}; real frames "
+              f"{r.real_delivered}/{r.real_sent}; {r.detected}")
+    rows = []
+    for keyed, label in ((True, "with a key"), (False, "without a key")):
+        mine = [r for r in results if ("(key)" in r.name) == keyed]
+        rows.append((f"datagrams forged / accepted, {label}",
+                     f"{sum(r.forged for r in mine)} / {sum(r.accepted for r in mine)}",
+                     f"real frames delivered {sum(r.real_delivered for r in mine)}/"
+                     f"{sum(r.real_sent for r in mine)}"))
+    return rows
+
+
 def figures() -> None:
     rows = [("link faults tried / survived / frames lost", *link_faults()),
-            ("bad inputs tried / tracebacks / wrong outputs", *bad_inputs())]
+            ("bad inputs tried / tracebacks / wrong outputs", *bad_inputs()),
+            *datagrams()]
     width = max(len(r[0]) for r in rows)
     print(f"{'figure':<{width}}  value  (reference)")
     for name, value, reference in rows:

@@ -60,6 +60,7 @@ def send_at_50_hz(fw: UdpForwarder, frames: list[bytes], first_index: int = 0) -
 def capture_earlier_run(frames: list[bytes], key: bytes) -> list[bytes]:
     """Signed datagrams of an earlier run with the same key, as an eavesdropper records them."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as cap:
+        cap.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
         cap.bind(("127.0.0.1", 0))
         cap.settimeout(5.0)
         with UdpForwarder([f"127.0.0.1:{cap.getsockname()[1]}"], key=key) as earlier:
