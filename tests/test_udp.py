@@ -22,6 +22,7 @@ from hypothesis.extra.numpy import arrays
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.io.frames import FRAME_SIZE, encode_frame
 from bpms.io.udp.addresses import UdpConfigError, parse_address
+from bpms.io.udp.auth import sign_datagram
 from bpms.io.udp.codec import (
     HEADER_SIZE,
     HEADER_V3_SIZE,
@@ -32,6 +33,7 @@ from bpms.io.udp.codec import (
     decode_datagram,
     encode_header,
     encode_pose,
+    encode_pose_extensions,
     encode_raw_frame,
 )
 from bpms.io.udp.receiver import UdpSource
@@ -600,5 +602,18 @@ def test_docs_third_party_reader_agrees_with_the_codec():
     assert np.allclose(msg["quaternions"], q, atol=1e-6)
     assert np.allclose(msg["angles"], angles, atol=1e-6)
     assert JOINT_ANGLE_NAMES[2] == "knee_r.flexion"  # the example prints angles[2] as knee_r
+    # every version it claims: version 1, a signed version 3 (the tag skipped), and a POSE
+    # with extension blocks after its angles
+    msg = parse(encode_raw_frame(frame, session=4, seq=78, suit_time=1.56, send_time=9.0,
+                                 version=1))
+    assert msg["version"] == 1 and np.array_equal(np.array(msg["imus"]), raw)
+    msg = parse(sign_datagram(encode_raw_frame(frame, session=4, seq=79, suit_time=1.58,
+                                               send_time=9.0, sender=5, epoch=6), b"k"))
+    assert (msg["version"], msg["sender"], msg["epoch"]) == (3, 5, 6)
+    assert np.array_equal(np.array(msg["imus"]), raw)
+    blocks = encode_pose_extensions(np.zeros((21, 3)), "isb")
+    msg = parse(encode_pose(q, angles, session=4, seq=4, suit_time=0.52, send_time=9.0)
+                + blocks)
+    assert np.allclose(msg["angles"], angles, atol=1e-6)
     for bad in random_bad_datagrams(300, seed=3):
         assert parse(bad) is None or bad[5] == 2  # its POSE checks are lighter than ours
