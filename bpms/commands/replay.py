@@ -101,10 +101,9 @@ def run(args: argparse.Namespace) -> int:
     source.seek(seconds=args.start_s)
     session = LiveSession(source, options, processor)
     bridges: list = []
-    forwarder = None
     try:
         if args.udp:
-            forwarder = session.start_forwarding(args.udp)
+            session.start_forwarding(args.udp)
         period = FRAME_PERIOD_S / args.speed if args.speed else FRAME_PERIOD_S
         bridges = start_streams(session, args.lsl, args.mvn, period)
     except (UdpConfigError, ValueError, OSError) as exc:
@@ -128,11 +127,10 @@ def run(args: argparse.Namespace) -> int:
             done = source.ended and status.processed >= status.frames
             now = time.monotonic()
             if now - last >= 1.0 or done:
-                refused = forwarder.stats.refused if forwarder is not None else 0
                 print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
                       f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
-                      f"send errors {status.forward_errors}  no listener {refused}",
-                      flush=True)
+                      f"send errors {status.forward_errors}  "
+                      f"no listener {status.forward_refused}", flush=True)
                 last = now
             if done:
                 if not args.loop:
