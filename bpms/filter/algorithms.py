@@ -31,8 +31,8 @@ import numpy as np
 from bpms.filter.bank import BankOutput, MahonyBank
 from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
-from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
-from bpms.filter.vqf_filter import VqfFilters
+from bpms.filter.rotations import dcm_to_euler
+from bpms.filter.vqf_filter import VqfFilters, ned_dcm_of_enu
 from bpms.io.options import FilterOptions
 
 ALGORITHMS = ("mahony", "observer", "vqf", "adaptive")
@@ -232,18 +232,18 @@ class VqfBank(_PhysicalBank):
 
     def _fill(self, i: int, data: tuple[np.ndarray, ...], err: np.ndarray | None
               ) -> tuple[list[np.ndarray], np.ndarray]:
-        """Forward-fill failed samples of IMU ``i`` with the last good value; valid mask."""
+        """IMU ``i``'s inputs (``data``: its ``[N, 3]`` accel, mag, gyro) with failed samples
+        forward-filled by the last good value; the valid mask ``[N]``."""
         n = data[0].shape[0]
         filled = []
         valid = np.ones(n, dtype=np.bool_)
-        for s, arr in enumerate(data):
-            x = arr[:, i]
+        for s, x in enumerate(data):
             if err is not None and err[:, i, s].any():
                 good = ~err[:, i, s]
                 valid &= good
                 idx = np.maximum.accumulate(np.where(good, np.arange(n), -1))
                 x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self._held[i, s])
-            filled.append(np.ascontiguousarray(x))
+            filled.append(x)
             if n:
                 self._held[i, s] = x[-1]
         return filled, valid
@@ -252,14 +252,16 @@ class VqfBank(_PhysicalBank):
                 errors: np.ndarray | None = None,
                 resets: np.ndarray | None = None) -> BankOutput:
         """Filter N frames (VQF's batch API per IMU and per run between resets)."""
-        data = self.physical(acc, mag, gyr)
-        n = data[0].shape[0]
+        n = len(acc)
+        # each IMU's samples contiguous: [n, N, 3] per sensor
+        per_imu = [np.ascontiguousarray(np.swapaxes(x, 0, 1))
+                   for x in self.physical(acc, mag, gyr)]
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
         rs = self._resets(n, resets)
-        q = np.full((n, self.n, 4), np.nan)
+        q = np.full((4, n, self.n), np.nan)  # body → ENU (VQF's own frame), by component
         bias = np.full((n, self.n, 3), np.nan)
         for i in range(self.n):
-            (f, m, g), valid = self._fill(i, data, err)
+            (f, m, g), valid = self._fill(i, tuple(x[i] for x in per_imu), err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
             for a, b in pairwise(cuts):
                 if b <= a:
@@ -279,20 +281,11 @@ class VqfBank(_PhysicalBank):
                     first = start
                 if err is not None:
                     self._held_count[i] += err[first:b, i].sum(axis=0)
-                q[start:b, i] = self.vqf.process_imu(i, f[start:b], m[start:b], g[start:b])
-                bias[start:b, i] = self.vqf.last_bias
-        out = _outputs(q)
-        out.gyro_bias = bias
-        return out
-
-
-def _outputs(q: np.ndarray) -> BankOutput:
-    """Quaternions ``[N, n, 4]`` (NaN rows allowed) → DCM and Euler."""
-    R = np.full((*q.shape[:-1], 3, 3), np.nan)
-    ok = np.isfinite(q).all(axis=-1)
-    if ok.any():
-        R[ok] = quaternion_to_dcm(q[ok])
-    return BankOutput(R, dcm_to_euler(R))
+                quat, bias[start:b, i] = self.vqf.process_imu(
+                    i, f[start:b], m[start:b], g[start:b])
+                q[:, start:b, i] = quat.T
+        R = ned_dcm_of_enu(*q)
+        return BankOutput(R, dcm_to_euler(R), gyro_bias=bias)
 
 
 __all__ = ["ALGORITHMS", "AdaptiveBank", "AttitudeBank", "ObserverBank", "VqfBank",
