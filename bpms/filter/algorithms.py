@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bpms.filter.bank import BankOutput, MahonyBank
+from bpms.filter.bank import BankOutput, FilterBank, MahonyBank
 from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
 from bpms.filter.rotations import dcm_to_euler
@@ -51,15 +51,16 @@ class AttitudeBank(Protocol):
 
     def reset(self, imu: int | None = None) -> None: ...
 
+    def snapshot(self) -> object: ...
+
+    def restore(self, snap: object) -> None: ...
+
     def set_gains(self, **gains: float) -> None: ...
 
     def set_options(self, options: FilterOptions) -> None:
         """Run with ``options`` (every filter's settings) from the next frame on; the
         processor's single way to change settings (it keeps ``options`` itself)."""
         ...
-
-    @property
-    def initialised(self) -> np.ndarray: ...
 
     @property
     def held_count(self) -> np.ndarray: ...
@@ -104,14 +105,12 @@ def adaptive_gains(options: FilterOptions) -> ObserverGains:
         trapezoid=ADAPTIVE["trapezoid"])
 
 
-class _PhysicalBank:
-    """Common parts of the non-Mahony banks: options, unit conversion, pending resets."""
+class _PhysicalBank(FilterBank):
+    """Common parts of the non-Mahony banks: their options and the unit conversion."""
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None) -> None:
-        self.gravity = np.ascontiguousarray(gravity, dtype=np.float64)
-        self.n = len(self.gravity)
+        super().__init__(gravity)
         self.options = dataclasses.replace(options or FilterOptions())
-        self._pending_reset = np.zeros(self.n, dtype=np.bool_)
         self._acc_factor = (-G_MS2 / self.gravity)[:, None]
 
     def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray
@@ -136,23 +135,6 @@ class _PhysicalBank:
     def _apply_options(self) -> None:  # pragma: no cover - overridden
         pass
 
-    def reset(self, imu: int | None = None) -> None:
-        """Re-initialise IMU ``imu`` (all when None) at its next valid frame."""
-        if imu is None:
-            self._pending_reset[:] = True
-        else:
-            self._pending_reset[imu] = True
-
-    def _resets(self, n: int, resets: np.ndarray | None) -> np.ndarray:
-        if resets is None and not self._pending_reset.any():
-            return np.zeros((0, self.n), np.bool_)
-        rs = (np.zeros((n, self.n), np.bool_) if resets is None
-              else np.array(resets, dtype=np.bool_))
-        if n:
-            rs[0] |= self._pending_reset
-            self._pending_reset[:] = False
-        return rs
-
 
 class ObserverBank(_PhysicalBank):
     """The quaternion observer (:mod:`bpms.filter.observer`) for ``n`` IMUs, with the
@@ -169,14 +151,6 @@ class ObserverBank(_PhysicalBank):
 
     def _apply_options(self) -> None:
         self.params = self.gains_from(self.options).params()
-
-    @property
-    def initialised(self) -> np.ndarray:
-        return self.state.initialised.copy()
-
-    @property
-    def held_count(self) -> np.ndarray:
-        return self.state.held_count.copy()
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None,
@@ -223,12 +197,21 @@ class VqfBank(_PhysicalBank):
             self.vqf.set_time_constants(o.vqf_tau_acc_s, o.vqf_tau_mag_s)
 
     @property
-    def initialised(self) -> np.ndarray:
-        return self._init.copy()
-
-    @property
     def held_count(self) -> np.ndarray:
         return self._held_count.copy()
+
+    def snapshot(self) -> tuple:
+        """A copy of every VQF filter's state and the hold bookkeeping."""
+        return ([{k: np.copy(v) for k, v in f.state.items()} for f in self.vqf.filters],
+                self._pending_reset.copy(), self._init.copy(), self._held.copy(),
+                self._held_count.copy())
+
+    def restore(self, snap: tuple) -> None:
+        states, pending, init, held, held_count = snap
+        for flt, state in zip(self.vqf.filters, states, strict=True):
+            flt.state = state
+        self._pending_reset[:], self._init[:] = pending, init
+        self._held[:], self._held_count[:] = held, held_count
 
     def _fill(self, i: int, data: tuple[np.ndarray, ...], err: np.ndarray | None
               ) -> tuple[list[np.ndarray], np.ndarray]:
