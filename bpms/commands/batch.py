@@ -80,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
                  else f"{outcome.frames} frames, {outcome.seconds:.1f} s")
         print(f"[{done}/{total}] {outcome.job.subject}/{outcome.job.trial}: {state}",
               flush=True)
+        for problem in outcome.problems:
+            print(f"bpms batch: warning: {problem}", file=sys.stderr, flush=True)
 
     outcomes = run_batch(jobs, out, outputs, workers, args.options, progress,
                          reset_zero=args.reset_zero)

@@ -72,6 +72,8 @@ def _opened(path: str, options_path: str | None, reset_zero):
     if not opened.has_raw:
         raise CliError(f"{path}: a filtered file; give a raw recording")
     print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
+    for problem in opened.problems:
+        print(f"bpms replay: warning: {problem}", file=sys.stderr)
     return opened
 
 
@@ -135,7 +137,8 @@ def run(args: argparse.Namespace) -> int:
             if now - last >= 1.0 or done:
                 print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
                       f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
-                      f"send errors {status.forward_errors}", flush=True)
+                      f"send errors {status.forward_errors}  "
+                      f"no listener {status.forward_refused}", flush=True)
                 last = now
             if done:
                 if not args.loop:

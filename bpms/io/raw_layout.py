@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from bpms.io.bounded import MAX_HEADER_BYTES, BoundError, check_size, loads_json
 from bpms.io.frames import FRAME_DTYPE, FRAME_SIZE
 from bpms.io.session_events import SessionEvent
 
@@ -88,13 +89,19 @@ def read_preamble(path: str | Path) -> tuple[dict[str, Any], int, int]:
                 raise RawFileError(
                     f"{path}: raw format version {version} is newer than this software "
                     f"({FORMAT_VERSION}); update BPMS Suite")
+            try:  # bounded before anything is read or parsed (bpms/io/bounded.py)
+                check_size(length, MAX_HEADER_BYTES, "the header")
+            except BoundError as exc:
+                raise RawFileError(f"{path}: {exc}") from None
             text = f.read(length)
     except OSError as exc:
         raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from exc
     if len(text) < length:
         raise RawFileError(f"{path}: the header is cut short ({len(text)} of {length} bytes)")
     try:
-        header = json.loads(text.decode("utf-8"))
+        header = loads_json(text.decode("utf-8"), "the header")
+    except BoundError as exc:
+        raise RawFileError(f"{path}: {exc}") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise RawFileError(f"{path}: the header is damaged ({exc})") from exc
     if not isinstance(header, dict):

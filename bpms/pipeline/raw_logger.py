@@ -12,6 +12,11 @@ A write error (disk full, folder gone, device removed) stops the writing for goo
 stays in :class:`RecordingStatus`-like ``status.error`` until logging stops, later frames are
 counted as lost, and at the end ``status.raw_on_disk`` says what a reader will find in the
 file.
+
+Disk space goes to the raw file first: with a reserve (seconds of raw data,
+:class:`bpms.pipeline.disk_reserve.DiskReserve`) the logger checks the free space five times
+a second, and when it falls below the reserve it sets ``status.filtered_stopped``: the session
+then stops the filtered file; the raw file goes on until the disk is full.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from typing import Any
 from bpms.io.events import FrameEvent
 from bpms.io.rawfile import RawWriter, RecordingError
 from bpms.io.session_events import SessionEvent
+from bpms.pipeline.disk_reserve import DiskReserve
 
 STOP = object()
 BATCH_S = 0.1  # longest wait between two batches of records, s
@@ -65,14 +71,18 @@ class SlotMap:
 class RawLogger(threading.Thread):
     """Writes raw records from :attr:`queue` until :meth:`stop` (or :data:`STOP` is put and
     the next batch is due). ``status`` gets ``raw_received``, ``raw_records``,
-    ``raw_on_disk``, ``raw_lost``, ``raw_bytes`` and ``error``; ``on_error(message)`` is
-    called once, when the writing fails."""
+    ``raw_on_disk``, ``raw_lost``, ``raw_bytes``, ``error`` and ``filtered_stopped``;
+    ``on_error(message)`` is called once, when the writing fails. With ``reserve_s`` (seconds
+    of raw data, :class:`DiskReserve`), ``filtered_stopped`` is set (to the reason) once the
+    free space falls below it."""
 
-    def __init__(self, writer: RawWriter, status: Any, on_error: Callable[[str], None]) -> None:
+    def __init__(self, writer: RawWriter, status: Any, on_error: Callable[[str], None],
+                 reserve_s: float = 0.0) -> None:
         super().__init__(name="bpms-raw-logger", daemon=True)
         self.writer = writer
         self.status = status
         self.on_error = on_error
+        self.reserve = DiskReserve(writer.path.parent, reserve_s) if reserve_s > 0 else None
         self.queue: queue.SimpleQueue[FrameEvent | SessionEvent | object] = queue.SimpleQueue()
         self.slots = SlotMap()
         self._wake = threading.Event()
@@ -109,6 +119,12 @@ class RawLogger(threading.Thread):
             if isinstance(exc, RecordingError):
                 self._failed(exc)
 
+    def _check_space(self) -> None:
+        reserve = self.reserve
+        if reserve is None or self.status.filtered_stopped or not reserve.low():
+            return
+        self.status.filtered_stopped = reserve.reason
+
     def run(self) -> None:
         writer, status, items = self.writer, self.status, self.queue
         try:
@@ -136,6 +152,7 @@ class RawLogger(threading.Thread):
                 status.raw_records = writer.records
                 status.raw_bytes = writer.size_bytes
                 status.raw_on_disk = writer.synced_records
+                self._check_space()
         finally:
             try:
                 writer.close()
