@@ -4,10 +4,8 @@ that runs code. The commands run in this interpreter (one corpus, built once); a
 real processes too (the nested and the 200 MB header).
 
 The corpus expects the one reader of each format (issue 25): frame counts equal to
-``read_raw``'s, and exit 2 for a recording with no valid frame. The analysis commands still
-read ``.bpmsraw`` through a second reader that never resynchronises; exactly the pairs that
-fail for that reason are marked ``xfail(strict=True)``, so each turns into a failure the day
-issue 25 lands, and its mark must then go."""
+``read_raw``'s, and exit 2 for a recording with no valid frame; every door reads ``.bpmsraw``
+through it (bpms/io/raw_reader.py)."""
 
 from __future__ import annotations
 
@@ -34,16 +32,9 @@ def _load_tool():
 
 tool = _load_tool()
 
-ISSUE_25 = tool.ISSUE_25
-XFAIL = pytest.mark.xfail(strict=True, reason="issue 25: one reader per format")
-
-
 def _params():
-    out = []
-    for command, case in tool.pairs():
-        marks = [XFAIL] if (command, case.name) in ISSUE_25 else []
-        out.append(pytest.param(command, case.name, marks=marks, id=f"{command}-{case.name}"))
-    return out
+    return [pytest.param(command, case.name, id=f"{command}-{case.name}")
+            for command, case in tool.pairs()]
 
 
 @pytest.fixture(scope="module")

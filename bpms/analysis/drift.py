@@ -74,18 +74,20 @@ def still_periods(acc: np.ndarray, gyr: np.ndarray, gravity: np.ndarray, dt: flo
                   settings: DriftSettings | None = None) -> list[tuple[int, int]]:
     """Still periods ``[(first, last), ...]`` (frame indices, inclusive) of the whole body.
     acc ``[N, n, 3]`` in units of ``gravity[n]`` per g, gyr ``[N, n, 3]`` rad/s, valid
-    ``[N, n]`` bool (False: a failed sensor, ignored)."""
+    ``[N, n]`` bool (False: a failed sensor, ignored). A frame with no valid sensor at all (a
+    damaged slot of the recording) does not end a still period, nor make one."""
     s = settings or DriftSettings()
     w = _smooth(np.linalg.norm(gyr, axis=-1), max(1, round(s.smooth_s / dt)))
     a = np.abs(np.linalg.norm(acc, axis=-1) / gravity - 1.0)
     ok = np.ones(w.shape, bool) if valid is None else np.asarray(valid, bool)
     quiet = (w < s.rate_th) & (a < s.acc_th_g) & ok
     frac = quiet.sum(axis=1) / np.maximum(ok.sum(axis=1), 1)
-    still = frac >= s.still_fraction - 1e-9
+    unknown = ~ok.any(axis=1)
+    still = (frac >= s.still_fraction - 1e-9) | unknown
     edges = np.flatnonzero(np.diff(np.r_[0, still.astype(int), 0]))
     min_n = round(s.min_still_s / dt)
     return [(int(a0), int(b0) - 1) for a0, b0 in zip(edges[::2], edges[1::2], strict=True)
-            if b0 - a0 >= min_n]
+            if b0 - a0 >= min_n and not unknown[a0:b0].all()]
 
 
 def _angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
