@@ -18,6 +18,8 @@ NAMES = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Disturbance
 if len(sys.argv) > 3:  # a third argument: the stream names, comma-separated
     NAMES = tuple(sys.argv[3].split(","))
 DATA_NAMES = [n for n in NAMES if n != "BPMS Events"]
+#: a fourth argument: the data streams whose every sample is printed (comma-separated)
+KEEP_ALL = set(sys.argv[4].split(",")) if len(sys.argv) > 4 else set()
 
 
 def channel_labels(info) -> list[str]:
@@ -73,8 +75,8 @@ def main() -> None:
             data[name]["stamps"] += stamps
             if name == "BPMS Events":
                 data[name]["values"] += [s[0] for s in samples]
-            elif name == "BPMS Disturbance":
-                data[name]["values"] += samples  # every sample (36 small integers)
+            elif name == "BPMS Disturbance" or name in KEEP_ALL:
+                data[name]["values"] += samples  # every sample
             elif samples:
                 data[name]["values"] = samples[-1][:8]  # the last sample's first channels
         if all(len(data[n]["stamps"]) >= frames for n in DATA_NAMES if n in data):

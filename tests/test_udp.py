@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
+from bpms.filter.rotations import euler_to_dcm
 from bpms.io.frames import FRAME_SIZE, encode_frame
 from bpms.io.udp.addresses import UdpConfigError, parse_address
 from bpms.io.udp.auth import sign_datagram
@@ -30,11 +31,13 @@ from bpms.io.udp.codec import (
     SEQ_MOD,
     DatagramError,
     MessageType,
+    ZeroMessage,
     decode_datagram,
     encode_header,
     encode_pose,
     encode_pose_extensions,
     encode_raw_frame,
+    encode_zero,
 )
 from bpms.io.udp.receiver import UdpSource
 from bpms.io.udp.sender import UdpForwarder
@@ -93,7 +96,7 @@ def test_header_layout_is_the_documented_one():
                           send_time=2.25, sender=0x1122334455667788, epoch=1_700_000_000_123_456)
     assert len(dg) == HEADER_V3_SIZE + FRAME_SIZE == 48 + 340 == 388
     assert dg[0:4] == b"BPMS"
-    assert dg[4] == 3 and dg[5] == 1 and dg[6:8] == b"\0\0"
+    assert dg[4] == 4 and dg[5] == 1 and dg[6:8] == b"\0\0"
     assert dg[8:12] == b"\x01\x02\x03\x04"
     assert dg[12:16] == b"\x0a\x0b\x0c\x0d"
     assert struct.unpack(">d", dg[16:24])[0] == 1.5
@@ -102,13 +105,13 @@ def test_header_layout_is_the_documented_one():
     assert struct.unpack(">Q", dg[40:48])[0] == 1_700_000_000_123_456
     assert dg[48:] == frame
     decoded = decode_datagram(dg)
-    assert (decoded.version, decoded.sender, decoded.epoch) == (3, 0x1122334455667788,
+    assert (decoded.version, decoded.sender, decoded.epoch) == (4, 0x1122334455667788,
                                                                 1_700_000_000_123_456)
 
     q = unit_quats()
     angles = np.linspace(-1, 1, len(JOINT_ANGLE_NAMES))
     pose = encode_pose(q, angles, session=7, seq=3, suit_time=0.0, send_time=0.0)
-    assert pose[4] == 3 and pose[5] == 2
+    assert pose[4] == 4 and pose[5] == 2
     assert len(pose) == 48 + 4 + 18 * 16 + 28 * 4 == 452
     assert struct.unpack(">HH", pose[48:52]) == (18, 28)
     w, x, y, z = struct.unpack(">4f", pose[52:68])
@@ -602,15 +605,29 @@ def test_docs_third_party_reader_agrees_with_the_codec():
     assert np.allclose(msg["quaternions"], q, atol=1e-6)
     assert np.allclose(msg["angles"], angles, atol=1e-6)
     assert JOINT_ANGLE_NAMES[2] == "knee_r.flexion"  # the example prints angles[2] as knee_r
-    # every version it claims: version 1, a signed version 3 (the tag skipped), and a POSE
+    # every version it claims: version 1, a signed version 4 (the tag skipped), and a POSE
     # with extension blocks after its angles
     msg = parse(encode_raw_frame(frame, session=4, seq=78, suit_time=1.56, send_time=9.0,
                                  version=1))
     assert msg["version"] == 1 and np.array_equal(np.array(msg["imus"]), raw)
     msg = parse(sign_datagram(encode_raw_frame(frame, session=4, seq=79, suit_time=1.58,
                                                send_time=9.0, sender=5, epoch=6), b"k"))
-    assert (msg["version"], msg["sender"], msg["epoch"]) == (3, 5, 6)
+    assert (msg["version"], msg["sender"], msg["epoch"]) == (4, 5, 6)
     assert np.array_equal(np.array(msg["imus"]), raw)
+    msg = parse(encode_raw_frame(frame, session=4, seq=80, suit_time=1.6, send_time=9.0,
+                                 version=3, sender=5, epoch=6))
+    assert msg["version"] == 3 and np.array_equal(np.array(msg["imus"]), raw)
+    # the sender's Reset Zero (ZERO, version 4)
+    R0 = np.array([euler_to_dcm(0.1 * i, -0.05 * i, 0.2 + 0.01 * i) for i in range(18)])
+    R0[3] = np.nan  # an IMU without a zero
+    zero = ZeroMessage(R0, 0.7, "manual", "hip", 25)
+    msg = parse(encode_zero(zero, session=4, seq=0, suit_time=9.48, send_time=9.0))
+    assert (msg["type"], msg["suit_time"], msg["source"], msg["window"]) == (3, 9.48, 0, 25)
+    assert msg["yaw0"] == 0.7 and msg["R0"][3] is None
+    np.testing.assert_array_equal(np.array([r for i, r in enumerate(msg["R0"]) if i != 3]),
+                                  np.delete(R0, 3, axis=0).reshape(17, 9))
+    again = decode_datagram(encode_zero(zero, session=4, seq=0, suit_time=9.48, send_time=9.0))
+    np.testing.assert_array_equal(again.zero.R0, R0)
     blocks = encode_pose_extensions(np.zeros((21, 3)), "isb")
     msg = parse(encode_pose(q, angles, session=4, seq=4, suit_time=0.52, send_time=9.0)
                 + blocks)

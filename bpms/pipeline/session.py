@@ -53,6 +53,7 @@ from bpms.pipeline.health import (
     write_trailing_holes,
     write_with_holes,
 )
+from bpms.pipeline.pose_stream import ZeroForwarding, forward_poses
 from bpms.pipeline.rate import RateMeter
 from bpms.pipeline.raw_logger import RawLogger
 from bpms.pipeline.sample import PoseSample
@@ -119,6 +120,8 @@ class LiveSession:
         #: the session's one source of events (raw file, event log, LSL)
         self.events = SessionEvents(processor.options.filter.dt)
         self._zero_wait_noted = False
+        self._own_zero = False  # the user pressed Reset Zero: a sender's zero is not followed
+        self._zero_forwarding = ZeroForwarding()
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
@@ -184,7 +187,9 @@ class LiveSession:
     # -- commands -------------------------------------------------------------------------
     def reset_zero(self, source: str = "manual") -> None:
         """Reset Zero at the next processed frame (docs/body-model.md); ``source``: who asked
-        (``manual``, ``3d-view``), written with the capture into the recording."""
+        (``manual``, ``3d-view``), written with the capture into the recording. From then on a
+        UDP sender's Reset Zero is no longer followed: the user's own one holds."""
+        self._own_zero = True
         self.settings.reset_zero(source)
 
     def marker(self, text: str) -> None:
@@ -308,7 +313,8 @@ class LiveSession:
         self.stop_forwarding()
         self._forwarder = UdpForwarder(targets or self.options.udp.forward_to,
                                        self.options.udp.multicast_ttl,
-                                       key=shared_key(self.options.udp.key_file))
+                                       key=shared_key(self.options.udp.key_file),
+                                       wait=self.source_can_wait)
         return self._forwarder
 
     def stop_forwarding(self) -> None:
@@ -434,6 +440,9 @@ class LiveSession:
         proc = self.processor
         head = events[0]
         marks = [(k, m) for k, e in enumerate(events) if e.marks for m in e.marks]
+        if marks and self._own_zero:  # the user's own Reset Zero wins over the sender's
+            marks = [(k, m) for k, m in marks
+                     if not (m.kind == "reset_zero" and m.data.get("source") == "network")]
         if head.discontinuity:
             if head.preroll:
                 # the state in force at the seek point first, then the pre-roll runs with it
@@ -477,7 +486,10 @@ class LiveSession:
         self._error_bits += int(errors.sum())
         forwarder = self._forwarder
         if forwarder is not None:
-            self._forward_poses(forwarder, events, result)
+            forward_poses(forwarder, events, result)
+            problem = self._zero_forwarding.after(forwarder, proc, events, result)
+            if problem:
+                self.note(problem)
         with self._lock:
             self._latencies.extend(s.latency_s for s in samples)
             if len(self._latencies) > 5000:
@@ -494,20 +506,6 @@ class LiveSession:
         self.events.note(f"Reset Zero (automatic) waiting for a still pose: moved "
                          f"{moved:.1f}° (IMU {imu}) within {window_s:.2f} s", index,
                          warning=False)
-
-    @staticmethod
-    def _forward_poses(forwarder: UdpForwarder, events: list[FrameEvent], result: Result
-                       ) -> None:
-        """One pose datagram per frame whose pose is complete (docs/udp.md)."""
-        quats = result.segment_quaternions.astype(np.float32)
-        angles, positions, dist = result.joint_angles, result.joint_positions, result.disturbance
-        finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
-                  & np.isfinite(positions).all(axis=(1, 2)))
-        for k, e in enumerate(events):
-            if finite[k]:
-                forwarder.send_pose(quats[k], angles[k].astype(np.float32),
-                                    stream_time(e.index), positions[k], result.convention,
-                                    None if dist is None else (dist.mag[k], dist.acc[k]))
 
     def _note_reinit(self, result) -> None:
         """State-guard re-initialisations are events (logged, in the status): every one is

@@ -21,6 +21,7 @@ from bpms.io.link import (
 )
 from bpms.io.link_states import LOST_STATES, LinkEvent, LinkState, next_state
 from bpms.io.options import SerialOptions
+from bpms.io.session_events import SessionEvent
 from bpms.io.udp.auth import key_from_env
 from bpms.io.udp.gate import TAKEOVER_AFTER_S
 from bpms.io.udp.receiver import UdpSource
@@ -58,7 +59,8 @@ class UdpFrameSource:
         while received is not None:
             # the receiver keeps suit times within 0..1e8 s, so this is a sane integer
             index = round(received.suit_time / 0.02)
-            out.append(FrameEvent(received.recv_time, received.frame, index, received.restart))
+            out.append(FrameEvent(received.recv_time, received.frame, index, received.restart,
+                                  marks=self._sender_zero() if not out else ()))
             self._state = "streaming"
             if len(out) >= 256:
                 break
@@ -69,6 +71,18 @@ class UdpFrameSource:
         elif self._state == "streaming" and now - self._last_frame > self.silent_after_s:
             self._state = "silent"
         return out
+
+    def _sender_zero(self) -> tuple:
+        """The sender's newest Reset Zero, as a mark on the next frame: the session adopts it
+        (docs/udp.md "ZERO"), unless its user pressed their own."""
+        taken = self.udp.take_zero()
+        if taken is None:
+            return ()
+        suit_time, zero = taken
+        return (SessionEvent("reset_zero", round(suit_time / 0.02), data={
+            "source": "network", "adopt": True, "sender_source": zero.source,
+            "window": zero.window, "heading": zero.heading, "yaw0": zero.yaw0,
+            "R0": zero.R0.tolist()}),)
 
     def status(self) -> SourceStatus:
         s = self.udp.stats

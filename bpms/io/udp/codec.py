@@ -2,13 +2,13 @@
 
 The byte-exact format, the counter semantics and multicast notes are in ``docs/udp.md``.
 Every datagram is a header followed by a payload; all fields are big-endian (network byte
-order, like the suit's frame). Version 3 (what this software sends) has a 48-byte header;
-versions 1 and 2 (still read) stop after the send time, 32 bytes::
+order, like the suit's frame). Versions 3 and 4 (4 is what this software sends) have a 48-byte
+header; versions 1 and 2 (still read) stop after the send time, 32 bytes::
 
     offset size type     field
     0      4    bytes    magic b"BPMS"
-    4      1    uint8    format version (3)
-    5      1    uint8    message type: 1 RAW_FRAME, 2 POSE
+    4      1    uint8    format version (4)
+    5      1    uint8    message type: 1 RAW_FRAME, 2 POSE, 3 ZERO (version 4)
     6      2    uint16   flags (bit 0: an HMAC-SHA256 tag follows; readers ignore unknown bits)
     8      4    uint32   session id (random per forwarder, never 0)
     12     4    uint32   sequence number (per message type and session, wraps 2**32-1 -> 0)
@@ -28,6 +28,13 @@ joint angles (float32 rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`). 
 2 on, POSE appends extension blocks (uint16 tag, uint16 length, data; readers skip unknown
 tags): tag 1 joint positions (uint16 P, P × 3 float32 m NED, order ``POINT_NAMES``), tag 2 the
 joint-angle convention name (ASCII), tag 3 the disturbance masks.
+
+ZERO payload (version 4): the sender's Reset Zero in force (sent at each capture and once a
+second), so that a client shows the sender's segment angles: uint8 source
+(:data:`bpms.io.session_events.ZERO_SOURCES` index), uint8 heading (0 hip, 1 mean), uint16
+window (frames averaged), float64 ψ0 (rad), uint32 mask (bit i: IMU i has a zero), 18 × 9
+float64 R0 (row-major, 0 where the mask bit is clear); the header's suit time is the capture
+frame's. 1,312 bytes.
 """
 
 from __future__ import annotations
@@ -39,14 +46,18 @@ from enum import IntEnum
 
 import numpy as np
 
-from bpms.io.frames import FRAME_SIZE, is_frame
+from bpms.io.frames import FRAME_SIZE, N_IMUS, is_frame
+from bpms.io.session_events import ZERO_SOURCES
 
 MAGIC = b"BPMS"
-#: What senders write: version 3 (sender id and epoch in the header, for freshness).
-VERSION = 3
+#: What senders write: version 4 (version 3's sender id and epoch in the header, for
+#: freshness, and the ZERO message).
+VERSION = 4
 #: The first version whose POSE payload may carry extension blocks after the angles.
 EXTENSIONS_SINCE = 2
-READ_VERSIONS = (1, 2, 3)
+#: The first version with ZERO messages.
+ZERO_SINCE = 4
+READ_VERSIONS = (1, 2, 3, 4)
 EXT_BLOCK = struct.Struct("!HH")
 EXT_JOINT_POSITIONS = 1
 EXT_CONVENTION = 2
@@ -62,6 +73,9 @@ FRESHNESS = struct.Struct("!QQ")
 HEADER_V3_SIZE = HEADER_SIZE + FRESHNESS.size
 assert HEADER_V3_SIZE == 48
 POSE_COUNTS = struct.Struct("!HH")
+ZERO_HEAD = struct.Struct("!BBHdI")  # source, heading, window, ψ0, mask
+ZERO_SIZE = ZERO_HEAD.size + N_IMUS * 9 * 8
+HEADINGS = ("hip", "mean")
 N_POSE_SEGMENTS = 18
 N_POSE_ANGLES = 28
 #: Largest UDP payload over IPv4.
@@ -74,6 +88,7 @@ SEQ_MOD = 1 << 32
 class MessageType(IntEnum):
     RAW_FRAME = 1
     POSE = 2
+    ZERO = 3
 
 
 class DatagramError(ValueError):
@@ -96,6 +111,19 @@ class Pose:
 
 
 @dataclass(frozen=True)
+class ZeroMessage:
+    """The sender's Reset Zero: ``R0[18, 3, 3]`` (NaN for an IMU without a zero), ``yaw0``
+    rad, ``source`` (:data:`bpms.io.session_events.ZERO_SOURCES`), ``heading`` (``hip`` /
+    ``mean``) and ``window`` (frames averaged)."""
+
+    R0: np.ndarray
+    yaw0: float
+    source: str = "manual"
+    heading: str = "hip"
+    window: int = 1
+
+
+@dataclass(frozen=True)
 class Datagram:
     """One decoded datagram. ``frame`` is set for RAW_FRAME, ``pose`` for POSE; ``sender``
     and ``epoch`` (µs) are 0 before version 3."""
@@ -109,6 +137,7 @@ class Datagram:
     frame: bytes | None = None
     pose: Pose | None = None
     version: int = VERSION
+    zero: ZeroMessage | None = None
     sender: int = 0
     epoch: int = 0
 
@@ -116,6 +145,46 @@ class Datagram:
 def header_size(version: int) -> int:
     """Bytes of the header of a datagram of format ``version``."""
     return HEADER_V3_SIZE if version >= 3 else HEADER_SIZE
+
+
+def encode_zero_payload(zero: ZeroMessage) -> bytes:
+    """ZERO payload (version 4). Raises ValueError on a wrong shape, a non-finite ψ0 or an
+    unknown source."""
+    R0 = np.asarray(zero.R0, dtype=np.float64)
+    if R0.shape != (N_IMUS, 3, 3) or not math.isfinite(zero.yaw0):
+        raise ValueError("a zero needs R0 [18, 3, 3] and a finite heading")
+    finite = np.isfinite(R0).all(axis=(1, 2))
+    mask = int(sum(1 << int(i) for i in np.flatnonzero(finite)))
+    values = np.where(finite[:, None, None], R0, 0.0)
+    source = ZERO_SOURCES.index(zero.source) if zero.source in ZERO_SOURCES else 0
+    heading = HEADINGS.index(zero.heading) if zero.heading in HEADINGS else 0
+    return (ZERO_HEAD.pack(source, heading, max(0, min(int(zero.window), 65535)),
+                           float(zero.yaw0), mask) + values.astype(">f8").tobytes())
+
+
+def encode_zero(zero: ZeroMessage, *, session: int, seq: int, suit_time: float,
+                send_time: float, flags: int = 0, sender: int = 0, epoch: int = 0) -> bytes:
+    """A ZERO datagram (version 4; see :func:`encode_zero_payload`)."""
+    return encode_header(MessageType.ZERO, session, seq, suit_time, send_time, flags,
+                         VERSION, sender, epoch) + encode_zero_payload(zero)
+
+
+def _decode_zero(payload: bytes) -> ZeroMessage:
+    if len(payload) != ZERO_SIZE:
+        raise DatagramError(f"ZERO payload is {len(payload)} bytes, not {ZERO_SIZE}")
+    source, heading, window, yaw0, mask = ZERO_HEAD.unpack_from(payload)
+    if source >= len(ZERO_SOURCES) or heading >= len(HEADINGS) or not math.isfinite(yaw0):
+        raise DatagramError("ZERO source, heading or ψ0 out of range")
+    R0 = np.frombuffer(payload, ">f8", N_IMUS * 9, ZERO_HEAD.size).reshape(N_IMUS, 3, 3)
+    R0 = R0.astype(np.float64)
+    has = np.array([(mask >> i) & 1 for i in range(N_IMUS)], dtype=bool)
+    if not np.isfinite(R0).all() or mask >> N_IMUS:
+        raise DatagramError("ZERO holds NaN or infinite values, or an unknown IMU")
+    rows = R0[has]
+    if len(rows) and np.abs(rows @ np.swapaxes(rows, -1, -2) - np.eye(3)).max() > 1e-6:
+        raise DatagramError("ZERO R0 is not a rotation")
+    R0[~has] = np.nan
+    return ZeroMessage(R0, yaw0, ZERO_SOURCES[source], HEADINGS[heading], window)
 
 
 
@@ -281,4 +350,8 @@ def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:
         return Datagram(MessageType.POSE, flags, session, seq, suit_time, send_time,
                         pose=_decode_pose(payload, version), version=version, sender=sender,
                         epoch=epoch)
+    if mtype == MessageType.ZERO and version >= ZERO_SINCE:
+        return Datagram(MessageType.ZERO, flags, session, seq, suit_time, send_time,
+                        version=version, sender=sender, epoch=epoch,
+                        zero=_decode_zero(payload))
     raise DatagramError(f"unknown message type {mtype}")

@@ -19,7 +19,13 @@ from dataclasses import dataclass, field
 
 from bpms.io.udp.addresses import DEFAULT_PORT, UdpConfigError, is_multicast, parse_address
 from bpms.io.udp.auth import split_tag, tag_is_valid
-from bpms.io.udp.codec import MAX_DATAGRAM, DatagramError, MessageType, decode_datagram
+from bpms.io.udp.codec import (
+    MAX_DATAGRAM,
+    DatagramError,
+    MessageType,
+    ZeroMessage,
+    decode_datagram,
+)
 from bpms.io.udp.gate import (
     TAKEOVER_AFTER_S,
     TAKEOVER_DATAGRAMS,
@@ -45,7 +51,7 @@ TAKEOVER_SHOWN_S = 10.0
 class SourceStats:
     """Counters of a :class:`UdpSource` (semantics in docs/udp.md).
 
-    ``datagrams = received + malformed + ignored + stale + foreign + unauthenticated +
+    ``datagrams = received + zeros + malformed + ignored + stale + foreign + unauthenticated +
     replayed``; ``received = delivered + duplicated + implausible`` (RAW_FRAME datagrams of
     the sessions followed); ``reordered`` ⊂ ``delivered``; ``lost`` = sequence numbers never
     received between the first and the highest of each session, plausible gaps only
@@ -75,6 +81,7 @@ class SourceStats:
     conflicts: int = 0  # datagrams contradicting the followed session (another sender on it)
     same_session_sender: str = ""  # "host:port" of the last conflicting datagram, while recent
     takeover: str = ""  # the last takeover, in words, while recent
+    zeros: int = 0  # ZERO datagrams of the session followed (the sender's Reset Zero)
 
 
 @dataclass(frozen=True)
@@ -137,7 +144,11 @@ class UdpSource:
         self._read_lock = threading.Lock()
         self._tracker = SequenceTracker(window)
         self._counts = {"datagrams": 0, "malformed": 0, "ignored": 0, "socket_errors": 0,
-                        "foreign": 0, "unauthenticated": 0, "replayed": 0, "stale": 0}
+                        "foreign": 0, "unauthenticated": 0, "replayed": 0, "stale": 0,
+                        "zeros": 0}
+        #: the followed session's latest Reset Zero not yet taken: (suit time s, the zero)
+        self._zero: tuple[float, ZeroMessage] | None = None
+        self._zero_seen: tuple | None = None
         self._last_malformed = ""
         self._started = False
         self._conflicts_seen = 0
@@ -201,7 +212,7 @@ class UdpSource:
                 conflicts=t.conflicts,
                 same_session_sender=self._recent(self._conflict_sender, self._last_conflict,
                                                  now),
-                takeover=self._takeover_text(now))
+                takeover=self._takeover_text(now), zeros=c["zeros"])
 
     @staticmethod
     def _recent(text: str, at: float, now: float) -> str:
@@ -272,6 +283,14 @@ class UdpSource:
                 self._malformed(sender, f"times out of range (suit {dg.suit_time:.6g} s, "
                                         f"send {dg.send_time:.6g} s)")
                 return None
+            if dg.type == MessageType.ZERO and dg.zero is not None and (
+                    SessionKey(dg.session, dg.sender, dg.epoch) == self._gate.active):
+                self._counts["zeros"] += 1
+                seen = (dg.session, dg.suit_time, dg.zero.source, dg.zero.yaw0)
+                if seen != self._zero_seen:  # (sent again every second: taken once)
+                    self._zero_seen = seen
+                    self._zero = (dg.suit_time, dg.zero)
+                return None
             if dg.type != MessageType.RAW_FRAME:
                 self._counts["ignored"] += 1
                 return None
@@ -315,6 +334,13 @@ class UdpSource:
                                     "numbers contradict the stream", key, who)
         self._conflicts_seen = self._tracker.conflicts
         return verdict
+
+    def take_zero(self) -> tuple[float, ZeroMessage] | None:
+        """The followed sender's newest Reset Zero (its capture's suit time s, the zero), once:
+        None when there is none new."""
+        with self._lock:
+            zero, self._zero = self._zero, None
+            return zero
 
     def read(self, timeout: float | None = None) -> ReceivedFrame | None:
         """The next frame, or None when ``timeout`` s (default ``poll_s``) pass without one or

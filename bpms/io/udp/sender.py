@@ -10,6 +10,7 @@ import errno
 import hashlib
 import logging
 import os
+import select
 import socket
 import threading
 import time
@@ -25,14 +26,18 @@ from bpms.io.udp.auth import sign_datagram
 from bpms.io.udp.codec import (
     SEQ_MOD,
     MessageType,
+    ZeroMessage,
     encode_header,
     encode_pose_extensions,
     encode_pose_payload,
     encode_raw_frame,
+    encode_zero,
 )
 from bpms.io.udp.ratelog import RateLimitedLog
 
 log = logging.getLogger(__name__)
+#: Longest a waiting forwarder (``wait=True``) waits for room in a socket buffer, s.
+WAIT_S = 2.0
 
 
 def new_session_id() -> int:
@@ -119,8 +124,12 @@ class UdpForwarder:
 
     def __init__(self, targets: Sequence[str], multicast_ttl: int = 1, *,
                  multicast_loop: bool = True, multicast_interface: str | None = None,
-                 session: int | None = None, key: bytes | None = None) -> None:
+                 session: int | None = None, key: bytes | None = None,
+                 wait: bool = False) -> None:
         self._key = key or None  # shared key: every datagram signed (docs/udp.md)
+        #: a full socket buffer waits (up to WAIT_S) instead of failing: a recording played
+        #: as fast as possible sends every datagram (a live stream never waits)
+        self.wait = wait
         if isinstance(targets, str):
             targets = [targets]
         if not targets:
@@ -137,7 +146,7 @@ class UdpForwarder:
             self.close()
             raise
         self._lock = threading.Lock()
-        self._seq = {MessageType.RAW_FRAME: 0, MessageType.POSE: 0}
+        self._seq = {MessageType.RAW_FRAME: 0, MessageType.POSE: 0, MessageType.ZERO: 0}
         self._stats = ForwarderStats()
         self._closed = False
 
@@ -168,7 +177,7 @@ class UdpForwarder:
             last_error = self._stats.last_error
             for target in self._targets:
                 try:
-                    target.sock.send(datagram)
+                    self._send_one(target, datagram)
                     sent += 1
                 except ConnectionRefusedError:
                     refused += 1
@@ -187,6 +196,22 @@ class UdpForwarder:
                 s.frames + (mtype == MessageType.RAW_FRAME), s.poses + (mtype == MessageType.POSE),
                 s.sent + sent, s.errors + errors, last_error, s.refused + refused)
             return sent
+
+    def _send_one(self, target: _Target, datagram: bytes) -> None:
+        try:
+            target.sock.send(datagram)
+        except BlockingIOError:
+            if not self.wait:
+                raise
+            deadline = time.monotonic() + WAIT_S
+            while True:  # the socket buffer is full: wait until it drains
+                select.select([], [target.sock], [], max(0.0, deadline - time.monotonic()))
+                try:
+                    target.sock.send(datagram)
+                    return
+                except BlockingIOError:
+                    if time.monotonic() >= deadline:
+                        raise
 
     def send_frame(self, frame: bytes, suit_time: float | None = None) -> int:
         """Forward one 340-byte frame. ``suit_time`` defaults to its sequence number × 0.02 s.
@@ -219,6 +244,16 @@ class UdpForwarder:
                                  sender=self.sender, epoch=self.epoch) + payload
 
         return self._send(MessageType.POSE, build)
+
+    def send_zero(self, zero: ZeroMessage, suit_time: float) -> int:
+        """Forward the Reset Zero in force (a ZERO datagram; ``suit_time``: its capture
+        frame's). Raises ValueError on a malformed zero."""
+        def build(seq: int) -> bytes:
+            return encode_zero(zero, session=self.session, seq=seq, suit_time=suit_time,
+                               send_time=time.time(), sender=self.sender, epoch=self.epoch)
+
+        build(0)  # a malformed zero raises here, before a sequence number is used
+        return self._send(MessageType.ZERO, build)
 
     def close(self) -> None:
         lock = getattr(self, "_lock", None)
