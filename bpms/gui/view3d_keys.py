@@ -54,7 +54,8 @@ VIEW3D_BINDINGS: tuple[Binding, ...] = (
             _keys(K.Key_D)),
     Binding("t", "trail of a joint: off → right wrist → left wrist → right toe → left toe → "
             "head", "cycle_trail", _keys(K.Key_T)),
-    Binding("r", "reset the view: the whole body framed, from the front-right, 15° above",
+    Binding("r", "reset the view: elevation 15°, azimuth 35°, 60° field of view, the whole body "
+            "framed",
             "reset_view", _keys(K.Key_R)),
 )
 
