@@ -241,15 +241,23 @@ def test_disturbance_flags_reach_the_table_and_the_status(qtbot, tmp_path, recor
     mag[[2, 7]] = True
     acc[[7, 11]] = True
     window._on_samples([dataclasses.replace(s, mag_disturbed=mag, acc_disturbed=acc)])
+    acc[11] = False
+    # 99 frames (1.98 s) later: the flags still up say since when (their kind first)
+    window._on_samples([dataclasses.replace(s, index=s.index + 99, mag_disturbed=mag,
+                                            acc_disturbed=acc)])
     texts = [model.data(model.index(i, DISTURBANCE_COLUMN)) for i in range(18)]
-    assert texts[2] == "mag" and texts[7] == "mag acc" and texts[11] == "acc"
-    assert sum(bool(t) for t in texts) == 3
+    assert texts[2] == "mag 2.0 s" and texts[7] == "mag 2.0 s, acc 2.0 s" and texts[11] == ""
+    assert sum(bool(t) for t in texts) == 2
+    tip = model.data(model.index(7, DISTURBANCE_COLUMN), Qt.ItemDataRole.ToolTipRole)
+    assert "mag: up for 2.0 s" in tip and "acc: up for 2.0 s" in tip
+    assert window.table.columnWidth(DISTURBANCE_COLUMN) >= window.table.fontMetrics() \
+        .horizontalAdvance("mag 59 min, acc 59 min")
     colour = model.data(model.index(2, DISTURBANCE_COLUMN), Qt.ItemDataRole.ForegroundRole)
     assert colour.name() == "#c77c00"
     window._texts_at = -1e9
     window._on_status(window.runner.session.status())
     label = window.health_panel.labels["disturbance"]
-    assert label.text() == "mag 2 IMUs, acc 2 IMUs" and "#f0a000" in label.styleSheet()
+    assert label.text() == "mag 2 IMUs, acc 1 IMU" and "#f0a000" in label.styleSheet()
     # not plottable, not draggable
     window.table.select_cells([(2, DISTURBANCE_COLUMN), (2, 0)])
     assert window.table.selected_cells() == [(2, 0)]

@@ -292,8 +292,8 @@ class HealthPanel(QGroupBox):
         if mag is None or acc is None:
             self._set("disturbance", "–")
             return
-        self._set("disturbance", f"mag {mag} IMUs, acc {acc} IMUs",
-                  AMBER_TEXT if mag or acc else "")
+        self._set("disturbance", f"mag {mag} IMU{'' if mag == 1 else 's'}, acc {acc} "
+                  f"IMU{'' if acc == 1 else 's'}", AMBER_TEXT if mag or acc else "")
 
     def show_source(self, st: LiveStatus, down: bool) -> None:
         """The source's reason (red) while the link is down, else its warning (amber)."""
