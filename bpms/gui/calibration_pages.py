@@ -72,6 +72,12 @@ def _number(value: float, fmt: str = ".2f") -> str:
     return format(value, fmt) if np.isfinite(value) else "–"
 
 
+def _number_item(text: str) -> QTableWidgetItem:
+    item = QTableWidgetItem(text)
+    item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+    return item
+
+
 def _counts(value: float) -> str:
     """A count for the page: "–" while there is none (never "nan")."""
     return f"{value:.0f} counts" if np.isfinite(value) else "–"
@@ -446,9 +452,9 @@ class MagPage(QWizardPage):
             for a in range(3):
                 lo, hi = proc.mins[imu, a], proc.maxs[imu, a]
                 text = f"{lo:.0f} / {hi:.0f}" if np.isfinite(lo) else "–"
-                self.table.setItem(r, 1 + a, QTableWidgetItem(text))
+                self.table.setItem(r, 1 + a, _number_item(text))
             if imu in cover:
-                self.table.setItem(r, 4, QTableWidgetItem(f"{100 * cover[imu]:.0f} %"))
+                self.table.setItem(r, 4, _number_item(f"{100 * cover[imu]:.0f} %"))
         warnings = proc.warnings()
         self.warnings.setText("\n".join("⚠ " + named(w) for w in warnings[:8]))
         if proc.state == "done":
@@ -501,7 +507,7 @@ class SummaryPage(QWizardPage):
         for r, row in enumerate(rows):
             for c, text in enumerate((imu_label(row.imu), row.field, _number(row.old),
                                       _number(row.new), _number(row.change, "+.2f"))):
-                self.table.setItem(r, c, QTableWidgetItem(text))
+                self.table.setItem(r, c, QTableWidgetItem(text) if c < 2 else _number_item(text))
         lines = update.quality.lines() or ["no quality figure (nothing measured)"]
         self.quality.setText("\n".join(named(line) for line in lines))
 
