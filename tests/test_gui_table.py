@@ -11,7 +11,8 @@ from PyQt6.QtTest import QTest
 from PyQt6.QtWidgets import QStyle
 
 from bpms.filter.calibration import SensorCalibration
-from bpms.gui.data_table import COLUMNS, DISTURBANCE_COLUMN, DataTable, ImuTableModel
+from bpms.gui.columns import COLUMNS
+from bpms.gui.data_table import DISTURBANCE_COLUMN, DataTable, ImuTableModel
 from bpms.io.calib_file import load_factory_calibration
 from bpms.pipeline.session import PoseSample
 
