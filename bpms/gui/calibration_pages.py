@@ -6,14 +6,15 @@ IMUs are named by number and name ("IMU 2 Right Shank") everywhere, also in the 
 messages (:func:`named`); no "nan" is ever shown (a value not measured yet reads "–"). The
 magnetometer page asks for the sphere coverage the procedure wants (80 %): below it, Next
 stays disabled until the sweep is done again or "use them anyway" is ticked (the
-confirmation, with the figures on it).
+confirmation, with the figures on it). Each page is given its wizard
+(:class:`bpms.gui.calibration_wizard.CalibrationWizard`: the chosen IMUs and sensors, the
+set-up page, the frame source).
 """
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from PyQt6.QtCore import Qt
@@ -35,6 +36,7 @@ from PyQt6.QtWidgets import (
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
+    QWizard,
     QWizardPage,
 )
 
@@ -49,9 +51,6 @@ from bpms.calibration.procedures import (
 from bpms.calibration.result import summary
 from bpms.io.events import FrameSource
 from bpms.io.frames import IMU_NAMES, N_IMUS
-
-if TYPE_CHECKING:
-    from bpms.gui.calibration_wizard import CalibrationWizard
 
 PAGE_SETUP, PAGE_GYRO, PAGE_ACCEL, PAGE_MAG, PAGE_SUMMARY = range(5)
 
@@ -92,7 +91,7 @@ def _scene(source: FrameSource | None, *args, **kwargs) -> None:
 class SetupPage(QWizardPage):
     """IMUs, sensors, settings, the suit or the simulated suit, the output file."""
 
-    def __init__(self, wizard: CalibrationWizard) -> None:
+    def __init__(self, wizard: QWizard) -> None:
         super().__init__()
         self.setTitle("Sensor calibration")
         self.setSubTitle("Choose the IMUs and sensors to calibrate. Values of everything not "
@@ -183,7 +182,7 @@ class SetupPage(QWizardPage):
 
 
 class GyroPage(QWizardPage):
-    def __init__(self, wizard: CalibrationWizard) -> None:
+    def __init__(self, wizard: QWizard) -> None:
         super().__init__()
         self._wizard = wizard
         self.setTitle("Gyroscope")
@@ -240,7 +239,7 @@ class GyroPage(QWizardPage):
 
 
 class AccelPage(QWizardPage):
-    def __init__(self, wizard: CalibrationWizard) -> None:
+    def __init__(self, wizard: QWizard) -> None:
         super().__init__()
         self._wizard = wizard
         self.setTitle("Accelerometer")
@@ -352,7 +351,7 @@ class MagPage(QWizardPage):
     HEADERS = ("IMU", "mag x [counts]\nmin / max", "mag y [counts]\nmin / max",
                "mag z [counts]\nmin / max", "sphere\ncoverage")
 
-    def __init__(self, wizard: CalibrationWizard) -> None:
+    def __init__(self, wizard: QWizard) -> None:
         super().__init__()
         self._wizard = wizard
         self.setTitle("Magnetometer")
@@ -478,7 +477,7 @@ class MagPage(QWizardPage):
 
 
 class SummaryPage(QWizardPage):
-    def __init__(self, wizard: CalibrationWizard) -> None:
+    def __init__(self, wizard: QWizard) -> None:
         super().__init__()
         self._wizard = wizard
         self.setTitle("Summary")
