@@ -1,6 +1,7 @@
 """Save the documentation screenshots into docs/screenshots/ (run under Xvfb, xcb platform).
 
     tools/screenshots.sh            # = xvfb-run ... .venv/bin/python tools/screenshots.py
+    tools/screenshots.sh playback   # only the steps whose name starts so
 
 At the two screen sizes the app is checked at — 1366 × 768 and 1920 × 1080, the window filling
 the screen less a 40-px task bar — in the default layout with one plot and one 3D view:
@@ -233,7 +234,10 @@ def main() -> int:
                   (f"UDP client {label}",
                    lambda s=size, n=label: udp_client(app, folder, recording, n, s))]
     steps.append(("wizard", lambda: wizard(app, folder)))
+    only = sys.argv[1:]
     for what, step in steps:
+        if only and not any(what.startswith(o) for o in only):
+            continue
         try:
             step()
         except Exception as exc:  # one window failing must not cost the others

@@ -20,8 +20,10 @@ from PyQt6.QtWidgets import (
     QLabel,
     QLineEdit,
     QPushButton,
+    QSizePolicy,
     QSlider,
     QStyle,
+    QToolButton,
     QVBoxLayout,
     QWidget,
 )
@@ -375,7 +377,7 @@ class PlaybackPanel(QGroupBox):
         assert runner.replay is not None
         self.runner = runner
         self.replay = runner.replay
-        self.step_buttons: list[QPushButton] = []
+        self.step_buttons: list[QToolButton] = []
         self.shown = self.replay.position  # the frame at the slider
         layout = QVBoxLayout(self)
         self.slider = QSlider(Qt.Orientation.Horizontal)
@@ -405,7 +407,13 @@ class PlaybackPanel(QGroupBox):
                 (sp.SP_MediaSeekBackward, "−1", -1, "Ctrl+Left"),
                 (sp.SP_MediaSeekForward, "+1", 1, "Ctrl+Right"),
                 (sp.SP_MediaSkipForward, "+1 s", 50, "Ctrl+Shift+Right")):
-            button = QPushButton(icon(pixmap), text)
+            # tool buttons: as wide as icon and text (push buttons keep a style minimum that
+            # makes four of them scroll a narrow panel sideways)
+            button = QToolButton()
+            button.setIcon(icon(pixmap))
+            button.setText(text)
+            button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+            button.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
             if n > 0:
                 button.setLayoutDirection(Qt.LayoutDirection.RightToLeft)  # text, then icon
             word = "forward" if n > 0 else "back"
@@ -417,6 +425,7 @@ class PlaybackPanel(QGroupBox):
         layout.addLayout(steps)
         row = QHBoxLayout()
         self.position_label = QLabel()
+        self.position_label.setWordWrap(True)  # a narrow panel: two lines, no sideways scroll
         row.addWidget(self.position_label, 1)
         row.addWidget(QLabel("Speed"))
         self.speed_combo = QComboBox()

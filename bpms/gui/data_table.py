@@ -29,6 +29,7 @@ from bpms.gui.angle_readout import poorly_defined
 from bpms.gui.columns import COLUMNS, TEXT_GROUPS, calibrated, human_joint_name, shown_angles
 from bpms.gui.disturbance_view import FlagAges
 from bpms.gui.drag import CELLS_MIME, JOINTS_MIME, cells_to_mime, joints_to_mime
+from bpms.gui.stale import StaleOverlay
 from bpms.io.frames import IMU_NAMES, N_IMUS, SENSOR_NAMES
 from bpms.pipeline.session import PoseSample
 
@@ -246,6 +247,8 @@ class DataTable(QTableView):
         header.moveSection(header.visualIndex(DISTURBANCE_COLUMN), _ERRORS_COLUMN + 1)
         self.verticalHeader().setDefaultSectionSize(22)
         model.headerDataChanged.connect(lambda *_: self.fit_columns())
+        #: veils the cells while the data is not live (the main window says when)
+        self.stale = StaleOverlay(self.viewport())
 
     def column_width(self, col: int) -> int:
         """Pixels for column ``col``: its header in bold (a selected cell's column header is
@@ -368,6 +371,7 @@ class JointTable(QTableView):
         self.verticalHeader().setDefaultSectionSize(22)
         self.horizontalHeader().setStretchLastSection(True)
         self.setColumnWidth(0, 220)
+        self.stale = StaleOverlay(self.viewport())
 
     def selected_joints(self) -> list[int]:
         return sorted({i.row() for i in self.selectionModel().selectedIndexes()})

@@ -217,6 +217,49 @@ class View3DWindow(QWidget):
         """Veil the figure while the data is not live (link lost, paused, stopped)."""
         self.stale.show_text(stale_text(health))
 
+    def view_settings(self) -> dict:
+        """What a saved layout keeps of this view: the camera (centre, distance, elevation,
+        azimuth, field of view, whether it frames the body), alignment, IMU axes, trail."""
+        view = self.view
+        if view is None:
+            return {}
+        c = view.opts["center"]
+        return {"center": [c.x(), c.y(), c.z()], "distance": view.opts["distance"],
+                "elevation": view.opts["elevation"], "azimuth": view.opts["azimuth"],
+                "fov": view.opts["fov"], "framed": view.framed, "aligned": view.aligned,
+                "axes": view.show_axes, "trail": view.trail_joint}
+
+    def apply_view_settings(self, settings: dict) -> None:
+        """The settings of :meth:`view_settings` (unknown or bad entries are ignored)."""
+        view = self.view
+        if view is None or not settings:
+            return
+        from bpms.gui.view3d_gl import TRAIL_JOINTS
+
+        try:
+            for key in ("distance", "elevation", "azimuth", "fov"):
+                if key in settings:
+                    view.opts[key] = float(settings[key])
+            if "center" in settings:
+                from pyqtgraph import Vector
+
+                view.opts["center"] = Vector(*(float(v) for v in settings["center"]))
+        except (TypeError, ValueError):
+            log.warning("3D view: saved camera settings ignored (%r)", settings)
+        view.framed = bool(settings.get("framed", False))
+        if bool(settings.get("aligned", True)) != view.aligned:
+            view.toggle_alignment()
+        if bool(settings.get("axes", False)) != view.show_axes:
+            view.toggle_axes()
+        trail = settings.get("trail")
+        if trail in TRAIL_JOINTS:
+            while view.trail_joint != trail:
+                view.cycle_trail()
+        if view.framed:
+            view.frame()
+        view.update()
+        self.draw_pending()
+
     def request_reset_zero(self) -> None:
         if self.receivers(self.resetZeroRequested):
             self.resetZeroRequested.emit()
