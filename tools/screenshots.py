@@ -87,8 +87,8 @@ def main_window(config, size: tuple[int, int]):
 
 
 def one_plot(app: QApplication, window) -> None:
-    """The hip's roll, pitch and yaw in a plot (what a user plots first)."""
-    window.table.select_cells([(6, c) for c in (0, 1, 2)])
+    """The right forearm's roll, pitch and yaw in a plot (they move in the script)."""
+    window.table.select_cells([(5, c) for c in (0, 1, 2)])
     window.plot_selection()
     pump(app, 0.3)
 

@@ -123,6 +123,10 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         self.model.attach(None)
         self.runner.close()
 
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        QTimer.singleShot(0, self.raise_front)
+
     def resizeEvent(self, event) -> None:
         super().resizeEvent(event)
         QTimer.singleShot(0, self.fit_table)  # the table keeps its rows in view

@@ -102,6 +102,26 @@ FRAME_PAD_M = 0.12
 FRAME_FILL = 0.92
 
 
+_ARMS = tuple(tuple(POINT_INDEX[f"{joint}_{side}"]
+                    for joint in ("shoulder", "elbow", "wrist", "fingers")) for side in "rl")
+_REACH = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]], np.float64)
+
+
+def reach_points(points: np.ndarray) -> np.ndarray:
+    """``points [21, 3]`` (display metres) and, around each shoulder, where the hand can reach
+    (forward, back, both sides, up: one arm's length away), so that a view framed on them
+    keeps the whole body in the picture when the arms are raised."""
+    pts = np.asarray(points, np.float64)
+    extra = []
+    for shoulder, elbow, wrist, fingers in _ARMS:
+        chain = pts[[shoulder, elbow, wrist, fingers]]
+        if not np.isfinite(chain).all():
+            continue
+        length = float(np.linalg.norm(np.diff(chain, axis=0), axis=1).sum())
+        extra.append(chain[0] + length * _REACH)
+    return np.concatenate([pts, *extra]) if extra else pts
+
+
 def frame_camera(points: np.ndarray, elevation_deg: float, azimuth_deg: float,
                  fov_deg: float, aspect: float) -> tuple[np.ndarray, float]:
     """(centre, distance) of a camera looking from ``elevation``/``azimuth`` that shows every

@@ -2,9 +2,10 @@
 avatar over a floor grid with its shadow, the IMU axes and a joint trail, and the camera
 commands of :data:`bpms.gui.view3d_keys.VIEW3D_BINDINGS` (each a method taking the key).
 
-On ``r``, the x/y/z views and when it opens the camera frames the whole body
-(:func:`bpms.gui.view3d_geometry.frame_camera`, for the view's current shape); while the user
-has not moved the camera (``framed``), a resize or the first real pose frames it again.
+On ``r``, the x/y/z views and when it opens the camera frames the whole body, arms' reach
+included (:func:`bpms.gui.view3d_geometry.frame_camera`, for the view's current shape);
+while the user has not moved the camera (``framed``), a resize or the first real pose frames
+it again.
 Display frame and colours: :mod:`bpms.gui.view3d`.
 """
 
@@ -25,6 +26,7 @@ from bpms.gui.view3d_geometry import (
     camera_axes,
     frame_camera,
     imu_axes_lines,
+    reach_points,
     to_display,
 )
 from bpms.gui.view3d_keys import VIEW3D_BINDINGS, command_for
@@ -171,8 +173,8 @@ def make_gl_view() -> QWidget:
             view and shape of the view."""
             from pyqtgraph import Vector
 
-            points = self.last_points if self.last_points is not None \
-                else to_display(CALIBRATION_POSE)
+            points = reach_points(self.last_points if self.last_points is not None
+                                  else to_display(CALIBRATION_POSE))
             aspect = self.width() / max(1, self.height())
             centre, distance = frame_camera(points, self.opts["elevation"],
                                             self.opts["azimuth"], self.opts["fov"], aspect)

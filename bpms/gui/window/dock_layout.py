@@ -223,10 +223,9 @@ class DockLayouts:
             self._place_plot(dock, plots[:k])
         for dock in (*d.values(), *plots, *views):
             dock.show()
-        front = {CALIBRATION: "filter", PLAYBACK: "session"}.get(name, "status")
-        d[front].raise_()
-        if plots:
-            plots[0].raise_()
+        self._front = [d[{CALIBRATION: "filter", PLAYBACK: "session"}.get(name, "status")],
+                       *plots[:1]]
+        self.raise_front()
         if name == CALIBRATION:
             first_cal = next(k for k, c in enumerate(COLUMNS) if c.group == "cal")
             # the calibrated, then raw columns first in view (left edge)
@@ -234,6 +233,13 @@ class DockLayouts:
             self.table.horizontalScrollBar().setValue(header.visualIndex(first_cal))
         self.current_layout = name
         self._size_docks(name)
+
+    def raise_front(self) -> None:
+        """The layout's tabs in front (the playback slider in "playback analysis"); again
+        once the window is shown (a tab raised before that does not stay in front)."""
+        for dock in getattr(self, "_front", []):
+            if not sip.isdeleted(dock):
+                dock.raise_()
 
     def _place_plot(self, dock: QDockWidget, before: list[QDockWidget]) -> None:
         """The bottom row of the left area (under the table and the 3D views): beside the
@@ -272,6 +278,7 @@ class DockLayouts:
             else:
                 self.resizeDocks([d["events"]], [max(120, self.height() // 4)], _V)
             self.fit_table()
+            self.raise_front()
 
         sizes()
         QTimer.singleShot(0, sizes)  # again once the window is laid out
