@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 from PyQt6.QtCore import Qt
 from PyQt6.QtGui import QFont, QFontMetrics
@@ -74,6 +72,17 @@ def _nothing_clipped(table: DataTable) -> None:
                 <= table.columnWidth(c), (text, cell)
 
 
+def _extreme(index: int) -> PoseSample:
+    """Counts at their limits, every error flag and both disturbance flags up."""
+    base = _sample()
+    raw = np.full((18, 9), -32768, np.int16)
+    raw[::2] = 32767
+    flags = np.ones(18, bool)
+    return PoseSample(index, 0.0, b"", raw, np.ones((18, 3), bool), base.euler, base.R, base.C,
+                      base.joint_angles, base.joint_positions, mag_disturbed=flags,
+                      acc_disturbed=flags, estimates=np.full((18, 6), -156.906))
+
+
 def test_no_header_or_cell_is_clipped_at_the_default_widths(qtbot):
     """Extreme values: every error flag, both disturbance flags up for 40 min, angles past
     ±180° (the continuous readout), counts at their limits, 16 g."""
@@ -83,14 +92,8 @@ def test_no_header_or_cell_is_clipped_at_the_default_widths(qtbot):
         table = DataTable(model)
         qtbot.addWidget(table)
         base = _sample()
-        raw = np.full((18, 9), -32768, np.int16)
-        raw[::2] = 32767
-        flags = np.ones(18, bool)
-        first = dataclasses.replace(base, raw=raw, errors=np.ones((18, 3), bool),
-                                    mag_disturbed=flags, acc_disturbed=flags,
-                                    estimates=np.full((18, 6), -156.906))
-        model.update(first, euler=np.full((18, 3), np.radians(-999.99)))
-        later = dataclasses.replace(first, index=first.index + 40 * 60 * 50)
+        model.update(_extreme(base.index), euler=np.full((18, 3), np.radians(-999.99)))
+        later = _extreme(base.index + 40 * 60 * 50)
         model.update(later, euler=np.full((18, 3), np.radians(-999.99)))
         assert model.data(model.index(0, DISTURBANCE_COLUMN)) == "mag 40 min, acc 40 min"
         assert model.data(model.index(0, 3)) == "accel mag gyro"

@@ -22,6 +22,7 @@ from bpms.gui.modes import ModeConfig, SessionRunner
 from bpms.gui.plot_data import TickBlock, cell_curve
 from bpms.io.options import Options
 from bpms.io.udp.sender import UdpForwarder
+from bpms.pipeline.sample import PoseSample
 from bpms.pipeline.session import RecordingStatus
 
 _H = Qt.Orientation.Horizontal
@@ -248,11 +249,13 @@ def test_disturbance_flags_reach_the_table_and_the_status(qtbot, tmp_path, recor
     acc = np.zeros(18, bool)
     mag[[2, 7]] = True
     acc[[7, 11]] = True
-    window._on_samples([dataclasses.replace(s, mag_disturbed=mag, acc_disturbed=acc)])
+    window._on_samples([s.replace(mag_disturbed=mag, acc_disturbed=acc)])
     acc[11] = False
     # 99 frames (1.98 s) later: the flags still up say since when (their kind first)
-    window._on_samples([dataclasses.replace(s, index=s.index + 99, mag_disturbed=mag,
-                                            acc_disturbed=acc)])
+    later = PoseSample(s.index + 99, s.host_time, s.frame, s.raw, s.errors, s.euler, s.R, s.C,
+                       s.joint_angles, s.joint_positions, euler_output=s.euler_output,
+                       mag_disturbed=mag, acc_disturbed=acc, estimates=s.estimates)
+    window._on_samples([later])
     texts = [model.data(model.index(i, DISTURBANCE_COLUMN)) for i in range(18)]
     assert texts[2] == "mag 2.0 s" and texts[7] == "mag 2.0 s, acc 2.0 s" and texts[11] == ""
     assert sum(bool(t) for t in texts) == 2
