@@ -209,5 +209,6 @@ def test_the_whole_body_is_framed_on_opening_and_on_r_whatever_the_view_shape(ru
     for shot in run[1]["bindings"]["framing"]:
         assert _inside(shot), shot
         (w, h), rows, cols = shot["size"], shot["rows"], shot["cols"]
-        # framed, not lost in the distance: the figure fills most of the tighter dimension
-        assert max((rows[1] - rows[0]) / h, (cols[1] - cols[0]) / w) > 0.5, shot
+        # framed, not lost in the distance: the figure (with room left for the arms' reach
+        # on either side) fills a good part of the tighter dimension
+        assert max((rows[1] - rows[0]) / h, (cols[1] - cols[0]) / w) > 0.3, shot

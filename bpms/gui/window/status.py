@@ -49,6 +49,7 @@ class StatusDisplay:
     def _show_stale(self, health: Health) -> None:
         """Every view marks data that is not live (3D views do it themselves)."""
         text = stale_text(health)
+        self._prune()  # (a plot closed since the last tick)
         self.table.stale.show_text(text)
         self.joint_table.stale.show_text(text)
         for plot in self.plot_windows:
