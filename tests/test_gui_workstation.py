@@ -64,6 +64,8 @@ def _rows_in_view(window: MainWindow) -> int:
 
 
 def _play_a_little(qtbot, window: MainWindow, frames: int = 120) -> None:
+    """Play the recording (as fast as the filters go) past frame ``frames``, then pause."""
+    window.playback_panel.speed_combo.setCurrentText("max")
     window.set_data(True)
     qtbot.waitUntil(lambda: window.model.latest is not None
                     and window.model.latest.index >= frames, timeout=20000)
@@ -431,4 +433,22 @@ def test_an_out_of_range_gain_is_refused_and_logged(qtbot, tmp_path, recording):
     edit.editingFinished.emit()
     assert window.options.filter.kp_rollpitch == 0.1
     assert window.event_log.entries[-1][2] == f"filter gain kp_rollpitch: {old} → 0.1"
+    window.close()
+
+
+def test_tile_plots_brings_every_plot_into_view(qtbot, tmp_path, recording):
+    window = _window(qtbot, _file(recording, tmp_path), tmp_path, (1920, 1040))
+    for imu in range(7):
+        window.table.select_cells([(imu, 0)])
+        window.plot_selection()  # with the joint angles: 8 plots, most of them tabbed
+    _settle(qtbot)
+    assert sum(not window.dock_of(p).visibleRegion().isEmpty()
+               for p in window.plot_windows) < 8
+    window.actions_by_name["tile"].trigger()
+    _settle(qtbot)
+    assert len(window.plot_windows) == 8
+    for plot in window.plot_windows:  # each in view, none under another
+        assert not window.dock_of(plot).visibleRegion().isEmpty()
+        assert not window.tabifiedDockWidgets(window.dock_of(plot))
+    assert _rows_in_view(window) >= 9
     window.close()

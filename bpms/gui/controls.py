@@ -214,7 +214,8 @@ class GainsPanel(QGroupBox):
         except ValueError as exc:
             why = str(exc).split(" (")[0] if _is_number(text) else \
                 f"filter.{name}: {text!r} is not a number"
-            return self._refuse(name, f"refused {why}; {valid}; kept {old:g}")
+            shown = "" if rng is not None and rng.describe() in why else f"; {valid}"
+            return self._refuse(name, f"refused {why}{shown}; kept {old:g}")
         edit.setText(f"{value:g}")
         if value == old:
             return True

@@ -59,6 +59,8 @@ class WindowActions:
                       "A new plot of the selected table cells"),
             "joints": a("Joint angles plot", self.open_joint_plot, "Ctrl+J"),
             "view3d": a("New 3D view", self.open_3d_view, "Ctrl+3"),
+            "tile": a("Tile plots", self.tile_plots,
+                      tip="Every docked plot in view at once, in a grid under the table"),
             "browser": a("Browser 3D view", self.open_browser_view),
             "unit": a("Angles deg/rad", self._toggle_unit, "Ctrl+U"),
             "step_back": a("Previous frame", lambda: self.step_frames(-1), "Ctrl+Left",
@@ -108,7 +110,7 @@ class WindowActions:
             menu.addAction(acts[key])
         self._add_playback_actions(menu)
         menu = bar.addMenu("&View")
-        for key in ("plot", "joints", "view3d", "browser", "unit", "sensor_angles"):
+        for key in ("plot", "joints", "tile", "view3d", "browser", "unit", "sensor_angles"):
             menu.addAction(acts[key])
         menu.addSeparator()
         for dock in self.docks.values():

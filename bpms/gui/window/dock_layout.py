@@ -21,6 +21,7 @@ the empty central widget cannot), the status column is the right area.
 from __future__ import annotations
 
 import base64
+import itertools
 
 from PyQt6 import sip
 from PyQt6.QtCore import QByteArray, Qt, QTimer
@@ -257,6 +258,28 @@ class DockLayouts:
         else:
             self.tabifyDockWidget(docked[-1], dock)
         QTimer.singleShot(0, lambda: None if sip.isdeleted(dock) else dock.raise_())
+
+    def tile_plots(self) -> None:
+        """View ▸ Tile plots: every docked plot in view at once, in a grid under the table
+        (1 row up to 3 plots, 2 rows up to 8, then 3)."""
+        self._prune()
+        plots = [dk for dk in self.dynamic_docks if isinstance(dk.widget(), PlotWindow)
+                 and not dk.isFloating()]
+        if not plots:
+            return
+        rows = 1 if len(plots) <= 3 else 2 if len(plots) <= 8 else 3
+        columns = -(-len(plots) // rows)
+        for dock in plots:
+            self.removeDockWidget(dock)
+        top = plots[:columns]
+        self.addDockWidget(_LEFT, top[0], _V)
+        for left, right in itertools.pairwise(top):
+            self.splitDockWidget(left, right, _H)
+        for k, dock in enumerate(plots[columns:]):
+            self.splitDockWidget(plots[k], dock, _V)  # under the plot k of the row above
+        for dock in plots:
+            dock.show()
+        QTimer.singleShot(0, self.fit_table)
 
     def _size_docks(self, name: str) -> None:
         """Column widths, and the table's height (now and once the window is laid out)."""
