@@ -8,7 +8,7 @@ the screen less a 40-px task bar — in the default layout with one plot and one
 
 - ``streaming-<size>.png``: the simulated suit live, logging (REC in the status bar);
 - ``playback-<size>.png``: a simulated recording played back (the playback-analysis
-  layout, joint angles at the bottom);
+  layout, the joint angles in front at the bottom, the user's plot a tab behind them);
 - ``udp-client-<size>.png``: the UDP client receiving what a UDP server on this machine
   sends;
 
@@ -130,9 +130,12 @@ def playback(app: QApplication, folder: Path, recording: Path, label: str,
         window.set_data(True)
         wait_for(app, lambda: window.model.latest is not None, 20)
         one_plot(app, window)
-        # 24 s in: squats (knees, hips and ankles in the joint angles below)
-        wait_for(app, lambda: window.model.latest.index >= 1500, 60)
-        pump(app, 0.3)
+        # 27 s in: the second squat (knees, hips and ankles in the joint angles below)
+        wait_for(app, lambda: window.model.latest.index >= 1350, 60)
+        joints = next((p for p in window.plot_windows if p.kind == "joints"), None)
+        if joints is not None:
+            window.dock_of(joints).raise_()  # the joint angles in front of the user's plot
+        pump(app, 0.5)
         save_widget(window, f"playback-{label}.png")
     finally:
         window.shutdown()

@@ -489,7 +489,7 @@ class SummaryPage(QWizardPage):
         self.table.verticalHeader().setVisible(False)
         header = self.table.horizontalHeader()
         header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
-        header.setStretchLastSection(True)
+        header.setStretchLastSection(False)  # the numbers beside their names
         header.setHighlightSections(False)
         layout.addWidget(self.table, 1)
         self.quality = QLabel()
