@@ -68,7 +68,7 @@ class DockLayouts:
             if isinstance(widget, PlotWindow):
                 docks.append({"kind": "plot", "name": dock.objectName(),
                               "plot": widget.description()})
-            else:
+            elif widget is not None and hasattr(widget, "view_settings"):
                 docks.append({"kind": "view3d", "name": dock.objectName(),
                               "view": widget.view_settings()})
         header = bytes(self.table.horizontalHeader().saveState().data())
