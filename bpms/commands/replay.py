@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     if args.lsl and args.lsl_wait > 0:
         print(f"waiting up to {args.lsl_wait:g} s for LSL consumers", flush=True)
         _wait_for_lsl(bridges, args.lsl_wait)
-    print(f"replaying {len(recording)} frames ({len(recording) * FRAME_PERIOD_S:.1f} s) "
+    print(f"replaying {len(recording)} frames ({recording.duration_s:.1f} s) "
           f"to {', '.join(targets)} at {'full speed' if not args.speed else f'{args.speed}×'}",
           flush=True)
     session.start()
