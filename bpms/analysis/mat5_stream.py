@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import struct
-import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import BinaryIO
@@ -80,10 +79,10 @@ def encode_variable(name: str, value: object) -> bytes:
     raise TypeError(f"{name}: cannot write a {type(value).__name__} to a .mat file")
 
 
-def file_header(text: str = "") -> bytes:
-    """The 128-byte v5 header: descriptive text, no subsystem data, version 0x0100, 'IM'."""
-    text = text or ("MATLAB 5.0 MAT-file, written by BPMS Suite, "
-                    + time.strftime("%a %b %d %H:%M:%S %Y", time.gmtime()) + " UTC")
+def file_header(text: str = "MATLAB 5.0 MAT-file, written by BPMS Suite") -> bytes:
+    """The 128-byte v5 header: descriptive text, no subsystem data, version 0x0100, 'IM'.
+    No date in the text: the same recording gives the same bytes (the file holds its UTC
+    start)."""
     return (text.encode("ascii", "replace")[:116].ljust(116, b" ") + b"\0" * 8
             + struct.pack(f"{E}H", 0x0100) + b"IM")
 
