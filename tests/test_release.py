@@ -3,6 +3,7 @@ the extras agree with pyproject.toml; ``[all]`` pulls in no Jupyter package."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib.metadata as md
 import re
 import tomllib
@@ -72,10 +73,8 @@ def _closure(extras: set[str]) -> set[str]:
         if key in seen:
             continue
         seen.add(key)
-        try:
+        with contextlib.suppress(md.PackageNotFoundError):
             todo += [(r, set(req.extras)) for r in md.requires(name) or []]
-        except md.PackageNotFoundError:
-            pass
     return {k.split("[")[0] for k in seen}
 
 
