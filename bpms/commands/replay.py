@@ -71,7 +71,7 @@ def _processor(path: str, options_path: str | None):
 
 def run(args: argparse.Namespace) -> int:
     from bpms.io.replay import ReplaySource
-    from bpms.io.udp import UdpConfigError
+    from bpms.io.udp.addresses import UdpConfigError
     from bpms.pipeline.session import LiveSession
     from bpms.pipeline.streams import start_streams, stop_streams
 
