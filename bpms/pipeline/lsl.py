@@ -19,9 +19,9 @@ Streams (docs/lsl.md lists every channel):
 
 Time stamps are on LSL's clock (``pylsl.local_clock``): each frame's sampling time from the
 de-jittered frame clock (:mod:`bpms.pipeline.frame_clock`), minus the configured link delay
-(option ``lsl.link_delay_s``). The first :data:`SETTLE_FRAMES` frames of a stream (and after
-each reconnection or seek) are held back and stamped together on the lower envelope of all
-their arrivals: the frames that open a stream come late (the link and the threads starting),
+(option ``lsl.link_delay_s``). The first second of a stream (:data:`SETTLE_S`; and after each
+reconnection or seek) is held back and stamped together on the lower envelope of all its
+frames' arrivals: the frames that open a stream come late (the link and the threads starting),
 and a clock anchored on them alone would slew for its first tenth of a second. Samples before
 the first Reset Zero (NaN orientations) are sent as NaN, so every stream has one sample per
 processed frame.
@@ -56,9 +56,10 @@ LINK_LOST_STATES = frozenset({"silent", "gone", "reopening", "link lost"})
 
 MARKERS = ("reset zero", "logging start", "logging stop", "link lost", "link recovered",
            "filter re-initialised")
-#: Frames held back at the start of a run (a stream start, reconnection or seek) so that
-#: they are stamped on the envelope of all their arrivals: 1 s at 50 Hz.
-SETTLE_FRAMES = 50
+#: Stream time held back at the start of a run (a stream start, reconnection or seek) so that
+#: its frames are stamped on the envelope of all their arrivals, s (50 frames at 50 Hz; a
+#: replay at speed s holds 50 · s frames).
+SETTLE_S = 1.0
 _QUAT = ("W", "X", "Y", "Z")
 _SENSOR_AXES = (("Acceleration", "accel", "m/s^2"), ("MagneticField", "mag", "gauss"),
                 ("AngularVelocity", "gyro", "rad/s"))
@@ -167,7 +168,8 @@ class LslOutlets:
         self._stamps: dict[int, float] = {}
         self._held: list[tuple] = []  # the run's first frames: (index, arrival, q, a, s, d)
         self._held_markers: list[tuple[str, int]] = []
-        self._settled = False  # False until a run's first SETTLE_FRAMES have been stamped
+        self._settled = False  # False until a run's first second has been stamped
+        self.settle_frames = max(1, round(SETTLE_S / period))
         self.sent = 0
 
     def local_clock(self) -> float:
@@ -182,7 +184,8 @@ class LslOutlets:
         ``[N, 18, 9]``; disturbance ``[N, 36]`` (mag flags, acc flags; -1 unknown; None: all
         -1); ``discontinuity``: the first frame starts a new run (reconnection, seek).
         Returns the LSL time stamps of the frames sent now: a run's first
-        :data:`SETTLE_FRAMES` frames are sent together once they have all arrived."""
+        :attr:`settle_frames` (:data:`SETTLE_S` of stream) are sent together once they have
+        all arrived."""
         n = len(indices)
         q = np.asarray(quaternions, dtype=np.float32).reshape(n, -1)
         a = np.degrees(np.asarray(joint_angles, dtype=np.float64)).astype(np.float32)
@@ -200,14 +203,14 @@ class LslOutlets:
             stamps = []
         if not self._settled:
             self._held += [(*f, False) for f in frames]
-            if len(self._held) >= SETTLE_FRAMES:
+            if len(self._held) >= self.settle_frames:
                 stamps += self.flush()
             return stamps
         return stamps + self._send(frames)
 
     def flush(self) -> list[float]:
         """Send the held frames of a run now (at a run's end, or once it has
-        :data:`SETTLE_FRAMES`), stamped on the lower envelope of their arrivals."""
+        :attr:`settle_frames`), stamped on the lower envelope of their arrivals."""
         if not self._held:
             return []
         held, self._held = self._held, []
