@@ -222,7 +222,7 @@ def test_the_lsl_inlet_script_reads_bpms_replay(tmp_path):
     lines = out.splitlines()
     assert lines[0].startswith("convention: isb")
     summary = re.fullmatch(r"(\d+) samples over ([\d.]+) s, steps ([\d.]+)-([\d.]+) ms, "
-                           r"knee_r.flexion (-?[\d.]+) to (-?[\d.]+) deg", lines[1])
+                           r"joint_knee_r_flexion (-?[\d.]+) to (-?[\d.]+) deg", lines[1])
     assert summary, lines
     count, span, low, high, _, knee_max = (float(x) for x in summary.groups())
     assert count == 200 and span == pytest.approx(3.98, abs=0.011)

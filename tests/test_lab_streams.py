@@ -186,9 +186,9 @@ def test_every_lsl_stream_reaches_an_inlet_in_another_process(recording, lsl_env
                          "BPMS Disturbance", "BPMS Events"}
     seg, jnt, sen = info["BPMS Segments"], info["BPMS Joint Angles"], info["BPMS Sensors"]
     assert seg["channels"] == 72 and seg["type"] == "MoCap" and seg["rate"] == 50.0
-    assert seg["labels"][:4] == [f"{IMU_NAMES[0].lower().replace(' ', '_')}_q{c}"
+    assert seg["labels"][:4] == [f"imu0_{IMU_NAMES[0].lower().replace(' ', '_')}_q{c}"
                                  for c in "wxyz"]
-    assert jnt["channels"] == 28 and jnt["labels"][2] == "knee_r.flexion"
+    assert jnt["channels"] == 28 and jnt["labels"][2] == "joint_knee_r_flexion"
     assert jnt["convention"].startswith("isb")
     assert sen["channels"] == 162 and sen["type"] == "IMU"
     assert info["BPMS Disturbance"]["channels"] == 36

@@ -255,7 +255,11 @@ def _warm_up() -> None:
 
 
 def write_table(path: str | Path, outcomes: list[Outcome]) -> int:
-    """The tidy table: one row per recording × joint angle. Returns the number of rows."""
+    """The tidy table: one row per recording × joint angle (``joint``: the joint angle's name
+    as its columns elsewhere, without the unit: ``joint_knee_r_flexion``). Returns the number
+    of rows."""
+    from bpms.io.names import joint_column
+
     rows = 0
     with open(path, "w", encoding="utf-8", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
@@ -263,8 +267,9 @@ def write_table(path: str | Path, outcomes: list[Outcome]) -> int:
                     "utc_start", "convention", "file"])
         for o in outcomes:
             for joint, lo, hi in o.rows:
-                w.writerow([o.job.subject, o.job.trial, joint, f"{lo:.3f}", f"{hi:.3f}",
-                            f"{hi - lo:.3f}", o.frames, o.utc_start, o.convention, o.job.path])
+                w.writerow([o.job.subject, o.job.trial, joint_column(joint), f"{lo:.3f}",
+                            f"{hi:.3f}", f"{hi - lo:.3f}", o.frames, o.utc_start, o.convention,
+                            o.job.path])
                 rows += 1
     return rows
 
@@ -290,7 +295,9 @@ def write_summary(folder: str | Path, outcomes: list[Outcome], source: str | Pat
         lines.append("")
     with_rom = [o for o in ok if o.rows]
     if with_rom:
-        names = [r[0] for r in with_rom[0].rows]
+        from bpms.io.names import joint_column
+
+        names = [joint_column(r[0]) for r in with_rom[0].rows]
         ranges = np.array([[hi - lo for _, lo, hi in o.rows] for o in with_rom])
         lines += ["## Range of motion across recordings (deg)", "",
                   "| joint | mean range | min range | max range | recordings |",

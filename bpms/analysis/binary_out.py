@@ -15,7 +15,8 @@ Both state the recording's UTC start time (the receive time of its first frame) 
   arrays), ``units`` (struct), ``utc_start`` (ISO 8601 text), ``utc_start_posix`` (s since
   1970), ``joint_angle_convention``, ``rate_hz``, ``source``.
 - Parquet: one row per frame, written one row group per chunk (constant memory): column
-  ``t_s``, ``utc`` (timestamp, µs, UTC), ``SEGMENT_qw`` …, ``JOINT_deg`` …, ``POINT_x_m`` …;
+  ``time_s``, ``utc`` (timestamp, µs, UTC), ``imuN_SEGMENT_qw`` …, ``joint_JOINT_deg`` …,
+  ``point_POINT_x_m`` … (the names of docs/analysis.md, "Column names");
   the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, ...).
   docs/analysis.md says why Parquet.
 """
@@ -33,6 +34,7 @@ import numpy as np
 from bpms.filter.body_model import POINT_NAMES
 from bpms.filter.joints import CONVENTION_TEXT, JOINT_ANGLE_NAMES
 from bpms.io.frames import IMU_NAMES
+from bpms.io.names import imu_column, joint_column, point_column, slug
 
 KINDS = ("mat", "parquet")
 SUFFIX = {"mat": ".mat", "parquet": ".parquet"}
@@ -40,11 +42,7 @@ UNITS = {"t": "s", "quaternions": "1 (unit quaternion w, x, y, z; segment -> wor
          "joint_angles": "deg", "joint_positions": "m (NED, lowest foot at z = 0)"}
 
 
-def _slug(text: str) -> str:
-    return text.lower().replace(" ", "_").replace(".", "_")
-
-
-SEGMENT_SLUGS = tuple(_slug(n) for n in IMU_NAMES)
+SEGMENT_SLUGS = tuple(slug(n) for n in IMU_NAMES)
 
 
 @dataclass
@@ -123,7 +121,7 @@ class MatWriter:
         meta = self.meta.as_dict()
         return {
             "segment_names": SEGMENT_SLUGS,
-            "joint_names": JOINT_ANGLE_NAMES,
+            "joint_names": [joint_column(j) for j in JOINT_ANGLE_NAMES],
             "point_names": POINT_NAMES,
             "units": UNITS,
             "utc_start": meta["utc_start"],
@@ -159,10 +157,10 @@ class MatWriter:
 
 def parquet_columns() -> list[str]:
     """Column names of the Parquet table, in order."""
-    return ["t_s", "utc",
-            *(f"{s}_q{c}" for s in SEGMENT_SLUGS for c in "wxyz"),
-            *(f"{_slug(j)}_deg" for j in JOINT_ANGLE_NAMES),
-            *(f"{p}_{a}_m" for p in POINT_NAMES for a in "xyz")]
+    return ["time_s", "utc",
+            *(imu_column(i, f"q{c}") for i in range(len(IMU_NAMES)) for c in "wxyz"),
+            *(joint_column(j, "deg") for j in JOINT_ANGLE_NAMES),
+            *(point_column(p, a, "m") for p in POINT_NAMES for a in "xyz")]
 
 
 class ParquetWriter:
@@ -177,7 +175,8 @@ class ParquetWriter:
         self.meta = meta
         self.rows = 0
         names = parquet_columns()
-        fields = [pa.field("t_s", pa.float64()), pa.field("utc", pa.timestamp("us", tz="UTC"))]
+        fields = [pa.field("time_s", pa.float64()),
+                  pa.field("utc", pa.timestamp("us", tz="UTC"))]
         fields += [pa.field(n, pa.float32()) for n in names[2:]]
         schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
         self._schema = schema
@@ -185,7 +184,7 @@ class ParquetWriter:
         # continuous signals; statistics only where queries filter (time).
         self._writer = pq.ParquetWriter(self.path, schema, compression=compression,
                                         use_dictionary=False,
-                                        write_statistics=["t_s", "utc"])
+                                        write_statistics=["time_s", "utc"])
 
     def write(self, result) -> None:
         pa = self._pa

@@ -43,6 +43,7 @@ import numpy as np
 
 from bpms.filter.joints import CONVENTION_TEXT, JOINT_ANGLE_NAMES
 from bpms.io.frames import FRAME_PERIOD_S, IMU_NAMES
+from bpms.io.names import imu_column, joint_column
 from bpms.pipeline.frame_clock import FrameClock
 
 log = logging.getLogger(__name__)
@@ -61,8 +62,9 @@ MARKERS = ("reset zero", "logging start", "logging stop", "link lost", "link rec
 #: replay at speed s holds 50 · s frames).
 SETTLE_S = 1.0
 _QUAT = ("W", "X", "Y", "Z")
-_SENSOR_AXES = (("Acceleration", "accel", "m/s^2"), ("MagneticField", "mag", "gauss"),
-                ("AngularVelocity", "gyro", "rad/s"))
+#: (XDF channel type, the channel's letter as in bpms extract's ax … gz columns, unit)
+_SENSOR_AXES = (("Acceleration", "a", "m/s^2"), ("MagneticField", "m", "gauss"),
+                ("AngularVelocity", "g", "rad/s"))
 
 
 def _slug(text: str) -> str:
@@ -78,29 +80,32 @@ class Channel:
 
 
 def segment_channels() -> list[Channel]:
-    """72 channels: per IMU/segment the quaternion w, x, y, z (XDF types OrientationA..D)."""
-    return [Channel(f"{_slug(name)}_q{c.lower()}", f"Orientation{'ABCD'[k]}", "normalized",
-                    _slug(name))
-            for name in IMU_NAMES for k, c in enumerate(_QUAT)]
+    """72 channels: per segment the quaternion w, x, y, z (XDF types OrientationA..D)."""
+    return [Channel(imu_column(i, f"q{c.lower()}"), f"Orientation{'ABCD'[k]}",
+                    "normalized", _slug(name))
+            for i, name in enumerate(IMU_NAMES) for k, c in enumerate(_QUAT)]
 
 
 def joint_channels() -> list[Channel]:
     """28 channels in :data:`bpms.filter.joints.JOINT_ANGLE_NAMES` order, degrees."""
-    return [Channel(name, "JointAngle", "degrees", name.split(".")[0])
+    return [Channel(joint_column(name), "JointAngle", "degrees", name.split(".")[0])
             for name in JOINT_ANGLE_NAMES]
 
 
 def sensor_channels() -> list[Channel]:
-    """162 channels: per IMU accel x, y, z, mag x, y, z, gyro x, y, z."""
-    return [Channel(f"{_slug(name)}_{short}_{axis}", f"{kind}{axis.upper()}", unit, _slug(name))
-            for name in IMU_NAMES for kind, short, unit in _SENSOR_AXES for axis in "xyz"]
+    """162 channels: per IMU accel x, y, z, mag x, y, z, gyro x, y, z (``imu0_right_leg_ax``
+    … ``imu17_head_gz``, the names of ``bpms extract``'s columns)."""
+    return [Channel(imu_column(i, f"{short}{axis}"), f"{kind}{axis.upper()}", unit,
+                    _slug(name))
+            for i, name in enumerate(IMU_NAMES) for kind, short, unit in _SENSOR_AXES
+            for axis in "xyz"]
 
 
 def disturbance_channels() -> list[Channel]:
     """36 channels: the 18 magnetometer flags (IMU order), then the 18 acceleration flags."""
-    return [Channel(f"{_slug(name)}_{kind}_disturbed", f"{kind.capitalize()}Disturbed", "flag",
-                    _slug(name))
-            for kind in ("mag", "acc") for name in IMU_NAMES]
+    return [Channel(imu_column(i, f"{kind}_disturbed"), f"{kind.capitalize()}Disturbed",
+                    "flag", _slug(name))
+            for kind in ("mag", "acc") for i, name in enumerate(IMU_NAMES)]
 
 
 def _describe(info, channels: Sequence[Channel], extra: dict[str, str]) -> None:
