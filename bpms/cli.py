@@ -28,7 +28,7 @@ DEFAULT_COMMAND = "gui"
 LOGGED_COMMANDS = frozenset({"gui", "record"})
 
 _ROLE = re.compile(r":[a-z]+(?::[a-z]+)?:`~?([^`]+)`")  # :func:`x`, :py:mod:`~a.b`
-_LITERAL = re.compile(r"``(.+?)``|`([^`\n]+)`")
+_LITERAL = re.compile(r"``(.+?)``|`([^`\n]+)`", re.S)  # a double-backtick span may wrap
 
 
 def command_names() -> list[str]:

@@ -101,7 +101,7 @@ def test_installed_bpms_warmup_then_record_filter_export(installed, tmp_path):
     done = _run(installed, "warmup", "--filter", "mahony", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert "compiling the filters" in done.stderr and "\r" not in done.stderr
-    done = _run(installed, "record", "--sim", "--seconds", "3", "-o", "rec", "--name", "chain",
+    done = _run(installed, "record", "--sim", "--seconds", "5", "-o", "rec", "--name", "chain",
                 cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     (raw,) = (tmp_path / "rec").glob("Raw_chain*.bpmsraw")  # the recorder numbers its files

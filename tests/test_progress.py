@@ -4,13 +4,8 @@
 from __future__ import annotations
 
 import io
-import subprocess
-import sys
-from pathlib import Path
 
 from bpms.progress import ProgressLine, report
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 class Terminal(io.StringIO):
@@ -71,17 +66,18 @@ def test_report_keeps_one_line_per_label_and_starts_again_for_the_next_job():
     assert len(lines) == 2 * 11
 
 
-def test_a_long_export_writes_plain_progress_lines_to_a_pipe(tmp_path):
-    """A recording above 30,000 frames (10 min): the command's stderr is a pipe, so its
-    progress is a few plain lines, not one line full of carriage returns."""
-    from bpms.firmware.sim.session import simulate
+def test_the_commands_progress_is_plain_lines_in_a_pipe(capsys):
+    """What the analysis commands call per chunk of a recording above 30,000 frames: with
+    stderr captured (not a terminal) it writes a few plain lines, never a carriage return."""
+    from bpms.analysis.source import stderr_progress
 
-    raw = simulate(620.0, seed=2, noise=False).save_raw(tmp_path / "Raw_long.bpmsraw")
-    done = subprocess.run([sys.executable, "-m", "bpms", "export", "matlab", str(raw), "-o",
-                           str(tmp_path / "long")], cwd=ROOT, capture_output=True, text=True,
-                          timeout=600)
-    assert done.returncode == 0, done.stderr
-    assert "\r" not in done.stderr
-    progress = [ln for ln in done.stderr.splitlines() if "% (" in ln]
-    assert any(ln.endswith("(31000/31000 frames)") for ln in progress), progress
-    assert 3 <= len(progress) <= 30, progress
+    for done in range(0, 186_001, 15_000):  # an hour at 50 Hz, in the door's 5-minute chunks
+        stderr_progress("filtering trial.bpmsraw", min(done, 186_000), 186_000)
+    stderr_progress("filtering trial.bpmsraw", 186_000, 186_000)
+    err = capsys.readouterr().err
+    assert "\r" not in err
+    lines = err.splitlines()
+    assert lines[-1] == "filtering trial.bpmsraw: 100% (186000/186000 frames)"
+    assert 8 <= len(lines) <= 13, lines  # every 10 % (a chunk is 8 %), not every chunk
+    stderr_progress("short", 10, 20_000)  # 6.7 minutes: no progress at all
+    assert capsys.readouterr().err == ""
