@@ -21,7 +21,9 @@ def test_the_api_reference_builds_without_warnings(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "warn" not in done.stderr.lower(), done.stderr
     page = (tmp_path / "bpms" / "filter" / "processor.html").read_text(encoding="utf-8")
-    assert "BodyPoseProcessor" in page and "process_file" in page
+    assert "BodyPoseProcessor" in page and "reset_zero" in page
+    door = (tmp_path / "bpms" / "filter" / "door.html").read_text(encoding="utf-8")
+    assert "process_file" in door and "open_for_processing" in door
     for module in ("analysis/c3d_export", "analysis/batch", "io/rawfile", "pipeline/lsl",
                    "firmware/sim/session", "progress"):
         assert (tmp_path / "bpms" / f"{module}.html").is_file(), module

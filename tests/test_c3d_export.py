@@ -37,9 +37,9 @@ def exported(tmp_path_factory):
     raw = simulate(SECONDS, seed=4).save_raw(folder / "Raw_c3d_001.bpmsraw")
     done = bpms("export", "c3d", str(raw), "-o", str(folder / "trial"))
     assert done.returncode == 0, done.stderr
-    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.filter.door import process_file
 
-    return raw, folder / "trial.c3d", BodyPoseProcessor().process_file(raw)
+    return raw, folder / "trial.c3d", process_file(raw)
 
 
 def test_ezc3d_reads_the_joint_centres_within_a_tenth_of_a_millimetre(exported):

@@ -58,7 +58,7 @@ TRIAL = (("Raw_trial_001.bpmsraw", ARM),)
 #: (page, a line of the block) → how it runs. The UDP reader and the LSL inlet have tests of
 #: their own (below).
 RUNS: dict[tuple[str, str], Run] = {
-    ("README.md", "result = BodyPoseProcessor().process_file("): Run("repo"),
+    ("README.md", 'result = process_file("docs/samples/'): Run("repo"),
     ("docs/analysis.md", "events = gyro_heel_strikes("): Run("repo"),
     ("docs/opening-recordings.md", 'opened = open_for_processing("Raw_trial_001.bpmsraw")'):
         Run(files=TRIAL),
@@ -183,9 +183,9 @@ def test_the_udp_reader_script_reads_bpms_replay(tmp_path):
         assert k % 50 == 0 and tuple(int(c) for c in counts.split(",")) == tuple(
             int(c) for c in frames.raw[k, 0, :3])
     # a pose for every frame after the first Reset Zero, as the Python API computes it
-    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.filter.door import process_file
 
-    result = BodyPoseProcessor().process_file(ARM)
+    result = process_file(ARM)
     assert len(poses) >= n - 5
     pattern = (r"t=([\d.]+)s head q=\(.+\) knee_r=(-?[\d.]+) deg "
                r"pelvis height=(-?[\d.]+) m isb")
