@@ -116,11 +116,12 @@ def test_o_is_a_stem_for_every_export_format(fmt, given, expected):
 
 
 def test_every_format_writes_exactly_the_named_files(tmp_path):
+    from bpms.cli import main
+
     raw = simulate(2.0, seed=1).save_raw(tmp_path / "Raw_x.bpmsraw")
     (tmp_path / "out").mkdir()
     for fmt in ("opensim", "bvh", "matlab", "c3d"):
-        done = bpms("export", fmt, str(raw), "-o", str(tmp_path / "out" / fmt), cwd=tmp_path)
-        assert done.returncode == 0, done.stderr
+        assert main(["export", fmt, str(raw), "-o", str(tmp_path / "out" / fmt)]) == 0
     written = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert written == ["bvh.bvh", "c3d.c3d", "matlab.csv", "opensim_calibration.sto",
                        "opensim_orientations.sto"]
