@@ -67,6 +67,7 @@ RUNS: dict[tuple[str, str], Run] = {
                ("options.toml", ROOT / "calib" / "options.toml")),
         preamble=("from bpms.io.recordings import open_recording\n"
                   "_frames = open_recording('Raw_trial_001.bpmsraw').decode()\n"
+                  "raw, errors = _frames.raw, _frames.errors\n"
                   "raw_18x9, errors_18x3 = _frames.raw[0], _frames.errors[0]\n"),
         raises="OptionRangeError"),
     ("docs/filters.md", "proc.select_filter(\"vqf\")"): Run(

@@ -66,6 +66,8 @@ def _processor(path: str, options_path: str | None):
     if not opened.has_raw:
         raise CliError(f"{path}: a filtered file; give a raw recording")
     print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
+    for problem in opened.problems:
+        print(f"bpms replay: warning: {problem}", file=sys.stderr)
     return opened.processor, opened.processor.options
 
 
@@ -104,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         from bpms.pipeline.lsl import wait_for_consumers
 
         wait_for_consumers(bridges, args.lsl_wait)
-    print(f"replaying {len(recording)} frames ({len(recording) * FRAME_PERIOD_S:.1f} s) "
+    print(f"replaying {len(recording)} frames ({recording.duration_s:.1f} s) "
           f"to {', '.join(targets)} at {'full speed' if not args.speed else f'{args.speed}×'}",
           flush=True)
     session.start()
@@ -119,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
             if now - last >= 1.0 or done:
                 print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
                       f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
-                      f"send errors {status.forward_errors}", flush=True)
+                      f"send errors {status.forward_errors}  "
+                      f"no listener {status.forward_refused}", flush=True)
                 last = now
             if done:
                 if not args.loop:
