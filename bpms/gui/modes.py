@@ -154,7 +154,7 @@ class SessionRunner:
 
                 self._lsl = LslBridge(self.session).start()
             except ImportError:
-                return "LSL streaming needs the pylsl package (pip install 'bpms[lab]')"
+                return 'LSL streaming needs the pylsl package (pip install "bpms[lsl]")'
             except (ValueError, OSError) as exc:
                 return str(exc)
         return None
