@@ -321,6 +321,23 @@ def _small_integers(x: np.ndarray, spec: _Spec) -> np.ndarray | None:
 
 
 @cache
+def _top_digits() -> np.ndarray:
+    """d0 d1 of the ten digits, from m // 1e8 (0..99; 128 entries), at bytes 2 and 3."""
+    top = np.arange(128, dtype=np.uint64) % np.uint64(100)
+    return ((top // np.uint64(10)) << np.uint64(16)) | ((top % np.uint64(10)) << np.uint64(24))
+
+
+@cache
+def _zero_points() -> np.ndarray:
+    """For X = -4..0 (index X + 4): "0.000", "0.00", "0.0", "0." from byte 2 on, or nothing
+    (X ≥ 0: the point goes after the integer digits)."""
+    out = np.zeros(5, np.uint64)
+    for k, text in enumerate([b"0.000", b"0.00", b"0.0", b"0."]):
+        out[k] = int.from_bytes(b"\0\0" + text, "little")
+    return out
+
+
+@cache
 def _general_scales(precision: int) -> tuple[np.ndarray, np.ndarray]:
     """Per biased binary exponent b of a double (its bits 52..62): 10**(P-1-X) and X, for X
     the largest decimal exponent with 10**X ≤ 2**(b-1022) (a value with that b has exponent
@@ -344,7 +361,6 @@ def _general_scales(precision: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 _POINT = _U(ord(".") << 16)
-_ZERO_POINT = _U(int.from_bytes(b"\0\x000.000", "little"))  # "0." and zeros after the point
 _DIGITS_LO = _U(0x3030303030300000)  # '0' added to bytes 2..7 (d0..d5)
 _DIGITS_HI = _U(0x30303030)  # and to bytes 0..3 of the second word (d6..d9)
 _E_MINUS = int.from_bytes(b"e-", "little")
@@ -387,12 +403,9 @@ def _general_words(x: np.ndarray, precision: int,
     # d2..d9 from the rest
     if precision < 10:
         m *= _P10[10 - precision]
-    top = np.floor(m * 1e-8)
-    top -= top * 1e8 > m  # 1e-8 is not exact: one too high at worst
+    top = np.floor(m / 1e8)  # exact: m < 2**53, and 1e8 is exact
     low8 = _swar8((m - top * 1e8).astype(_U))
-    top_u = top.astype(_U)
-    d0 = (top_u * _U(103)) >> _U(10)
-    digits_lo = (d0 << _U(16)) | ((top_u - d0 * _U(10)) << _U(24)) | (low8 << _U(32))
+    digits_lo = _top_digits().take(top.astype(np.intp) & 127) | (low8 << _U(32))
     digits_hi = low8 >> _U(32)  # d6..d9
     split = (np.maximum(x_exp + 1, 0) << 3).astype(_U)  # integer digits, bits
     int_mask = ((_U(1) << split) - _U(1)) << _U(16)
@@ -408,9 +421,11 @@ def _general_words(x: np.ndarray, precision: int,
     gap = ((1 - np.minimum(x_exp, 0)) << 3).astype(_U)
     kept = text_lo & int_mask
     moved = text_lo ^ kept
-    point = ((moved | text_hi) > 0) & (x_exp >= 0)
+    point = x_exp >= 0  # a digit after the point unless d9 was 0 and they all were
+    if len(zeros):
+        point[zeros] &= (moved[zeros] | text_hi[zeros]) > 0
     prefix = (point.astype(_U) * _POINT) << split
-    prefix |= _ZERO_POINT & (((_U(1) << gap) - _U(1)) << _U(16)) * (x_exp < 0)
+    prefix |= _zero_points().take(np.minimum(x_exp, 0) + 4, mode="clip")
     spill = (text_hi >> (_U(64) - gap)).astype(_WORD)  # the 15th character of "0.000d0.."
     text_hi = (text_hi << gap) | (moved >> (_U(64) - gap))
     text_lo = kept | (moved << gap) | prefix | np.signbit(x) * _MINUS_HEAD
