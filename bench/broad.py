@@ -37,7 +37,7 @@ from bpms.filter.algorithms import ALGORITHMS, adaptive_gains, observer_gains
 from bpms.filter.bank import MahonyBank
 from bpms.filter.observer import Observer
 from bpms.filter.rotations import dcm_to_quaternion
-from bpms.filter.vqf_filter import Q_ENU_TO_NED, VqfFilters, quat_mul
+from bpms.filter.vqf_filter import Q_ENU_TO_NED, VqfFilters, enu_to_ned, quat_mul
 from bpms.io.options import FilterOptions
 
 REPO = Path(__file__).resolve().parents[1]
@@ -144,7 +144,7 @@ def run_filter(name: str, trial: Trial, settings: dict[str, float] | None = None
                             trial.gyr[:, None], store_q=True).q[:, 0]
     elif name == "vqf":
         vqf = VqfFilters(1, dt, options.vqf_tau_acc_s, options.vqf_tau_mag_s)
-        q_ned = vqf.process_imu(0, trial.acc, trial.mag / 50.0, trial.gyr)
+        q_ned = enu_to_ned(vqf.process_imu(0, trial.acc, trial.mag / 50.0, trial.gyr)[0])
     else:
         raise ValueError(name)
     return _ned_to_enu(q_ned)

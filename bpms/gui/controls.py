@@ -440,5 +440,7 @@ class UdpServerPanel(QGroupBox):
 
     def show_status(self, st: LiveStatus) -> None:
         if self.on:
+            refused = f", nobody listening ({st.forward_refused})" if st.forward_refused else ""
             self.status_label.setText(f"sending to {', '.join(st.forwarding)}: "
-                                      f"{st.forwarded} datagrams, {st.forward_errors} errors")
+                                      f"{st.forwarded} datagrams, {st.forward_errors} errors"
+                                      f"{refused}")

@@ -206,7 +206,8 @@ class SessionRunner:
             from bpms.io.udp.auth import shared_key
 
             return UdpFrameSource(self.config.listen, self.config.group or None,
-                                  key=shared_key(self.options.udp.key_file))
+                                  key=shared_key(self.options.udp.key_file),
+                                  takeover_after_s=self.options.udp.takeover_after_s)
         except (OSError, ValueError) as exc:
             raise ModeError(f"cannot listen on UDP {self.config.listen}: {exc}") from None
 
