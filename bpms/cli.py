@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import re
 import sys
 
 import bpms
@@ -26,8 +27,8 @@ DEFAULT_COMMAND = "gui"
 #: Commands that also keep a rotating log file in the per-user log folder.
 LOGGED_COMMANDS = frozenset({"gui", "record"})
 
-#: Where users find the documentation (shown by ``bpms --help``).
-PROJECT_URL = "https://github.com/bpms-suite/bpms"
+_ROLE = re.compile(r":[a-z]+(?::[a-z]+)?:`~?([^`]+)`")  # :func:`x`, :py:mod:`~a.b`
+_LITERAL = re.compile(r"``(.+?)``|`([^`\n]+)`", re.S)  # a double-backtick span may wrap
 
 
 def command_names() -> list[str]:
@@ -64,6 +65,30 @@ def command_summary(name: str) -> str | None:
     return None
 
 
+def plain_text(text: str | None) -> str | None:
+    """Help text without reStructuredText markup (the module docstrings the commands show):
+    ``:func:`a.b``` → ``a.b``, double and single backticks dropped."""
+    if not text:
+        return text
+    text = _ROLE.sub(lambda m: m.group(1), text)
+    return _LITERAL.sub(lambda m: m.group(1) or m.group(2), text)
+
+
+def _plain_help(parser: argparse.ArgumentParser) -> None:
+    """:func:`plain_text` for a parser's description, epilog, every option's help and the
+    same for its sub-commands (``bpms config show``, ``bpms extract raw`` ...)."""
+    parser.description = plain_text(parser.description)
+    parser.epilog = plain_text(parser.epilog)
+    for action in parser._actions:
+        if isinstance(action.help, str):
+            action.help = plain_text(action.help)
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                choice.help = plain_text(choice.help)
+            for sub in action.choices.values():
+                _plain_help(sub)
+
+
 def build_parser(only: str | None = None, *, overview: bool = False) -> argparse.ArgumentParser:
     """The argument parser with every sub-command, or only the command ``only``.
 
@@ -90,6 +115,7 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
         command = module.register(sub)
         if isinstance(command, argparse.ArgumentParser) and command.epilog is None:
             command.epilog = docs_hint()  # the pages that help texts name are there
+    _plain_help(parser)  # the docstrings' markup is for the API reference
     return parser
 
 

@@ -108,15 +108,15 @@ def test_matlab_csv_has_a_header_and_the_api_values(trial):
     lines = [ln for ln in out.read_text().splitlines() if not ln.startswith("%")]
     cols = lines[0].split(",")
     assert cols == matlab_columns() and len(cols) == 1 + 18 * 7 + 28
-    assert cols[1:5] == ["imu0_right_leg_qw", "imu0_right_leg_qx", "imu0_right_leg_qy",
-                         "imu0_right_leg_qz"]
+    assert cols[1:5] == ["imu0_right_leg_sensor_qw", "imu0_right_leg_sensor_qx",
+                         "imu0_right_leg_sensor_qy", "imu0_right_leg_sensor_qz"]
     assert "joint_knee_r_flexion_deg" in cols
     data = np.array([[float(c) for c in ln.split(",")] for ln in lines[1:]])
     assert data.shape == (len(rec), len(cols))
     k = cols.index("joint_knee_r_flexion_deg")
     np.testing.assert_allclose(data[:, k], np.degrees(res.joint_angles[:, 2]), rtol=1e-6,
                                equal_nan=True)
-    r = cols.index("imu6_hip_yaw_deg")
+    r = cols.index("imu6_hip_sensor_yaw_deg")
     np.testing.assert_allclose(data[:, r], np.degrees(res.euler[:, 6, 2]), rtol=1e-6)
 
 

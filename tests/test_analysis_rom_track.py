@@ -42,7 +42,7 @@ def test_rom_matches_the_truth_extremes_within_3deg(script, tmp_path, capsys):
     assert main(["rom", str(path), "--from", "0", "--to", str(WALK_START_S),
                  "-o", str(out)]) == 0
     cols, names, values = read_rom_csv(out / "rom.csv")
-    assert names == list(JOINT_ANGLE_NAMES)
+    assert names == ["joint_" + n.replace(".", "_") for n in JOINT_ANGLE_NAMES]
     assert cols[1:] == ["Raw_script_001_min_deg", "Raw_script_001_max_deg",
                         "Raw_script_001_range_deg"]
     window = rec.t <= WALK_START_S
@@ -53,7 +53,7 @@ def test_rom_matches_the_truth_extremes_within_3deg(script, tmp_path, capsys):
     np.testing.assert_allclose(values[:, 2], values[:, 1] - values[:, 0], atol=0.011)
     md = (out / "rom.md").read_text()
     assert md == capsys.readouterr().out
-    assert "| knee_r.flexion |" in md and "min / max / range, deg" in md
+    assert "| joint_knee_r_flexion |" in md and "min / max / range, deg" in md
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert pngs == [f"rom_{g}.png" for g in
                     ("ankle", "elbow", "head", "hip", "knee", "shoulder", "torso")]
@@ -136,7 +136,7 @@ def test_rom_with_mounting_errors_within_3deg_using_vqf_and_the_mean_heading(tmp
     assert main(["rom", str(path), "--from", "0", "--to", str(WALK_START_S), "-o", str(out),
                  "--filter", "vqf", "--heading", "mean", "--no-figures"]) == 0
     _, names, values = read_rom_csv(out / "rom.csv")
-    assert names == list(JOINT_ANGLE_NAMES)
+    assert names == ["joint_" + n.replace(".", "_") for n in JOINT_ANGLE_NAMES]
     truth = np.degrees(rec.truth.joint_angles[rec.t <= WALK_START_S])
     np.testing.assert_allclose(values[:, 0], truth.min(0), atol=3.0)
     np.testing.assert_allclose(values[:, 1], truth.max(0), atol=3.0)

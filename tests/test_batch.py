@@ -51,7 +51,7 @@ def test_batch_writes_a_tidy_table_summary_and_outputs(study):
     assert {(r["subject"], r["trial"]) for r in rows} == set(truth)
     for (subject, trial), flexion_max in truth.items():
         row = next(r for r in rows if r["subject"] == subject and r["trial"] == trial
-                   and r["joint"] == "shoulder_r.flexion")
+                   and r["joint"] == "joint_shoulder_r_flexion")
         assert flexion_max > 50  # the script's forward arm raise
         assert float(row["max_deg"]) == pytest.approx(flexion_max, abs=5.0)
         assert float(row["range_deg"]) == pytest.approx(

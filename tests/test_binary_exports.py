@@ -50,12 +50,12 @@ def test_mat_file_has_names_units_time_and_utc_start(exported):
     assert str(m["utc_start"][0]).startswith(expected) and expected in stdout
     assert float(m["utc_start_posix"][0, 0]) == START
     names = [str(x[0][0]) for x in m["joint_names"]]
-    assert names[2] == "knee_r.flexion" and len(names) == 28
+    assert names[2] == "joint_knee_r_flexion" and len(names) == 28
     assert str(m["joint_angle_convention"][0]).startswith("isb")
     assert m["units"]["joint_angles"][0, 0][0] == "deg"
     np.testing.assert_allclose(np.diff(m["t"][:, 0]), 0.02, atol=1e-9)
     # the script raises the right arm forward from 3 s: the exported angle follows the truth
-    k = names.index("shoulder_r.flexion")
+    k = names.index("joint_shoulder_r_flexion")
     truth = _shoulder_flexion_truth(rec)
     late = slice(round(4.5 * 50), n)
     assert truth[late].max() > 40
@@ -72,9 +72,9 @@ def test_parquet_holds_the_same_numbers_with_utc_times(exported):
     assert table.num_rows == len(m["t"])
     utc = table.column("utc").to_numpy().astype("datetime64[us]").astype(np.int64) / 1e6
     np.testing.assert_allclose(utc, START + m["t"][:, 0], atol=1e-6)
-    np.testing.assert_allclose(table.column("knee_r_flexion_deg").to_numpy(),
+    np.testing.assert_allclose(table.column("joint_knee_r_flexion_deg").to_numpy(),
                                m["joint_angles"][:, 2])
-    np.testing.assert_allclose(table.column("head_top_z_m").to_numpy(),
+    np.testing.assert_allclose(table.column("point_head_top_z_m").to_numpy(),
                                m["joint_positions"][:, 4, 2])
 
 

@@ -164,5 +164,7 @@ def test_flag_columns_are_written_as_the_row_format_writes_them(tmp_path):
         block = np.column_stack([np.arange(n) * 0.02, 1.7e9 + np.arange(n), np.zeros(n),
                                  arrays["euler"].reshape(n, -1), arrays["corrected"],
                                  arrays["joints"], values, values[:, ::-1]])
-        assert rows == [writer._fmt % tuple(r) for r in block.tolist()]
-    assert writer._flags == 36
+        fmt = ",".join(["%.10g", "%.6f", "%d"] + ["%.10g"] * 54 + ["%.0f"] + ["%.10g"] * 28
+                       + ["%.0f"] * 36)  # the columns' formats (docs/filtered-file.md)
+        assert rows == [fmt % tuple(r) for r in block.tolist()]
+    assert writer._rows._tail == 36

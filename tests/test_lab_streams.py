@@ -19,6 +19,7 @@ from waiting import receive_until_exit
 from bpms.filter.body_model import POINT_NAMES
 from bpms.firmware.sim.session import simulate
 from bpms.io.frames import IMU_NAMES
+from bpms.io.recordings import open_recording
 from bpms.io.udp.codec import (
     decode_datagram,
     encode_header,
@@ -186,9 +187,9 @@ def test_every_lsl_stream_reaches_an_inlet_in_another_process(recording, lsl_env
                          "BPMS Disturbance", "BPMS Events"}
     seg, jnt, sen = info["BPMS Segments"], info["BPMS Joint Angles"], info["BPMS Sensors"]
     assert seg["channels"] == 72 and seg["type"] == "MoCap" and seg["rate"] == 50.0
-    assert seg["labels"][:4] == [f"{IMU_NAMES[0].lower().replace(' ', '_')}_q{c}"
+    assert seg["labels"][:4] == [f"imu0_{IMU_NAMES[0].lower().replace(' ', '_')}_q{c}"
                                  for c in "wxyz"]
-    assert jnt["channels"] == 28 and jnt["labels"][2] == "knee_r.flexion"
+    assert jnt["channels"] == 28 and jnt["labels"][2] == "joint_knee_r_flexion"
     assert jnt["convention"].startswith("isb")
     assert sen["channels"] == 162 and sen["type"] == "IMU"
     assert info["BPMS Disturbance"]["channels"] == 36
@@ -196,8 +197,10 @@ def test_every_lsl_stream_reaches_an_inlet_in_another_process(recording, lsl_env
         stamps = np.array(data[name]["stamps"])
         assert len(stamps) == FRAMES, name
         assert np.all(np.diff(stamps) > 0), name
-        # replay at 4×: the frame clock's period is 5 ms
+        # replay at 4×: the frame clock's period is 5 ms, from the first frame on (no slew
+        # while the clock settles: the first second is stamped on its own envelope)
         assert np.median(np.diff(stamps)) == pytest.approx(0.005, abs=0.001), name
+        assert np.abs(np.diff(stamps[:60]) - 0.005).max() < 0.001, name
     events = data["BPMS Events"]["values"]
     # the session's events (the recording's, replayed), stamped at their frames
     assert any(e.startswith("filters restarted") for e in events), events
@@ -233,3 +236,28 @@ def test_live_recording_streams_link_events_over_lsl(tmp_path, lsl_env):
         # a gap of about its length (the suit sampled nothing then)
         assert np.median(np.diff(stamps)) == pytest.approx(0.02, abs=0.002), name
         assert 2.0 < np.diff(stamps).max() < 4.5, name
+
+
+def test_record_lsl_wait_starts_the_files_once_a_consumer_is_in(tmp_path, lsl_env):
+    """`bpms record --sim --lsl --lsl-wait`: the recorder waits for the inlet (another
+    process), then records; the live stamps are 20 ms apart within 1 ms from the first."""
+    recorder = subprocess.Popen([sys.executable, "-m", "bpms", "record", "--sim", "--lsl",
+                                 "--lsl-wait", "60", "--seconds", "4", "-o", str(tmp_path)],
+                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                env=lsl_env, text=True)
+    inlet = subprocess.Popen([sys.executable, str(ROOT / "tests" / "lsl_inlet.py"), "100000",
+                              "90"], cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=lsl_env)
+    rec_out, rec_err = recorder.communicate(timeout=120)
+    out, _ = inlet.communicate(timeout=120)
+    assert recorder.returncode == 0, rec_err
+    lines = rec_out.splitlines()
+    waiting = next(k for k, ln in enumerate(lines) if ln.startswith("waiting up to 60 s"))
+    assert lines[waiting + 1].startswith("recording to "), lines[:3]
+    recorded = len(open_recording(next(tmp_path.glob("*.bpmsraw"))))
+    assert 150 <= recorded <= 260, recorded  # the 4 s after the consumer came
+    data = json.loads(out)["data"]
+    for name in ("BPMS Segments", "BPMS Joint Angles"):
+        stamps = np.array(data[name]["stamps"])
+        assert len(stamps) >= recorded, name
+        assert np.abs(np.diff(stamps[:100]) - 0.02).max() < 0.001, name

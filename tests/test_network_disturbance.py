@@ -118,8 +118,8 @@ def test_lsl_disturbance_stream_reaches_an_inlet_in_another_process(magnet, lsl_
     result = json.loads(out)
     info = result["info"]["BPMS Disturbance"]
     assert info["channels"] == 36 and info["type"] == "Misc"
-    assert info["labels"][5] == "right_forearm_mag_disturbed"
-    assert info["labels"][18] == "right_leg_acc_disturbed"
+    assert info["labels"][5] == "imu5_right_forearm_mag_disturbed"
+    assert info["labels"][18] == "imu0_right_leg_acc_disturbed"
     values = np.array(result["data"]["BPMS Disturbance"]["values"])
     assert values.shape == (len(rec), 36)
     np.testing.assert_array_equal(values, np.concatenate([dist.mag, dist.acc], axis=1))

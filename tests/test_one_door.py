@@ -42,7 +42,7 @@ def _matlab(path):
     lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("%")]
     cols = lines[0].split(",")
     data = np.array([[float(c) for c in ln.split(",")] for ln in lines[1:]])
-    euler = np.stack([data[:, [cols.index(f"imu{i}_{n}_{e}_rad") for e in
+    euler = np.stack([data[:, [cols.index(f"imu{i}_{n}_sensor_{e}_rad") for e in
                                ("roll", "pitch", "yaw")]]
                       for i, n in enumerate(_imu_slugs())], axis=1)
     joints = data[:, cols.index("joint_elbow_r_flexion_rad"):]

@@ -8,7 +8,11 @@ page with figures. An unreadable recording is skipped and reported, never fatal.
 
 The worker function is a module-level function with plain arguments, so it runs under the
 "spawn" start method (Windows, macOS: each worker loads the filter kernels itself, a few
-seconds) as under "fork" (Linux: the workers inherit the kernels loaded once in the parent).
+seconds) as under "fork" (Linux: the workers inherit the kernels loaded once in the parent),
+and on the workers of a Dask distributed cluster (``scheduler="tcp://HOST:PORT"``, the
+``dask`` extra): the same function on the same files, so the outputs are the same bytes. The
+cluster's workers must run the same bpms version and see the recordings and the output
+folder at the same paths (a shared file system).
 """
 
 from __future__ import annotations
@@ -143,17 +147,28 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
     return outcome
 
 
+class SchedulerError(RuntimeError):
+    """The Dask scheduler cannot be used (unreachable, no workers, another bpms version)."""
+
+
 def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = ("rom",),
               workers: int = 1, options: str | None = None,
               progress: Callable[[int, int, Outcome], None] | None = None,
-              start_method: str | None = None, reset_zero=None) -> list[Outcome]:
-    """Process ``jobs`` with ``workers`` processes (1 = in this process); outcomes in job
-    order. ``progress(done, total, outcome)`` after each recording. ``start_method``: the
+              start_method: str | None = None, scheduler=None,
+              reset_zero=None) -> list[Outcome]:
+    """Process ``jobs`` with ``workers`` processes (1 = in this process), or on the Dask
+    cluster whose scheduler is at ``scheduler`` (``"tcp://HOST:PORT"``, or a client of
+    :func:`dask_client`; ``workers`` is then the cluster's); outcomes in job order.
+    ``progress(done, total, outcome)`` after each recording. ``start_method``: the
     multiprocessing start method (default: the platform's); ``reset_zero``: which Reset Zero
-    (:mod:`bpms.filter.zero_choice`)."""
+    (:mod:`bpms.filter.zero_choice`). Raises :class:`SchedulerError` when the scheduler
+    cannot be used."""
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     results: dict[int, Outcome] = {}
-    if workers <= 1:
+    if scheduler:
+        _run_on_dask(scheduler, jobs, str(out_dir), outputs, options, progress, results,
+                     reset_zero)
+    elif workers <= 1:
         for k, job in enumerate(jobs):
             results[k] = process_one(job, str(out_dir), outputs, options, reset_zero)
             if progress:
@@ -179,6 +194,67 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
     return [results[k] for k in range(len(jobs))]
 
 
+def dask_client(scheduler: str, timeout_s: float = 30.0):
+    """A ``distributed.Client`` of the scheduler at ``scheduler``, checked: it answers (within
+    Dask's connect timeout, ``distributed.comm.timeouts.connect``, 30 s unless configured),
+    has a worker within ``timeout_s``, and every worker runs this bpms version."""
+    from bpms.extras import require
+
+    distributed = require("distributed")
+    import bpms
+
+    try:
+        client = distributed.Client(scheduler)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+                             ) from None
+    try:
+        try:
+            client.wait_for_workers(1, timeout=timeout_s)
+        except TimeoutError:
+            raise SchedulerError(f"the Dask scheduler at {scheduler} has no workers") from None
+        versions = client.run(_bpms_version)
+        other = {w: v for w, v in versions.items() if v != bpms.__version__}
+        if other:
+            raise SchedulerError(f"Dask workers run another bpms version than this one "
+                                 f"({bpms.__version__}): {other}")
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
+def _bpms_version() -> str:
+    import bpms
+
+    return bpms.__version__
+
+
+def _run_on_dask(scheduler, jobs: list[Job], out_dir: str, outputs: tuple[str, ...],
+                 options: str | None, progress, results: dict[int, Outcome],
+                 reset_zero=None) -> None:
+    from distributed import as_completed as dask_completed
+
+    own = isinstance(scheduler, str)
+    client = dask_client(scheduler) if own else scheduler
+    try:
+        futures = {client.submit(process_one, job, out_dir, outputs, options, reset_zero,
+                                 pure=False): k
+                   for k, job in enumerate(jobs)}
+        for future in dask_completed(futures):
+            k = futures[future]
+            try:
+                results[k] = future.result()
+            except Exception as exc:  # the worker itself failed (died, lost, ...)
+                results[k] = Outcome(jobs[k], error=f"worker failed: {exc}")
+            if progress:
+                progress(len(results), len(jobs), results[k])
+    finally:
+        if own:
+            client.close()
+
+
 def _warm_up() -> None:
     """Load the compiled filter kernels in this process (whole-recording path)."""
     from bpms.filter.processor import BodyPoseProcessor
@@ -187,7 +263,11 @@ def _warm_up() -> None:
 
 
 def write_table(path: str | Path, outcomes: list[Outcome]) -> int:
-    """The tidy table: one row per recording × joint angle. Returns the number of rows."""
+    """The tidy table: one row per recording × joint angle (``joint``: the joint angle's name
+    as its columns elsewhere, without the unit: ``joint_knee_r_flexion``). Returns the number
+    of rows."""
+    from bpms.io.names import joint_column
+
     rows = 0
     with open(path, "w", encoding="utf-8", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
@@ -195,8 +275,9 @@ def write_table(path: str | Path, outcomes: list[Outcome]) -> int:
                     "utc_start", "convention", "file"])
         for o in outcomes:
             for joint, lo, hi in o.rows:
-                w.writerow([o.job.subject, o.job.trial, joint, f"{lo:.3f}", f"{hi:.3f}",
-                            f"{hi - lo:.3f}", o.frames, o.utc_start, o.convention, o.job.path])
+                w.writerow([o.job.subject, o.job.trial, joint_column(joint), f"{lo:.3f}",
+                            f"{hi:.3f}", f"{hi - lo:.3f}", o.frames, o.utc_start, o.convention,
+                            o.job.path])
                 rows += 1
     return rows
 
@@ -222,7 +303,9 @@ def write_summary(folder: str | Path, outcomes: list[Outcome], source: str | Pat
         lines.append("")
     with_rom = [o for o in ok if o.rows]
     if with_rom:
-        names = [r[0] for r in with_rom[0].rows]
+        from bpms.io.names import joint_column
+
+        names = [joint_column(r[0]) for r in with_rom[0].rows]
         ranges = np.array([[hi - lo for _, lo, hi in o.rows] for o in with_rom])
         lines += ["## Range of motion across recordings (deg)", "",
                   "| joint | mean range | min range | max range | recordings |",

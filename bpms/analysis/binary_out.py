@@ -1,4 +1,4 @@
-"""Binary exports: a MATLAB ``.mat`` file (v5, scipy) and a Parquet table (pyarrow).
+"""Binary exports: a MATLAB ``.mat`` file (v5, written here) and a Parquet table (pyarrow).
 
 Both are chunk-wise writers with one interface: ``open_writer(kind, path, meta)``, then
 ``write(result)`` for each chunk's :class:`bpms.filter.processor.Result`, then ``close()``.
@@ -8,13 +8,15 @@ convention named in the file) and the 21 joint positions (m, NED, lowest foot on
 Both state the recording's UTC start time (the receive time of its first frame) and the units.
 
 - ``.mat``: written chunk by chunk when the frame count is known in advance (it is for a
-  recording; :mod:`bpms.analysis.mat5_stream`), else assembled at ``close``: ``t`` [N×1] s,
+  recording; :mod:`bpms.analysis.mat5_stream`), else assembled at ``close``; no third-party
+  package: ``t`` [N×1] s,
   ``quaternions`` [N×18×4], ``joint_angles`` [N×28] deg,
   ``joint_positions`` [N×21×3] m, ``segment_names``, ``joint_names``, ``point_names`` (cell
   arrays), ``units`` (struct), ``utc_start`` (ISO 8601 text), ``utc_start_posix`` (s since
   1970), ``joint_angle_convention``, ``rate_hz``, ``source``.
 - Parquet: one row per frame, written one row group per chunk (constant memory): column
-  ``t_s``, ``utc`` (timestamp, µs, UTC), ``SEGMENT_qw`` …, ``JOINT_deg`` …, ``POINT_x_m`` …;
+  ``time_s``, ``utc`` (timestamp, µs, UTC), ``imuN_SEGMENT_qw`` …, ``joint_JOINT_deg`` …,
+  ``point_POINT_x_m`` … (the names of docs/analysis.md, "Column names");
   the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, ...).
   docs/analysis.md says why Parquet.
 """
@@ -32,6 +34,7 @@ import numpy as np
 from bpms.filter.body_model import POINT_NAMES
 from bpms.filter.joints import CONVENTION_TEXT, JOINT_ANGLE_NAMES
 from bpms.io.frames import IMU_NAMES
+from bpms.io.names import imu_column, joint_column, point_column, slug
 
 KINDS = ("mat", "parquet")
 SUFFIX = {"mat": ".mat", "parquet": ".parquet"}
@@ -39,11 +42,7 @@ UNITS = {"t": "s", "quaternions": "1 (unit quaternion w, x, y, z; segment -> wor
          "joint_angles": "deg", "joint_positions": "m (NED, lowest foot at z = 0)"}
 
 
-def _slug(text: str) -> str:
-    return text.lower().replace(" ", "_").replace(".", "_")
-
-
-SEGMENT_SLUGS = tuple(_slug(n) for n in IMU_NAMES)
+SEGMENT_SLUGS = tuple(slug(n) for n in IMU_NAMES)
 
 
 @dataclass
@@ -96,9 +95,11 @@ def _arrays(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 class MatWriter:
-    """MATLAB v5 ``.mat``. With ``meta.n_frames`` the arrays are written chunk by chunk into
-    space reserved for them (constant memory, :mod:`bpms.analysis.mat5_stream`); without it they
-    are kept until :meth:`close` and written by ``scipy.io.savemat``."""
+    """MATLAB v5 ``.mat`` (:mod:`bpms.analysis.mat5_stream`, no third-party package). With
+    ``meta.n_frames`` the arrays are written chunk by chunk into space reserved for them
+    (constant memory); without it the chunks are kept until :meth:`close`."""
+
+    _ARRAYS = ("t", "quaternions", "joint_angles", "joint_positions")
 
     def __init__(self, path: str | Path, meta: ExportMeta) -> None:
         self.path = Path(path)
@@ -107,23 +108,25 @@ class MatWriter:
         self._parts: list[tuple[np.ndarray, ...]] = []
         self._stream = None
         if meta.n_frames is not None:
-            from bpms.analysis.mat5_stream import Mat5Stream
-
-            n = int(meta.n_frames)
-            self._stream = Mat5Stream(self.path, self._small(), {
-                "t": ((n, 1), np.float64), "quaternions": ((n, 18, 4), np.float32),
-                "joint_angles": ((n, 28), np.float32),
-                "joint_positions": ((n, 21, 3), np.float32)})
+            self._stream = self._open(int(meta.n_frames))
         else:
             with open(self.path, "wb"):  # fail early (folder missing, no permission)
                 pass
 
+    def _open(self, n: int):
+        from bpms.analysis.mat5_stream import Mat5Stream
+
+        return Mat5Stream(self.path, self._small(), {
+            "t": ((n, 1), np.float64), "quaternions": ((n, 18, 4), np.float32),
+            "joint_angles": ((n, 28), np.float32),
+            "joint_positions": ((n, 21, 3), np.float32)})
+
     def _small(self) -> dict:
         meta = self.meta.as_dict()
         return {
-            "segment_names": np.array(SEGMENT_SLUGS, dtype=object),
-            "joint_names": np.array(JOINT_ANGLE_NAMES, dtype=object),
-            "point_names": np.array(POINT_NAMES, dtype=object),
+            "segment_names": SEGMENT_SLUGS,
+            "joint_names": [joint_column(j) for j in JOINT_ANGLE_NAMES],
+            "point_names": POINT_NAMES,
             "units": UNITS,
             "utc_start": meta["utc_start"],
             "utc_start_posix": meta["utc_start_posix"],
@@ -132,45 +135,36 @@ class MatWriter:
             "source": self.meta.source,
         }
 
+    def _write(self, lo: int, arrays: tuple[np.ndarray, ...]) -> None:
+        t, *rest = arrays
+        for name, rows in zip(self._ARRAYS, (t[:, None], *rest), strict=True):
+            self._stream.write_rows(name, lo, rows)
+
     def write(self, result) -> None:
         arrays = _arrays(result)
         if self._stream is not None:
-            lo = self.rows
-            for name, rows in zip(("t", "quaternions", "joint_angles", "joint_positions"),
-                                  (arrays[0][:, None], *arrays[1:]), strict=True):
-                self._stream.write_rows(name, lo, rows)
+            self._write(self.rows, arrays)
         else:
             self._parts.append(arrays)
         self.rows += len(result.t)
 
     def close(self) -> None:
-        if self._stream is not None:
-            self._stream.close()
-            return
-        from scipy.io import savemat
-
-        def cat(k: int, shape: tuple[int, ...], dtype) -> np.ndarray:
-            if not self._parts:
-                return np.zeros((0, *shape), dtype)
-            return np.concatenate([p[k] for p in self._parts])
-
-        data = {
-            "t": cat(0, (), np.float64)[:, None],
-            "quaternions": cat(1, (18, 4), np.float32),
-            "joint_angles": cat(2, (28,), np.float32),
-            "joint_positions": cat(3, (21, 3), np.float32),
-            **self._small(),
-        }
-        self._parts.clear()
-        savemat(self.path, data, format="5", do_compression=False, oned_as="column")
+        if self._stream is None:  # the frame count is known now
+            self._stream = self._open(self.rows)
+            lo = 0
+            for part in self._parts:
+                self._write(lo, part)
+                lo += len(part[0])
+            self._parts.clear()
+        self._stream.close()
 
 
 def parquet_columns() -> list[str]:
     """Column names of the Parquet table, in order."""
-    return ["t_s", "utc",
-            *(f"{s}_q{c}" for s in SEGMENT_SLUGS for c in "wxyz"),
-            *(f"{_slug(j)}_deg" for j in JOINT_ANGLE_NAMES),
-            *(f"{p}_{a}_m" for p in POINT_NAMES for a in "xyz")]
+    return ["time_s", "utc",
+            *(imu_column(i, f"q{c}") for i in range(len(IMU_NAMES)) for c in "wxyz"),
+            *(joint_column(j, "deg") for j in JOINT_ANGLE_NAMES),
+            *(point_column(p, a, "m") for p in POINT_NAMES for a in "xyz")]
 
 
 class ParquetWriter:
@@ -185,7 +179,8 @@ class ParquetWriter:
         self.meta = meta
         self.rows = 0
         names = parquet_columns()
-        fields = [pa.field("t_s", pa.float64()), pa.field("utc", pa.timestamp("us", tz="UTC"))]
+        fields = [pa.field("time_s", pa.float64()),
+                  pa.field("utc", pa.timestamp("us", tz="UTC"))]
         fields += [pa.field(n, pa.float32()) for n in names[2:]]
         schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
         self._schema = schema
@@ -193,7 +188,7 @@ class ParquetWriter:
         # continuous signals; statistics only where queries filter (time).
         self._writer = pq.ParquetWriter(self.path, schema, compression=compression,
                                         use_dictionary=False,
-                                        write_statistics=["t_s", "utc"])
+                                        write_statistics=["time_s", "utc"])
 
     def write(self, result) -> None:
         pa = self._pa
@@ -217,17 +212,20 @@ class MissingPackageError(RuntimeError):
     """The package a format needs is not installed (one-line message)."""
 
 
-_PACKAGES = {"mat": "scipy", "parquet": "pyarrow"}
+#: kind → (package, the pip extra that installs it); kinds not listed need nothing more.
+_PACKAGES = {"parquet": ("pyarrow", "parquet")}
 
 
 def check_available(kind: str) -> None:
     """Raise :class:`MissingPackageError` when ``kind``'s package is not installed."""
     import importlib.util
 
-    package = _PACKAGES[kind]
+    if kind not in _PACKAGES:
+        return
+    package, extra = _PACKAGES[kind]
     if importlib.util.find_spec(package) is None:
         raise MissingPackageError(f"{kind} export needs the {package} package "
-                                  "(pip install 'bpms[lab]')")
+                                  f'(pip install "bpms[{extra}]")')
 
 
 def open_writer(kind: str, path: str | Path, meta: ExportMeta) -> ChunkWriter:

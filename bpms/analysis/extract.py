@@ -12,7 +12,7 @@ import numpy as np
 from bpms.analysis.textout import write_rows
 from bpms.io.filtered_file.reader import iter_filtered
 from bpms.io.frames import CHANNEL_NAMES, IMU_NAMES, N_IMUS
-from bpms.io.names import slug
+from bpms.io.names import imu_column, slug
 
 _FMT = "%.10g"
 _HOST_FMT = "%.6f"
@@ -97,8 +97,7 @@ def raw_rows(raw_path: str | Path, ids: Sequence[int], calibrated: bool = False,
     units = CALIBRATED_UNITS if calibrated else ("counts",) * 9
     columns = ["time_s", "host_time_s"]
     for i in ids:
-        stem = f"imu{i}_{slug(IMU_NAMES[i])}"
-        columns += [f"{stem}_{c}_{u}" for c, u in zip(CHANNEL_NAMES, units, strict=True)]
+        columns += [imu_column(i, c, u) for c, u in zip(CHANNEL_NAMES, units, strict=True)]
 
     def blocks() -> Iterator[np.ndarray]:
         for lo, host, decoded in opened.raw_chunks():
@@ -132,9 +131,10 @@ def filtered_rows(filtered_path: str | Path, ids: Sequence[int], degrees: bool =
     info, blocks, problems = iter_filtered(filtered_path)
     name = "euler" if "euler" in info.groups else "euler_sensor"
     unit = "deg" if degrees else "rad"
+    infix = "" if name == "euler" else "sensor_"  # the file's own names for these angles
     columns = ["time_s", "host_time_s"]
     for i in ids:
-        columns += [f"imu{i}_{slug(IMU_NAMES[i])}_{e}_{unit}" for e in ("roll", "pitch", "yaw")]
+        columns += [imu_column(i, f"{infix}{e}", unit) for e in ("roll", "pitch", "yaw")]
 
     def rows() -> Iterator[np.ndarray]:
         for block in blocks:

@@ -1,8 +1,9 @@
 """A CSV for MATLAB (``readtable``/``readmatrix``): one header row, one row per frame.
 
-Columns: ``time_s``; per IMU its filter orientation as a quaternion (``imu0_right_leg_qw`` ...,
-filter frame → NED, unitless) and Euler angles (``imu0_right_leg_roll_deg`` ..., docs/filter.md);
-then the 28 joint angles (``joint_knee_r_flexion_deg`` ...). Degrees (radians with
+Columns (the names of docs/analysis.md, "Column names"): ``time_s``; per IMU its filter
+orientation as a quaternion (``imu0_right_leg_sensor_qw`` ..., filter frame → NED, unitless) and
+Euler angles (``imu0_right_leg_sensor_roll_deg`` ..., docs/filter.md); then the 28 joint angles
+(``joint_knee_r_flexion_deg`` ...). Degrees (radians with
 ``degrees=False``, names ending ``_rad``). Missing values are ``NaN``. Before the column row,
 ``% key: value`` lines state the recording's UTC start and the joint-angle convention: read
 with ``readtable(file, 'CommentStyle', '%')``.
@@ -17,17 +18,16 @@ import numpy as np
 
 from bpms.analysis.textout import write_rows
 from bpms.io.frames import IMU_NAMES, N_IMUS
-from bpms.io.names import JOINT_ANGLE_NAMES, slug
+from bpms.io.names import JOINT_ANGLE_NAMES, imu_column, joint_column
 
 
 def matlab_columns(degrees: bool = True) -> list[str]:
     unit = "deg" if degrees else "rad"
     cols = ["time_s"]
-    for i, name in enumerate(IMU_NAMES):
-        s = f"imu{i}_{slug(name)}"
-        cols += [f"{s}_q{c}" for c in "wxyz"] + [f"{s}_{e}_{unit}" for e in ("roll", "pitch",
-                                                                              "yaw")]
-    cols += [f"joint_{slug(j)}_{unit}" for j in JOINT_ANGLE_NAMES]
+    for i in range(len(IMU_NAMES)):
+        cols += [imu_column(i, f"sensor_q{c}") for c in "wxyz"]
+        cols += [imu_column(i, f"sensor_{e}", unit) for e in ("roll", "pitch", "yaw")]
+    cols += [joint_column(j, unit) for j in JOINT_ANGLE_NAMES]
     return cols
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.io.names import JOINT_ANGLE_NAMES
+from bpms.io.names import JOINT_ANGLE_NAMES, joint_column
 
 
 @dataclass
@@ -93,7 +93,8 @@ def joint_groups() -> dict[str, list[int]]:
 
 
 def write_csv(path: str | Path, tables: list[RomTable]) -> None:
-    """One row per joint angle; per trial ``<label>_min_deg, _max_deg, _range_deg``. Lines
+    """One row per joint angle (named as its columns elsewhere, without the unit:
+    ``joint_knee_r_flexion``); per trial ``<label>_min_deg, _max_deg, _range_deg``. Lines
     ``# <label>: utc_start ...; joint_angle_convention ...`` before the column row state each
     trial's recording start (UTC) and joint-angle convention."""
     cols = ["joint_angle"]
@@ -106,7 +107,7 @@ def write_csv(path: str | Path, tables: list[RomTable]) -> None:
                         + "\n")
         f.write(",".join(cols) + "\n")
         for k, name in enumerate(JOINT_ANGLE_NAMES):
-            cells = [name]
+            cells = [joint_column(name)]
             for tab in tables:
                 cells += [f"{v:.2f}" for v in (tab.minimum[k], tab.maximum[k], tab.range[k])]
             f.write(",".join(cells) + "\n")
@@ -119,7 +120,7 @@ def markdown(tables: list[RomTable]) -> str:
     rule = "|---|" + "---|" * len(tables)
     rows = [head, rule]
     for k, name in enumerate(JOINT_ANGLE_NAMES):
-        rows.append(f"| {name} | " + " | ".join(
+        rows.append(f"| {joint_column(name)} | " + " | ".join(
             f"{t.minimum[k]:.1f} / {t.maximum[k]:.1f} / {t.range[k]:.1f}" for t in tables)
             + " |")
     notes = [f"- {t.label}: {t.stamp.line()}" for t in tables if t.stamp is not None]

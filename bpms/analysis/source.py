@@ -24,12 +24,13 @@ __all__ = ["CHUNK_FRAMES", "Processed", "header_calibration", "header_options",
 
 
 def stderr_progress(label: str, done: int, total: int) -> None:
-    """Progress line on stderr (``label: 42% (n/N frames)``), for more than 30,000 frames."""
+    """Progress on stderr (``label: 42% (n/N frames)``) for more than 30,000 frames: in place
+    on a terminal, else a plain line every 10 % or 5 s (:mod:`bpms.progress`)."""
     if total <= 30_000:
         return
-    end = "\n" if done >= total else ""
-    print(f"\r{label}: {100 * done // max(total, 1):3d}% ({done}/{total} frames)", end=end,
-          file=sys.stderr, flush=True)
+    from bpms.progress import report
+
+    report(label, done, total, sys.stderr)
 
 
 def header_calibration(recording: RawRecording) -> CalibrationTable | None:

@@ -1,4 +1,5 @@
-"""``bpms batch FOLDER [-o OUT] [--outputs rom,filter,mat,parquet] [--workers N]``: a study.
+"""``bpms batch FOLDER [-o OUT] [--outputs rom,filter,mat,parquet] [--workers N]
+[--scheduler tcp://HOST:PORT]``: a study.
 
 Finds every raw recording under FOLDER (subject = the first folder level, trial = the file
 name), processes them in parallel worker processes with progress, skips and reports unreadable
@@ -9,6 +10,11 @@ files, and writes into OUT (default ``FOLDER/batch``):
 - ``batch_summary.md``: counts, skipped files, ranges across recordings and a figure;
 - per recording (``OUT/SUBJECT/``), the chosen outputs: ``filter`` (filtered CSV with joint
   angles, degrees), ``mat`` (MATLAB), ``parquet``.
+
+With ``--scheduler tcp://HOST:PORT`` the recordings are processed on the workers of a Dask
+distributed cluster instead of local processes (the ``dask`` extra): for a lab's cluster; the
+workers must run this bpms version and see FOLDER and OUT at the same paths. The outputs are
+the same bytes either way. docs/analysis.md ("Study batches").
 """
 
 from __future__ import annotations
@@ -32,6 +38,9 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="comma-separated: rom, filter, mat, parquet (default: rom)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes (default: the number of CPU cores)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on a Dask distributed cluster (its scheduler's address) instead "
+                        "of local worker processes")
     p.add_argument("--options", metavar="options.toml",
                    help="options file (default: each recording's stored options)")
     add_reset_zero_option(p)
@@ -43,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.analysis.batch import (
         OUTPUTS,
         TABLE_NAME,
+        SchedulerError,
+        dask_client,
         find_recordings,
         run_batch,
         write_summary,
@@ -70,9 +81,18 @@ def run(args: argparse.Namespace) -> int:
             .parents]
     if not jobs:
         raise CliError(f"{folder}: no raw recording found (.bpmsraw or a legacy raw .txt)")
-    workers = max(1, min(args.workers or os.cpu_count() or 1, len(jobs)))
-    print(f"{len(jobs)} recordings, {workers} worker process(es), outputs: "
-          f"{', '.join(outputs)}", flush=True)
+    client = None
+    if args.scheduler:
+        try:
+            client = dask_client(args.scheduler)
+        except SchedulerError as exc:
+            raise CliError(str(exc)) from None
+        workers = len(client.nthreads())
+        where = f"on the Dask cluster at {args.scheduler} ({workers} workers)"
+    else:
+        workers = max(1, min(args.workers or os.cpu_count() or 1, len(jobs)))
+        where = f"{workers} worker process(es)"
+    print(f"{len(jobs)} recordings, {where}, outputs: {', '.join(outputs)}", flush=True)
     t0 = time.perf_counter()
 
     def progress(done: int, total: int, outcome) -> None:
@@ -83,8 +103,12 @@ def run(args: argparse.Namespace) -> int:
         for problem in outcome.problems:
             print(f"bpms batch: warning: {problem}", file=sys.stderr, flush=True)
 
-    outcomes = run_batch(jobs, out, outputs, workers, args.options, progress,
-                         reset_zero=args.reset_zero)
+    try:
+        outcomes = run_batch(jobs, out, outputs, workers, args.options, progress,
+                             scheduler=client, reset_zero=args.reset_zero)
+    finally:
+        if client is not None:
+            client.close()
     elapsed = time.perf_counter() - t0
     rows = write_table(out / TABLE_NAME, outcomes)
     summary = write_summary(out, outcomes, folder, elapsed, workers)

@@ -1,10 +1,15 @@
-"""``bpms export opensim|bvh|matlab RAW_FILE``: exports for the biomechanics ecosystem.
+"""``bpms export opensim|bvh|matlab|c3d RAW_FILE [-o STEM]``: exports for the biomechanics
+ecosystem.
 
-- ``opensim``: OpenSense orientations ``<stem>_orientations.sto`` (whole trial) and
-  ``<stem>_calibration.sto`` (the calibration-pose window of the automatic Reset Zero);
-- ``bvh``: the stick figure as ``<stem>.bvh`` (centimetres, y up);
-- ``matlab``: ``<stem>_matlab.csv`` (time, every IMU's quaternion and Euler angles, every
-  joint angle).
+Every format writes STEM + its ending; STEM is -o (an ending of the format given with it is
+dropped: -o walk.bvh is -o walk), else the recording's path without its suffix:
+
+- opensim: OpenSense orientations STEM_orientations.sto (whole trial) and
+  STEM_calibration.sto (the calibration-pose window of the automatic Reset Zero);
+- bvh: the stick figure as STEM.bvh (centimetres, y up);
+- matlab: STEM.csv (time, every IMU's quaternion and Euler angles, every joint angle);
+- c3d: STEM.c3d (joint centres in mm and joint angles as angle points, as Vicon writes
+  them; needs the c3d extra).
 
 See docs/analysis.md (formats, axes, the IMU placer's rotation)."""
 
@@ -18,18 +23,38 @@ from pathlib import Path
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
 
+#: format → the endings of the files it writes after the stem (docs/analysis.md).
+ENDINGS: dict[str, tuple[str, ...]] = {
+    "opensim": ("_orientations.sto", "_calibration.sto"),
+    "bvh": (".bvh",),
+    "matlab": (".csv",),
+    "c3d": (".c3d",),
+}
+
+
+def output_paths(fmt: str, raw_file: str | Path, output: str | Path | None) -> list[Path]:
+    """The files ``bpms export FMT RAW_FILE [-o OUTPUT]`` writes: the stem (``output`` less
+    an ending or suffix of the format, else ``raw_file`` less its suffix) + each ending."""
+    raw = Path(raw_file)
+    stem = Path(output) if output else raw.with_suffix("")
+    suffixes = {e[e.index("."):] for e in ENDINGS[fmt]}
+    for ending in (*ENDINGS[fmt], *suffixes):
+        if stem.name.endswith(ending) and len(stem.name) > len(ending):
+            stem = stem.with_name(stem.name[: -len(ending)])
+            break
+    return [stem.with_name(stem.name + ending) for ending in ENDINGS[fmt]]
+
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
-        "export", help="export a recording to OpenSim .sto, BVH or a MATLAB CSV",
-        description="Filter a raw recording and export it: OpenSim OpenSense orientations "
-                    "(.sto), a BVH of the stick figure, or a CSV for MATLAB.")
-    parser.add_argument("format", choices=("opensim", "bvh", "matlab"))
+        "export", help="export a recording to OpenSim .sto, BVH, a MATLAB CSV or C3D",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("format", choices=tuple(ENDINGS))
     parser.add_argument("raw_file", metavar="RAW_FILE",
                         help="raw recording, or a filtered .csv (Reset Zero redone on it)")
-    parser.add_argument("-o", "--output", metavar="PATH",
-                        help="output file (opensim: the stem of the two .sto files); "
-                             "default beside the raw file")
+    parser.add_argument("-o", "--output", metavar="STEM",
+                        help="output path without the format's ending (default: beside the "
+                             "recording, its name without the suffix)")
     parser.add_argument("--reset-at", type=float, action="append", default=[], metavar="T",
                         help="extra Reset Zero at T s (repeatable)")
     parser.add_argument("--head-neck", action="store_true",
@@ -56,8 +81,14 @@ def run(args: argparse.Namespace) -> int:
     from bpms.commands._analysis import open_recording_for, stream
 
     t_start = time.perf_counter()
-    raw = Path(args.raw_file)
-    out = Path(args.output) if args.output else raw.with_suffix("")
+    targets = [_target(p, args.force) for p in output_paths(args.format, args.raw_file,
+                                                             args.output)]
+    if any(p.resolve() == Path(args.raw_file).resolve() for p in targets):
+        raise CliError(f"{args.raw_file}: the output would overwrite the recording (give -o)")
+    if args.format == "c3d":
+        from bpms.extras import require
+
+        require("ezc3d")  # before filtering: a missing extra is one line at once
     opened = open_recording_for("export", args.raw_file, args.calibration, args.options,
                                 args.filter_name, args.heading, args.reset_zero)
     proc = opened.processor
@@ -70,9 +101,7 @@ def run(args: argparse.Namespace) -> int:
         if args.format == "opensim":
             from bpms.analysis.opensim import OrientationsWriter, calibration_window
 
-            stem = str(out.with_suffix("")) if out.suffix == ".sto" else str(out)
-            whole_path = _target(Path(f"{stem}_orientations.sto"), args.force)
-            calib_path = _target(Path(f"{stem}_calibration.sto"), args.force)
+            whole_path, calib_path = targets
             whole = OrientationsWriter(whole_path, 1.0 / dt, args.head_neck,
                                        meta=stamp.items())
             calib = OrientationsWriter(calib_path, 1.0 / dt, args.head_neck,
@@ -93,8 +122,7 @@ def run(args: argparse.Namespace) -> int:
             from bpms.analysis.bvh import BvhWriter
             from bpms.filter.body_model import POINT_INDEX
 
-            path = _target(out if out.suffix == ".bvh" else out.with_name(out.name + ".bvh"),
-                           args.force)
+            path = targets[0]
             from bpms.analysis.root_path import root_trajectory, walked_steps
             from bpms.filter.door import open_for_processing
 
@@ -112,12 +140,21 @@ def run(args: argparse.Namespace) -> int:
                     "pelvis"]], *steps))
                 n += len(res)
             written.append(f"{path} ({bvh.frames} frames, cm, y up)")
+        elif args.format == "c3d":
+            from bpms.analysis.c3d_export import C3dWriter
+
+            path = targets[0]
+            c3d = C3dWriter(path, 1.0 / dt, stamp.items(), str(args.raw_file))
+            writers.append(c3d)
+            for chunk in stream("export", opened, args.reset_at):
+                res = chunk.result
+                c3d.write(res.joint_positions, res.joint_angles)
+                n += len(res)
+            written.append(f"{path} ({c3d.frames} frames, joint centres mm, angles deg)")
         else:
             from bpms.analysis.matlab import MatlabCsvWriter
 
-            path = _target(out if out.suffix == ".csv" else out.with_name(out.name
-                                                                          + "_matlab.csv"),
-                           args.force)
+            path = targets[0]
             mat = MatlabCsvWriter(path, degrees=not args.radians, meta=stamp.items())
             writers.append(mat)
             for chunk in stream("export", opened, args.reset_at):

@@ -59,6 +59,9 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="also forward the live stream over UDP (repeatable)")
     p.add_argument("--filtered", action="store_true", help="also record the filtered file")
     add_stream_arguments(p)  # --lsl, --mvn (i16)
+    p.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+                   help="with --lsl: wait up to this long for a consumer (e.g. LabRecorder) on "
+                        "every LSL stream before recording (the suit streams meanwhile)")
     p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--options", default=None, metavar="FILE", help="options file (TOML)")
     p.add_argument("--sim", action="store_true", help="record the simulated suit")
@@ -178,16 +181,31 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, signal.default_int_handler)
     recording = None
     bridges: list = []
-    try:
+    wait = args.lsl_wait if args.lsl else 0.0
+
+    def start_recording():
         try:
-            bridges = start_streams(session, args.lsl, args.mvn)
-            recording = session.start_logging(raw=True, filtered=args.filtered,
-                                              name=args.name)
+            started = session.start_logging(raw=True, filtered=args.filtered, name=args.name)
             if args.udp:
                 session.start_forwarding(args.udp)
         except (RecordingError, UdpConfigError, OSError, ValueError) as exc:
             raise CliError(str(exc)) from None
+        return started
+
+    try:
+        try:
+            bridges = start_streams(session, args.lsl, args.mvn)
+        except (OSError, ValueError) as exc:
+            raise CliError(str(exc)) from None
+        if not wait:
+            recording = start_recording()
         session.start()
+        if wait:  # the session runs (frames reach LSL), the files begin once consumers are in
+            from bpms.pipeline.lsl import wait_for_consumers
+
+            print(f"waiting up to {wait:g} s for LSL consumers", flush=True)
+            wait_for_consumers(bridges, wait)
+            recording = start_recording()
         print(f"recording to {recording.raw_path}"
               + (f" and {recording.filtered_path}" if recording.filtered_path else ""),
               flush=True)
@@ -211,6 +229,8 @@ def run(args: argparse.Namespace) -> int:
         stop_streams(bridges)
         if server is not None:
             server.stop()
+    if recording is None:  # stopped while waiting for LSL consumers
+        return 130
     line, code = summary(recording)
     print(line, flush=True, file=sys.stderr if code else sys.stdout)
     return code

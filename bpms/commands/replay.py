@@ -77,16 +77,6 @@ def _opened(path: str, options_path: str | None, reset_zero):
     return opened
 
 
-def _wait_for_lsl(bridges: list, seconds: float) -> None:
-    from bpms.pipeline.lsl import LslBridge
-
-    deadline = time.monotonic() + seconds
-    for bridge in bridges:
-        if isinstance(bridge, LslBridge):
-            for outlet in bridge.outlets.outlets.values():
-                outlet.wait_for_consumers(max(0.0, deadline - time.monotonic()))
-
-
 def run(args: argparse.Namespace) -> int:
     from bpms.io.replay import ReplaySource
     from bpms.io.udp.addresses import UdpConfigError
@@ -121,8 +111,10 @@ def run(args: argparse.Namespace) -> int:
     targets = [*args.udp, *(["LSL"] if args.lsl else []), *(f"MVN {m}" for m in args.mvn)]
     if args.lsl and args.lsl_wait > 0:
         print(f"waiting up to {args.lsl_wait:g} s for LSL consumers", flush=True)
-        _wait_for_lsl(bridges, args.lsl_wait)
-    print(f"replaying {len(recording)} frames ({len(recording) * FRAME_PERIOD_S:.1f} s) "
+        from bpms.pipeline.lsl import wait_for_consumers
+
+        wait_for_consumers(bridges, args.lsl_wait)
+    print(f"replaying {len(recording)} frames ({recording.duration_s:.1f} s) "
           f"to {', '.join(targets)} at {'full speed' if not args.speed else f'{args.speed}×'}",
           flush=True)
     session.start()

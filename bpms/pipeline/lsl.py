@@ -22,8 +22,12 @@ Streams (docs/lsl.md lists every channel):
 
 Time stamps are on LSL's clock (``pylsl.local_clock``): each frame's sampling time from the
 de-jittered frame clock (:mod:`bpms.pipeline.frame_clock`), minus the configured link delay
-(option ``lsl.link_delay_s``). Samples before the first Reset Zero (NaN orientations) are sent
-as NaN, so every stream has one sample per processed frame.
+(option ``lsl.link_delay_s``). The first second of a stream (:data:`SETTLE_S`; and after each
+reconnection or seek) is held back and stamped together on the lower envelope of all its
+frames' arrivals: the frames that open a stream come late (the link and the threads starting),
+and a clock anchored on them alone would slew for its first tenth of a second. Samples before
+the first Reset Zero (NaN orientations) are sent as NaN, so every stream has one sample per
+processed frame.
 
 pylsl is imported when the outlets are created, never at module import.
 """
@@ -42,6 +46,7 @@ import numpy as np
 
 from bpms.filter.joints import CONVENTION_TEXT, JOINT_ANGLE_NAMES
 from bpms.io.frames import FRAME_PERIOD_S, IMU_NAMES
+from bpms.io.names import imu_column, joint_column
 from bpms.pipeline.frame_clock import FrameClock
 
 log = logging.getLogger(__name__)
@@ -56,9 +61,14 @@ LINK_LOST_STATES = frozenset({"silent", "gone", "reopening", "link lost"})
 MARKERS = ("Reset Zero (source) at T s, ...", "alignment on/off", "marker at T s: TEXT",
            "filter NAME", "filter settings ...", "filters re-initialised", "logging start",
            "logging stop", "link lost", "link recovered", "warnings")
+#: Stream time held back at the start of a run (a stream start, reconnection or seek) so that
+#: its frames are stamped on the envelope of all their arrivals, s (50 frames at 50 Hz; a
+#: replay at speed s holds 50 · s frames).
+SETTLE_S = 1.0
 _QUAT = ("W", "X", "Y", "Z")
-_SENSOR_AXES = (("Acceleration", "accel", "m/s^2"), ("MagneticField", "mag", "gauss"),
-                ("AngularVelocity", "gyro", "rad/s"))
+#: (XDF channel type, the channel's letter as in bpms extract's ax … gz columns, unit)
+_SENSOR_AXES = (("Acceleration", "a", "m/s^2"), ("MagneticField", "m", "gauss"),
+                ("AngularVelocity", "g", "rad/s"))
 
 
 def _slug(text: str) -> str:
@@ -74,29 +84,32 @@ class Channel:
 
 
 def segment_channels() -> list[Channel]:
-    """72 channels: per IMU/segment the quaternion w, x, y, z (XDF types OrientationA..D)."""
-    return [Channel(f"{_slug(name)}_q{c.lower()}", f"Orientation{'ABCD'[k]}", "normalized",
-                    _slug(name))
-            for name in IMU_NAMES for k, c in enumerate(_QUAT)]
+    """72 channels: per segment the quaternion w, x, y, z (XDF types OrientationA..D)."""
+    return [Channel(imu_column(i, f"q{c.lower()}"), f"Orientation{'ABCD'[k]}",
+                    "normalized", _slug(name))
+            for i, name in enumerate(IMU_NAMES) for k, c in enumerate(_QUAT)]
 
 
 def joint_channels() -> list[Channel]:
     """28 channels in :data:`bpms.filter.joints.JOINT_ANGLE_NAMES` order, degrees."""
-    return [Channel(name, "JointAngle", "degrees", name.split(".")[0])
+    return [Channel(joint_column(name), "JointAngle", "degrees", name.split(".")[0])
             for name in JOINT_ANGLE_NAMES]
 
 
 def sensor_channels() -> list[Channel]:
-    """162 channels: per IMU accel x, y, z, mag x, y, z, gyro x, y, z."""
-    return [Channel(f"{_slug(name)}_{short}_{axis}", f"{kind}{axis.upper()}", unit, _slug(name))
-            for name in IMU_NAMES for kind, short, unit in _SENSOR_AXES for axis in "xyz"]
+    """162 channels: per IMU accel x, y, z, mag x, y, z, gyro x, y, z (``imu0_right_leg_ax``
+    … ``imu17_head_gz``, the names of ``bpms extract``'s columns)."""
+    return [Channel(imu_column(i, f"{short}{axis}"), f"{kind}{axis.upper()}", unit,
+                    _slug(name))
+            for i, name in enumerate(IMU_NAMES) for kind, short, unit in _SENSOR_AXES
+            for axis in "xyz"]
 
 
 def disturbance_channels() -> list[Channel]:
     """36 channels: the 18 magnetometer flags (IMU order), then the 18 acceleration flags."""
-    return [Channel(f"{_slug(name)}_{kind}_disturbed", f"{kind.capitalize()}Disturbed", "flag",
-                    _slug(name))
-            for kind in ("mag", "acc") for name in IMU_NAMES]
+    return [Channel(imu_column(i, f"{kind}_disturbed"), f"{kind.capitalize()}Disturbed",
+                    "flag", _slug(name))
+            for kind in ("mag", "acc") for i, name in enumerate(IMU_NAMES)]
 
 
 def _describe(info, channels: Sequence[Channel], extra: dict[str, str]) -> None:
@@ -162,6 +175,10 @@ class LslOutlets:
                   {"events": ", ".join(MARKERS), **sync})
         self.outlets["events"] = pylsl.StreamOutlet(info)
         self._stamps: dict[int, float] = {}
+        self._held: list[tuple] = []  # the run's first frames: (index, arrival, q, a, s, d)
+        self._held_markers: list[tuple[str, int]] = []
+        self._settled = False  # False until a run's first second has been stamped
+        self.settle_frames = max(1, round(SETTLE_S / period))
         self.sent = 0
 
     def local_clock(self) -> float:
@@ -174,23 +191,62 @@ class LslOutlets:
         """One sample per frame on every data stream. ``arrivals``: ``time.perf_counter()``
         at receipt; quaternions ``[N, 18, 4]``; joint_angles ``[N, 28]`` rad; sensors
         ``[N, 18, 9]``; disturbance ``[N, 36]`` (mag flags, acc flags; -1 unknown; None: all
-        -1). Returns the LSL time stamps."""
-        stamps = self.clock.stamp_many(indices, [a + self._to_lsl for a in arrivals],
-                                       discontinuity)
-        q = np.asarray(quaternions, dtype=np.float32).reshape(len(stamps), -1)
+        -1); ``discontinuity``: the first frame starts a new run (reconnection, seek).
+        Returns the LSL time stamps of the frames sent now: a run's first
+        :attr:`settle_frames` (:data:`SETTLE_S` of stream) are sent together once they have
+        all arrived."""
+        n = len(indices)
+        q = np.asarray(quaternions, dtype=np.float32).reshape(n, -1)
         a = np.degrees(np.asarray(joint_angles, dtype=np.float64)).astype(np.float32)
-        s = np.asarray(sensors, dtype=np.float32).reshape(len(stamps), -1)
-        d = (np.full((len(stamps), 36), -1, dtype=np.int8) if disturbance is None
-             else np.asarray(disturbance, dtype=np.int8).reshape(len(stamps), -1))
+        s = np.asarray(sensors, dtype=np.float32).reshape(n, -1)
+        d = (np.full((n, 36), -1, dtype=np.int8) if disturbance is None
+             else np.asarray(disturbance, dtype=np.int8).reshape(n, -1))
+        frames = [(int(indices[k]), float(arrivals[k]) + self._to_lsl, q[k], a[k], s[k], d[k])
+                  for k in range(n)]
+        if discontinuity and frames:
+            stamps = self.flush()  # the previous run's held frames, on their own envelope
+            self._settled = False
+            self._held = [(*frames[0], True)]  # (..., discontinuity)
+            frames = frames[1:]
+        else:
+            stamps = []
+        if not self._settled:
+            self._held += [(*f, False) for f in frames]
+            if len(self._held) >= self.settle_frames:
+                stamps += self.flush()
+            return stamps
+        return stamps + self._send(frames)
+
+    def flush(self) -> list[float]:
+        """Send the held frames of a run now (at a run's end, or once it has
+        :attr:`settle_frames`), stamped on the lower envelope of their arrivals."""
+        if not self._held:
+            return []
+        held, self._held = self._held, []
+        period = self.clock.period
+        offset = min(f[1] - f[0] * period for f in held)  # never later than any arrival
+        stamps = self._send([(f[0], offset + f[0] * period, *f[2:6]) for f in held],
+                            discontinuity=held[0][6])
+        self._settled = True
+        markers, self._held_markers = self._held_markers, []
+        for text, index in markers:
+            self.marker(text, index)
+        return stamps
+
+    def _send(self, frames: list[tuple], discontinuity: bool = False) -> list[float]:
+        if not frames:
+            return []
+        stamps = self.clock.stamp_many([f[0] for f in frames], [f[1] for f in frames],
+                                       discontinuity)
         seg, jnt, sen, dis = (self.outlets[k] for k in ("segments", "joints", "sensors",
                                                         "disturbance"))
-        for k, t in enumerate(stamps):
-            seg.push_sample(q[k], t)
-            jnt.push_sample(a[k], t)
-            sen.push_sample(s[k], t)
-            dis.push_sample(d[k].tolist(), t)
-        for i, t in zip(indices[-64:], stamps[-64:], strict=True):
-            self._stamps[int(i)] = t
+        for (_, _, q, a, s, d), t in zip(frames, stamps, strict=True):
+            seg.push_sample(q, t)
+            jnt.push_sample(a, t)
+            sen.push_sample(s, t)
+            dis.push_sample(d.tolist(), t)
+        for (i, *_), t in zip(frames[-64:], stamps[-64:], strict=True):
+            self._stamps[i] = t
         if len(self._stamps) > 512:
             for key in sorted(self._stamps)[:-256]:
                 del self._stamps[key]
@@ -199,7 +255,11 @@ class LslOutlets:
 
     def marker(self, text: str, index: int = -1) -> float:
         """Send an event; stamped at frame ``index``'s time when known, else now (minus the
-        link delay for link events, which concern frames)."""
+        link delay for link events, which concern frames). An event of a held frame waits
+        for its frame (:meth:`flush`); then the return value is NaN."""
+        if index >= 0 and any(f[0] == index for f in self._held):
+            self._held_markers.append((text, index))
+            return float("nan")
         t = self._stamps.get(index)
         if t is None:
             t = self.local_clock() - (self.link_delay if text.startswith("link") else 0.0)
@@ -207,7 +267,10 @@ class LslOutlets:
         return t
 
     def close(self) -> None:
-        self.outlets.clear()  # liblsl closes an outlet when it is released
+        """Send what is held, then release the outlets (liblsl closes them)."""
+        if self.outlets:
+            self.flush()
+        self.outlets.clear()
 
 
 class LslBridge:
@@ -311,6 +374,16 @@ class LslBridge:
         elif self._link_state in LINK_LOST_STATES and state == "streaming":
             self.outlets.marker("link recovered")
         self._link_state = state
+
+
+def wait_for_consumers(bridges: Sequence, seconds: float) -> None:
+    """Wait up to ``seconds`` in all until every stream of the LSL bridges among ``bridges``
+    has a consumer (e.g. LabRecorder); the other bridges are ignored."""
+    deadline = time.monotonic() + seconds
+    for bridge in bridges:
+        if isinstance(bridge, LslBridge):
+            for outlet in bridge.outlets.outlets.values():
+                outlet.wait_for_consumers(max(0.0, deadline - time.monotonic()))
 
 
 def attach_lsl(session, period: float | None = None) -> LslBridge:

@@ -87,7 +87,7 @@ def start_streams(session, lsl: bool = False, mvn: list[str] | None = None,
         except ImportError:
             stop_streams(bridges)
             raise ValueError("LSL streaming needs the pylsl package "
-                             "(pip install 'bpms[lab]')") from None
+                             '(pip install "bpms[lsl]")') from None
     return bridges
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpms.io.frames import IMU_NAMES, N_IMUS
-from bpms.io.names import JOINT_ANGLE_NAMES, slug
+from bpms.io.names import JOINT_ANGLE_NAMES, imu_column, joint_column
 
 FORMAT_NAME = "bpms-filtered-file"
 FORMAT_VERSION = 2
@@ -75,7 +75,7 @@ def column_groups() -> dict[str, ColumnGroup]:
 
 def _imu_euler_names(infix: str) -> Callable[[str], list[str]]:
     def names(unit: str) -> list[str]:
-        return [f"imu{i}_{slug(n)}_{infix}{e}_{unit}" for i, n in enumerate(IMU_NAMES)
+        return [imu_column(i, f"{infix}{e}", unit) for i in range(len(IMU_NAMES))
                 for e in EULER_NAMES]
     return names
 
@@ -93,13 +93,13 @@ register_column_group(ColumnGroup(
                 "where they still hold the sensor angles (before the first Reset Zero, or "
                 "with the correction switched off)"))
 register_column_group(ColumnGroup(
-    "joints", lambda unit: [f"joint_{slug(j)}_{unit}" for j in JOINT_ANGLE_NAMES],
+    "joints", lambda unit: [joint_column(j, unit) for j in JOINT_ANGLE_NAMES],
     (len(JOINT_ANGLE_NAMES),), angular=True, description="the 28 joint angles"))
 
 
 def _imu_names(suffixes: Sequence[str]) -> Callable[[str], list[str]]:
     def names(unit: str) -> list[str]:
-        return [f"imu{i}_{slug(n)}_{x}" for i, n in enumerate(IMU_NAMES) for x in suffixes]
+        return [imu_column(i, x) for i in range(len(IMU_NAMES)) for x in suffixes]
     return names
 
 

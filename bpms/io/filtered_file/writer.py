@@ -5,13 +5,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import BinaryIO, TextIO
 
 import numpy as np
 
 from bpms.io.filtered_file.columns import (
     FIXED_COLUMNS,
-    FLAG_FMT,
     FORMAT_NAME,
     FORMAT_VERSION,
     HOST_TIME_FMT,
@@ -20,6 +19,7 @@ from bpms.io.filtered_file.columns import (
     filtered_columns,
     group_list,
 )
+from bpms.io.text_rows import RowFormat
 
 _DEGREES = np.degrees(1.0)
 #: Written when the writer is given no convention (callers give the joint-angle convention in
@@ -53,13 +53,7 @@ class FilteredWriter:
         fmts = [VALUE_FMT, HOST_TIME_FMT, "%d"]
         for g in self.groups:
             fmts += [known[g].fmt] * known[g].width
-        self._fmt = ",".join(fmts)
-        # The trailing flag columns (0/1, "%.0f") are written from their bytes: formatting them
-        # as floats was a sixth of a live row's cost. Rows with other values take self._fmt.
-        flags = len(fmts) - next(k for k in range(len(fmts), 0, -1)
-                                 if fmts[k - 1] != FLAG_FMT)
-        self._flags = flags
-        self._head_fmt = ",".join(fmts[:len(fmts) - flags])
+        self._rows = RowFormat(fmts, [","] * (len(fmts) - 1))
         # (group, first column, width, angular columns scaled to degrees), computed once: a
         # live file takes one row per frame and this is its per-row overhead
         self._layout: list[tuple[str, int, int, bool]] = []
@@ -68,17 +62,26 @@ class FilteredWriter:
             w = known[g].width
             self._layout.append((g, col, w, degrees and known[g].angular))
             col += w
+        # A file is written in binary mode (the rows are ASCII bytes already); a text stream
+        # given by the caller receives text.
+        self._file: BinaryIO | TextIO
         if isinstance(path, str | Path):
             self.path: Path | None = Path(path)
-            self._file: TextIO = open(self.path, "x", encoding="utf-8", newline="\n")  # noqa: SIM115
-            self._owns = True
+            self._file = open(self.path, "xb")  # noqa: SIM115
+            self._owns = self._binary = True
         else:
-            self.path, self._file, self._owns = None, path, False
+            self.path, self._file, self._owns, self._binary = None, path, False, False
         header = {"euler": euler, "convention": convention, "angles": unit,
                   "groups": ",".join(self.groups), **(meta or {})}
         lines = [f"# {FORMAT_NAME} {FORMAT_VERSION}"]
         lines += [f"# {k}: {str(v).replace(chr(10), ' ')}" for k, v in header.items()]
-        self._file.write("\n".join(lines) + "\n" + ",".join(self.columns) + "\n")
+        self._write("\n".join(lines) + "\n" + ",".join(self.columns) + "\n")
+
+    def _write(self, text: str | bytes) -> None:
+        if self._binary:
+            self._file.write(text.encode("utf-8") if isinstance(text, str) else text)
+        else:
+            self._file.write(text.decode("ascii") if isinstance(text, bytes) else text)
 
     def write_block(self, t: np.ndarray, euler: np.ndarray | None = None,
                     joint_angles: np.ndarray | None = None, *,
@@ -115,25 +118,10 @@ class FilteredWriter:
             block[:, col:col + w] = np.reshape(values, (n, w))
             if to_degrees:
                 block[:, col:col + w] *= _DEGREES
-        if n:  # one format string per row: half the cost of numpy.savetxt for live rows
-            self._file.write(self._rows_text(block))
+        if n:
+            self._write(self._rows.ascii(block))
         self.rows += n
         self.holes += holes
-
-    def _rows_text(self, block: np.ndarray) -> str:
-        """The rows of ``block`` as text, each ending in a newline."""
-        fmt, flags = self._fmt, self._flags
-        tail = block[:, block.shape[1] - flags:] if flags else None
-        if tail is None or not ((tail == 1.0) | ((tail == 0.0) & ~np.signbit(tail))).all():
-            return "\n".join([fmt % tuple(r) for r in block.tolist()]) + "\n"
-        # ",0,1,..." for each row, as "%.0f" writes exact 0.0 and 1.0
-        chars = np.full((len(block), 2 * flags), ord(","), dtype=np.uint8)
-        chars[:, 1::2] = tail.astype(np.uint8) + ord("0")
-        tails = chars.view(f"S{2 * flags}").ravel().tolist()
-        head = self._head_fmt
-        return "\n".join([(head % tuple(r)) + t.decode("ascii") for r, t in
-                          zip(block[:, :block.shape[1] - flags].tolist(), tails,
-                              strict=True)]) + "\n"
 
     def write(self, t: float, euler: np.ndarray, joint_angles: np.ndarray | None = None,
               host_time: float | None = None) -> None:

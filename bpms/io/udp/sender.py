@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE, is_frame
+from bpms.io.frames import FRAME_SIZE, is_frame
+from bpms.io.timebase import stream_time
 from bpms.io.udp.addresses import UdpConfigError, is_multicast, parse_address
 from bpms.io.udp.auth import sign_datagram
 from bpms.io.udp.codec import (
@@ -221,7 +222,7 @@ class UdpForwarder:
         frame = bytes(frame)
 
         def build(seq: int) -> bytes:
-            t = seq * FRAME_PERIOD_S if suit_time is None else suit_time
+            t = stream_time(seq) if suit_time is None else suit_time
             return encode_raw_frame(frame, session=self.session, seq=seq, suit_time=t,
                                     send_time=time.time(), sender=self.sender,
                                     epoch=self.epoch)
