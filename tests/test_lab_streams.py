@@ -70,7 +70,7 @@ def test_replay_sends_raw_frames_and_poses(recording):
     # POSE once the segment orientations exist (the provisional Reset Zero at the first frame)
     assert kinds.count(2) >= FRAMES - 5
     last = [g for g in grams if g[5] == 2][-1]
-    assert last[4] == 3  # format version 3 (the POSE extension blocks exist since version 2)
+    assert last[4] == 4  # format version 4 (the POSE extension blocks exist since version 2)
     pose = decode_datagram(last)
     pts = pose.pose.positions
     assert pts.shape == (21, 3) and pose.pose.convention == "isb"

@@ -149,11 +149,17 @@ class BodyPoseProcessor:
         """A new stream: every filter re-initialises on its next valid frame, Reset Zero
         forgets its capture and the automatic captures run again. ``keep_time``: the stream
         time goes on (a restart replayed inside a recording), else it starts again at 0."""
-        self.bank.reset()
-        self.guard.forget()
+        self.reinitialise()
         if not keep_time:
             self.frames = 0
         self.pose.restart(self.frames)
+
+    def reinitialise(self) -> None:
+        """The stream resumes after a gap (a reconnection, Start Data, a seek): every filter
+        re-initialises on its next valid frame and the disturbance indicators learn afresh;
+        Reset Zero is kept."""
+        self.bank.reset()
+        self.guard.forget()
         self.disturbance.reset()
 
     def reset_filter(self, imu: int | None = None) -> None:
@@ -198,7 +204,7 @@ class BodyPoseProcessor:
                 if d.get("action") == "restart":
                     self.restart(keep_time=True)
                 else:
-                    self.reset_filter()
+                    self.reinitialise()
             return True
         except (KeyError, TypeError, ValueError, RuntimeError) as exc:
             problem = f"{event.describe(self.options.filter.dt)}: not applied ({exc})"

@@ -522,6 +522,13 @@ class RawFrames:
     def valid_frames(self) -> int:
         return len(self) - len(self.damaged)
 
+    @property
+    def duration_s(self) -> float:
+        """Nominal duration at 50 Hz (the stream time of the frame after the last), s."""
+        from bpms.io.timebase import stream_time
+
+        return stream_time(len(self))
+
     def _restart(self, lo: int) -> None:
         point = None
         for cp in self._checkpoints:

@@ -38,7 +38,8 @@ def forward_poses(forwarder: UdpForwarder, events: list[FrameEvent], result: Res
 
 class ZeroForwarding:
     """Sends the processor's Reset Zero in force at each capture and every
-    :data:`ZERO_RESEND_FRAMES` frames."""
+    :data:`ZERO_RESEND_FRAMES` frames; never the one-frame provisional capture at the start
+    of a stream (a client makes its own, and waits for a real one)."""
 
     def __init__(self) -> None:
         self._sent_at = -1  # frames processed when it was last sent
@@ -49,8 +50,9 @@ class ZeroForwarding:
         """Call after each processed batch; returns a problem to note (None: none)."""
         self._processed += len(events)
         zero = processor.pose.zero
-        if zero is None or (not result.zeros
-                            and self._processed - self._sent_at < ZERO_RESEND_FRAMES):
+        captured = any(z.source != "provisional" for z in result.zeros)
+        if zero is None or zero.source == "provisional" or (
+                not captured and self._processed - self._sent_at < ZERO_RESEND_FRAMES):
             return None
         self._sent_at = self._processed
         first = processor.frames - len(events)  # the processor's frame number of events[0]

@@ -85,6 +85,8 @@ class RawLogger(threading.Thread):
         self.reserve = DiskReserve(writer.path.parent, reserve_s) if reserve_s > 0 else None
         self.queue: queue.SimpleQueue[FrameEvent | SessionEvent | object] = queue.SimpleQueue()
         self.slots = SlotMap()
+        #: the source frame index of the file's first frame (set by the acquisition thread)
+        self.first_index: int | None = None
         self._wake = threading.Event()
         # a fifth of the flush interval at most: flush_if_due flushes at 0.8 of it
         self.batch_s = min(BATCH_S, writer.flush_interval_s / 5)

@@ -49,6 +49,7 @@ from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
     MAX_BACKLOG_FRAMES,
+    Hole,
     PipelineHealth,
     write_trailing_holes,
     write_with_holes,
@@ -124,6 +125,7 @@ class LiveSession:
         self._zero_forwarding = ZeroForwarding()
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
+        self._filtered_raw: RawLogger | None = None  # the raw recording made beside it
         self._filtered_flushed = 0.0
         # processed rows not yet written: (their frame events, their Result)
         self._pending: list[tuple[list[FrameEvent], Result]] = []
@@ -249,7 +251,8 @@ class LiveSession:
                 self.note(f"filtered recording not started: cannot create {filtered_path}: {exc}")
             else:
                 status.filtered_path = filtered_path
-                self._commands.put(lambda: setattr(self, "_filtered", writer))
+                beside = self._raw_logger
+                self._commands.put(lambda: self._open_filtered(writer, beside))
         self._recording = status
         self.events.emit(SessionEvent("logging", data={
             "action": "start", "raw": raw_path.name if raw else None,
@@ -293,7 +296,7 @@ class LiveSession:
             writer, self._filtered = self._filtered, None
             self._pending, self._pending_frames = [], 0
             if writer is not None:
-                holes, self._holes = [*self._holes, *self.health.take_holes()], []
+                holes, self._holes = self._take_holes(), []
                 try:
                     self.health.holes_marked += write_trailing_holes(
                         writer, holes, self.processor.options.filter.dt)
@@ -368,6 +371,8 @@ class LiveSession:
                 if forwarder is not None:
                     forwarder.send_frame(event.frame, stream_time(event.index))
                 if logger is not None:
+                    if logger.first_index is None:
+                        logger.first_index = event.index  # the file's slot 0
                     logger.queue.put(event)
                 self._enqueue(event)
         self._proc_queue.put(_STOP)
@@ -449,7 +454,7 @@ class LiveSession:
                 for m in head.marks:
                     proc.apply_event(m)
                 marks = [(k, m) for k, m in marks if k > 0]
-                proc.reset_filter()
+                proc.reinitialise()
                 decoded = decode_frames(head.preroll)
                 proc.process(decoded.raw, decoded.errors)
                 action, reason = "reinit", "seek"
@@ -458,7 +463,7 @@ class LiveSession:
                 self._zero_wait_noted = False
                 action, reason = "restart", "stream start"
             else:
-                proc.reset_filter()
+                proc.reinitialise()
                 action, reason = "reinit", "the stream resumed after a gap"
             self.events.at_next_frame(SessionEvent("filters", data={"action": action,
                                                                     "reason": reason}))
@@ -541,7 +546,7 @@ class LiveSession:
         in frame order (:mod:`bpms.pipeline.health`)."""
         pending, self._pending, self._pending_frames = self._pending, [], 0
         writer = self._filtered
-        holes = [*self._holes, *self.health.take_holes()]
+        holes = self._take_holes()
         if writer is None or not pending:
             self._holes = holes if writer is not None else []
             return
@@ -551,6 +556,16 @@ class LiveSession:
         # the rows' numbers computed once for the whole batch (the same functions as per frame)
         concat, filtered_arrays = _filtered_rows()
         arrays = filtered_arrays(concat([r for _, r in pending]), writer.groups)
+        origin = self._filtered_origin()
+        if origin:  # rows on the raw file's clock: slot × dt; frames before it are not in it
+            keep = indices >= origin
+            if not keep.all():
+                indices, host_times = indices[keep], host_times[keep]
+                arrays = {g: v[keep] for g, v in arrays.items()}
+            indices = indices - origin
+            if not len(indices):
+                self._holes = holes
+                return
         try:
             if self._recording is not None and self._recording.filtered_stopped:
                 raise OSError(self._recording.filtered_stopped)  # the raw file goes first
@@ -568,6 +583,31 @@ class LiveSession:
             with contextlib.suppress(OSError):
                 writer.close()
             self.note(f"filtered recording stopped: {exc}")
+
+
+    def _open_filtered(self, writer: FilteredWriter, raw: RawLogger | None) -> None:
+        self._filtered, self._filtered_raw = writer, raw
+
+    def _take_holes(self) -> list[Hole]:
+        """The holes waiting to be written: those kept from the last block and the new ones,
+        on the filtered file's clock (:meth:`_filtered_origin`)."""
+        origin = self._filtered_origin()
+        new = self.health.take_holes()
+        if origin:
+            new = [Hole(h.index - origin, h.host_time) for h in new if h.index >= origin]
+        return [*self._holes, *new]
+
+    def _filtered_origin(self) -> int:
+        """The source frame index of the raw recording's slot 0, when a raw recording is made
+        beside the filtered one (its rows then count from the raw file's first frame, as
+        ``bpms filter`` and replay of that file do); 0 without one (a played recording's
+        slots, a UDP sender's frame numbers). Before the raw file's first frame: a frame
+        index above every one processed (those frames are not in the recording)."""
+        logger = self._filtered_raw
+        if logger is None:
+            return 0
+        first = logger.first_index
+        return (1 << 62) if first is None else first
 
 
 @functools.cache
