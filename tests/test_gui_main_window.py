@@ -231,7 +231,7 @@ def test_simulated_source_is_unmistakable_and_stop_start_is_not_a_link_loss(qtbo
                     is not None, timeout=15000)
     qtbot.waitUntil(lambda: window.health_panel.recording_text == "", timeout=3000)
     texts = window.event_log.texts()
-    assert "Reset Zero" in texts
+    assert any(t.startswith("Reset Zero (manual) at ") for t in texts), texts
     assert any(t.startswith("logging started") for t in texts)
     assert any(t.startswith("logging stopped: Raw_evlog_1.bpmsraw") for t in texts)
     window.close()
@@ -239,29 +239,29 @@ def test_simulated_source_is_unmistakable_and_stop_start_is_not_a_link_loss(qtbo
 
 def test_reset_zero_warns_when_the_subject_moved_during_its_window(qtbot, tmp_path,
                                                                  recording_path):
-    from scipy.spatial.transform import Rotation
-
+    """The warning comes from the capture itself (the motion the processor measured over its
+    window, bpms.filter.pose.window_motion), through the session's event, in red. The
+    simulated script: still until 3 s, then the right arm (IMU 4) rises 60° in 2 s."""
     store = LayoutStore(tmp_path / "layouts.json")
     config = ModeConfig(mode="file", path=str(recording_path), recording_dir=str(tmp_path))
     window = _window(qtbot, config, store, restore_last=False)
+    replay = window.runner.replay
     window.set_data(True)  # (Reset Zero is enabled while data run)
-    qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)
-    # still: every IMU's filter DCM constant over the window (no event loop runs between
-    # setting the window's recent DCMs and pressing Reset Zero)
-    still = np.broadcast_to(np.eye(3), (18, 3, 3))
-    window._recent_R = [still.copy() for _ in range(25)]
+    qtbot.waitUntil(lambda: window.model.latest is not None
+                    and window.model.latest.index >= 60, timeout=15000)
+    window.reset_zero()  # still: no warning
+    qtbot.waitUntil(lambda: any(t.startswith("Reset Zero (manual)")
+                                for t in window.event_log.texts()), timeout=10000)
+    assert not any("moved during its window" in t for t in window.event_log.texts())
+    qtbot.waitUntil(lambda: replay.position >= 210, timeout=15000)  # the arm rises
     window.reset_zero()
-    assert not any("moved" in t for t in window.event_log.texts())
-    # IMU 4 (right arm) turns 12° about one axis during the window
-    turned = []
-    for k in range(25):
-        R = still.copy()
-        R[4] = Rotation.from_euler("z", 12.0 * k / 24, degrees=True).as_matrix()
-        turned.append(R)
-    window._recent_R = turned
-    window.reset_zero()
-    warning = [t for t in window.event_log.texts() if "moved" in t]
-    assert len(warning) == 1 and "12°" in warning[0] and "IMU 4" in warning[0]
+    qtbot.waitUntil(lambda: any("moved during its window" in t
+                                for t in window.event_log.texts()), timeout=10000)
+    warning = [(level, text) for _, level, text in window.event_log.entries
+               if "moved during its window" in text]
+    assert len(warning) == 1 and warning[0][0] == "warning"
+    moved = float(warning[0][1].split("moved ")[1].split("°")[0])
+    assert moved > 5.0 and any(f"(IMU {i})" in warning[0][1] for i in (3, 4, 5))  # right arm
     window.set_data(False)
     window.close()
 

@@ -115,7 +115,9 @@ def test_output_angles_by_default_sensor_angles_on_switch_and_v_toggles(qtbot, t
     qtbot.waitUntil(lambda: model.headerData(0, _H) == "roll (sensor) [deg]", timeout=10000)
     latest = window.model.latest
     assert np.array_equal(latest.euler_output, latest.euler, equal_nan=True)
-    assert any("correction of the output angles off" in t for t in _texts(window))
+    # the session's event (the line its recording and LSL stream hold), at its frame
+    qtbot.waitUntil(lambda: any(t.startswith("alignment off (sensor angles) at ")
+                                for t in _texts(window)), timeout=10000)
     window.set_data(False)
     window.close()
 

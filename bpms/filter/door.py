@@ -452,6 +452,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     else:
         cal, calibration_source = resolve_calibration(calibration, header, str(path), problems)
     processor = BodyPoseProcessor(cal, opts)
+    processor.calibration_source, processor.options_source = calibration_source, options_source
     has_events = file is not None and file.has_events
     processor.pose.auto = choice.automatic(has_events)  # (in force from its next restart)
     processor.pose.provisional = choice.provisional(has_events)

@@ -127,7 +127,8 @@ class Zero:
         return {"source": self.source, "window": int(self.window), "R0": self.R0,
                 "yaw0": float(self.yaw0), "heading": self.heading,
                 "motion_deg": round(float(self.motion_deg), 3),
-                "motion_imu": int(self.motion_imu), "waited": int(self.waited)}
+                "motion_imu": int(self.motion_imu), "moved": bool(self.moved),
+                "waited": int(self.waited)}
 
 
 def zero_values(data: dict) -> tuple[np.ndarray, float] | None:

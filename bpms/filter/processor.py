@@ -138,6 +138,10 @@ class BodyPoseProcessor:
         self.guard = StateGuard(N_IMUS)
         self.corrected_output = self.options.pose.corrected_output
         self.problems = [str(p) for p in (*self.table.problems, *self.options.problems)]
+        #: Where the calibration and the options in force came from (the labels beside the
+        #: numbers; the door names the recording's header when it used it).
+        self.calibration_source = str(self.table.source or "factory")
+        self.options_source = str(getattr(self.options, "source", "") or "factory")
 
     @property
     def reinit_count(self) -> np.ndarray:

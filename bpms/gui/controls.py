@@ -39,6 +39,8 @@ if TYPE_CHECKING:  # the filter (numba) loads with the first session, not the wi
     from bpms.pipeline.session import LiveStatus
 
 GAIN_NAMES = ("kp_rollpitch", "ki_rollpitch", "kp_yaw", "ki_yaw")
+#: The playback window's Reset Zero choice (bpms.filter.zero_choice): label, mode.
+ZERO_CHOICES = (("as recorded", "events"), ("automatic", "auto"), ("none", "none"))
 SPEEDS: tuple[tuple[str, float | None], ...] = (
     ("0.25×", 0.25), ("0.5×", 0.5), ("1×", 1.0), ("2×", 2.0), ("4×", 4.0), ("8×", 8.0),
     ("max", None),
@@ -71,7 +73,8 @@ class StatusPanel(QGroupBox):
         debounce(self.data_button, lambda: self.dataToggled.emit(not self.streaming))
         self.reset_button = QPushButton("Reset Zero")
         self.reset_button.setToolTip("Stand in the calibration pose and press (Ctrl+R); "
-                                     "done automatically 1 s after the stream starts")
+                                     "done automatically once the subject stands still, "
+                                     "from 1 s after the stream starts")
         self.reset_button.setEnabled(False)
         self.reset_button.clicked.connect(self.resetZeroClicked)
         buttons.addWidget(self.data_button)
@@ -83,7 +86,8 @@ class StatusPanel(QGroupBox):
                            ("errors", "Error counter"), ("battery", "Battery"),
                            ("dropped", "Health"), ("latency", "Latency p99"),
                            ("extra", "Source counters"), ("event", "Last event"),
-                           ("calibration", "Calibration"), ("options", "Options")):
+                           ("calibration", "Calibration"), ("options", "Options"),
+                           ("filter", "Filter"), ("reset_zero", "Reset Zero")):
             label = QLabel("–")
             label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
             label.setWordWrap(True)
@@ -91,6 +95,9 @@ class StatusPanel(QGroupBox):
             form.addRow(title, label)
         self.labels["calibration"].setToolTip("Where the sensor calibration in force came from")
         self.labels["options"].setToolTip("Where the options in force came from")
+        self.labels["filter"].setToolTip("The attitude filter the numbers come from")
+        self.labels["reset_zero"].setToolTip("The Reset Zero in force: who made it and when "
+                                             "(stream time), or what it waits for")
         self.streaming = False
 
     def set_sources(self, calibration: str, options: str) -> None:
@@ -125,6 +132,12 @@ class StatusPanel(QGroupBox):
                      + (f", resyncs {src.resyncs}" if src.resyncs else ""),
             "event": st.events[-1] if st.events else "–",
         }
+        # the labels beside the numbers, from the processor that made them
+        for key, value in (("calibration", st.calibration_source),
+                           ("options", st.options_source), ("filter", st.filter_name),
+                           ("reset_zero", st.reset_zero)):
+            if value:
+                text[key] = value
         for key, value in text.items():
             if self.labels[key].text() != value:
                 self.labels[key].setText(value or "–")
@@ -438,6 +451,21 @@ class PlaybackPanel(QGroupBox):
         guard_wheel(self.speed_combo)
         row.addWidget(self.speed_combo)
         layout.addLayout(row)
+        zero = QHBoxLayout()
+        zero.addWidget(QLabel("Reset Zero"))
+        self.zero_combo = QComboBox()
+        for label, _ in ZERO_CHOICES:
+            self.zero_combo.addItem(label)
+        self.zero_combo.setToolTip("as recorded: the Reset Zero captures made live, at their "
+                                   "frames; automatic: made again once the subject stands "
+                                   "still; none: the IMUs' own attitudes. Changing it plays "
+                                   "the recording again from its start "
+                                   "(docs/opening-recordings.md)")
+        self.zero_combo.currentIndexChanged.connect(
+            lambda i: self.runner.set_playback_reset_zero(ZERO_CHOICES[i][1]))
+        guard_wheel(self.zero_combo)
+        zero.addWidget(self.zero_combo, 1)
+        layout.addLayout(zero)
         self._update_label(self.replay.position)
 
     def _slider_moved(self, value: int) -> None:

@@ -54,9 +54,11 @@ class EventLog(QListWidget):
             del self.entries[0]
         self.scrollToBottom()
 
-    def merge_session_events(self, events: list[str]) -> None:
+    def merge_session_events(self, events: list[str], warnings: list[str] | tuple = ()
+                             ) -> None:
         """Add the session's events not seen yet (``LiveStatus.events``: "HH:MM:SS text",
-        newest last, a bounded list)."""
+        newest last, a bounded list; those in ``warnings`` in red): the session's one event
+        source (:mod:`bpms.pipeline.events`), the lines its recording and LSL stream hold."""
         if events == self._session_seen:
             return
         seen = self._session_seen
@@ -68,9 +70,10 @@ class EventLog(QListWidget):
                 if events[k] == last:
                     start = k + 1
                     break
+        warned = set(warnings)
         for entry in events[start:]:
             when, _, text = entry.partition(" ")
-            self.add(text, "warning", when)
+            self.add(text, "warning" if entry in warned else "info", when)
         self._session_seen = list(events)
 
     def texts(self) -> list[str]:

@@ -16,7 +16,6 @@ the mode (``mode_wiring``), plots and 3D views (``dynamic_docks``), layouts
 
 from __future__ import annotations
 
-import numpy as np
 from PyQt6 import sip
 from PyQt6.QtCore import QTimer, pyqtSignal
 from PyQt6.QtWidgets import QDockWidget, QMainWindow, QMessageBox, QWidget
@@ -75,7 +74,6 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         self.dynamic_docks: list[QDockWidget] = []
         self._dock_serial = 0
         self.tick_times_s: list[float] = []  # GUI time per display tick (bench/gui.py)
-        self._recent_R: list[np.ndarray] = []  # filter DCMs of the last Reset Zero window
         self._last_recording = None
         self._counters: dict[str, int] = {}
         self._texts_at = -1e9

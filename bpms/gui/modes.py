@@ -20,7 +20,7 @@ from bpms.io.calib_file import CalibrationTable
 from bpms.io.link import LinkError
 from bpms.io.options import Options
 from bpms.io.rawfile import RawFileError
-from bpms.io.recordings import open_recording
+from bpms.io.recordings import open_replay
 from bpms.io.replay import ReplaySource
 from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
 
@@ -106,6 +106,9 @@ class SessionRunner:
         # explicit choices win, else the recording's header, else the user's default.
         self.playback_calibration: CalibrationTable | str | None = None
         self.playback_options: Options | str | None = None
+        #: which Reset Zero playback applies (bpms.filter.zero_choice: events, auto, none)
+        self.playback_reset_zero: str | None = None
+        self._opened = None  # the door's OpenedRecording of the recording played
         #: Where the calibration / options in force came from (for the data panel).
         self.calibration_source = getattr(calibration, "source", "factory")
         self.options_source = getattr(options, "source", "factory")
@@ -169,25 +172,27 @@ class SessionRunner:
         if cfg.mode == "file":
             if not cfg.path:
                 raise ModeError("choose a raw recording to play")
-            try:
-                recording = open_recording(cfg.path)
+            try:  # the one reader, from disk as it plays (docs/opening-recordings.md)
+                recording = open_replay(cfg.path)
             except (RawFileError, OSError) as exc:
                 raise ModeError(f"cannot play {cfg.path}: {exc}") from None
             self.problems = list(getattr(recording, "problems", []) or [])
-            if len(recording) == 0:
-                raise ModeError(f"{cfg.path} holds no frames")
             from bpms.filter.door import open_for_processing
 
             try:
                 # the filter chosen in the GUI is an explicit run-time choice (like --filter)
                 opened = open_for_processing(cfg.path, self.playback_calibration,
                                              self.playback_options,
-                                             algorithm=self.options.filter.algorithm)
-            except (RawFileError, OSError) as exc:
+                                             algorithm=self.options.filter.algorithm,
+                                             reset_zero=self.playback_reset_zero)
+            except (RawFileError, OSError, ValueError) as exc:
                 raise ModeError(f"cannot play {cfg.path}: {exc}") from None
             self.calibration_source = opened.calibration_source
             self.options_source = opened.options_source
-            self.replay = ReplaySource(recording, speed=1.0, autoplay=False)
+            self._opened = opened
+            # the recorded events (Reset Zero, alignment, gains, markers) at their frames
+            self.replay = ReplaySource(recording, speed=1.0, autoplay=False,
+                                       events=opened.replay_events(recording.events))
             self.session = self._new_session(self.replay, opened.processor)
         elif cfg.mode == "udp":
             self.session = self._new_session(self._udp_source())
@@ -224,6 +229,22 @@ class SessionRunner:
                                   takeover_after_s=self.options.udp.takeover_after_s)
         except (OSError, ValueError) as exc:
             raise ModeError(f"cannot listen on UDP {self.config.listen}: {exc}") from None
+
+    def set_playback_reset_zero(self, choice: str) -> None:
+        """Playback: which Reset Zero applies (``events``, ``auto``, ``none``; :mod:`bpms.
+        filter.zero_choice`). The recording plays again from its start with it."""
+        from bpms.filter.zero_choice import ResetZeroChoice
+
+        self.playback_reset_zero = choice
+        opened, replay = self._opened, self.replay
+        if opened is None or replay is None:
+            return
+        opened.reset_zero = ResetZeroChoice.parse(choice)
+        proc = opened.processor
+        proc.pose.auto = opened.reset_zero.automatic(opened.has_events)
+        proc.pose.provisional = opened.reset_zero.provisional(opened.has_events)
+        replay.set_events(opened.replay_events(replay.recording.events))
+        replay.seek(0)  # a new stream: the filters and Reset Zero start again
 
     def start_data(self) -> LiveSession:
         """Start Data. Returns the (possibly new) session. Raises ModeError (UDP rebind)."""

@@ -264,7 +264,7 @@ class View3DWindow(QWidget):
         if self.receivers(self.resetZeroRequested):
             self.resetZeroRequested.emit()
         elif self.model.session is not None:
-            self.model.session.reset_zero()
+            self.model.session.reset_zero("3d-view")
 
     @property
     def gl_view(self) -> QWidget | None:

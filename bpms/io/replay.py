@@ -62,13 +62,8 @@ class ReplaySource:
         """``events``: the events to apply, ``(slot, event)`` (default: the recording's)."""
         self.recording = recording
         self._length = len(recording)
-        self.events = sorted(recording.events if events is None else events,
-                             key=lambda item: item[0])
-        self._marks: dict[int, tuple[SessionEvent, ...]] = {}
-        for slot, event in self.events:
-            if 0 <= slot < self._length:
-                self._marks[slot] = (*self._marks.get(slot, ()), event)
         self._carried: tuple[SessionEvent, ...] = ()
+        self.set_events(recording.events if events is None else events)
         self._cond = threading.Condition()
         self._speed = speed
         self._playing = autoplay
@@ -110,6 +105,15 @@ class ReplaySource:
                  else "streaming" if self._playing else "paused")
         return SourceStatus(f"file {self.recording.path}", state, position=self._pos,
                             length=len(self))
+
+    def set_events(self, events: Sequence[tuple[int, SessionEvent]]) -> None:
+        """The events to apply from now on, ``(slot, event)`` (a new Reset Zero choice)."""
+        ordered = sorted(events, key=lambda item: item[0])
+        marks: dict[int, tuple[SessionEvent, ...]] = {}
+        for slot, event in ordered:
+            if 0 <= slot < self._length:
+                marks[slot] = (*marks.get(slot, ()), event)
+        self.events, self._marks = ordered, marks
 
     # -- controls ---------------------------------------------------------------------
     def _reanchor(self) -> None:

@@ -17,8 +17,9 @@ Kinds and their ``data``:
 - ``reset_zero``: ``source`` (:data:`ZERO_SOURCES`), ``window`` (frames averaged, ending at
   ``frame``), ``R0`` (18 × 3 × 3 captured DCMs, null for an IMU with no data), ``yaw0`` (rad,
   the heading ψ0), ``heading`` (``hip``/``mean``), ``motion_deg`` and ``motion_imu`` (the
-  largest rotation of one IMU during the window and which IMU), ``waited`` (automatic: frames
-  it waited for a still pose after its nominal frame);
+  largest rotation of one IMU during the window and which IMU), ``moved`` (that rotation is
+  more than a still pose allows, 5°), ``waited`` (automatic: frames it waited for a still pose
+  after its nominal frame);
 - ``alignment``: ``on`` (output angles corrected by Reset Zero, the original's ``v`` key);
 - ``filter``: ``algorithm``; ``gains``: ``values`` (``[filter]`` option names → numbers);
 - ``filters``: ``action`` (``restart``: a new stream, the automatic Reset Zero runs again;
@@ -99,6 +100,9 @@ class SessionEvent:
                 moved, imu = d.get("motion_deg"), d.get("motion_imu")
                 if isinstance(moved, int | float) and isinstance(imu, int) and imu >= 0:
                     line += f", moved {moved:.1f}° (IMU {imu})"
+                if d.get("moved") and d.get("source") in ("manual", "3d-view"):
+                    line += (": the subject moved during its window; stand still in the "
+                             "calibration pose and press again")
             waited = d.get("waited")
             if isinstance(waited, int | float) and waited > 0:
                 line += f", after waiting {waited * dt:.2f} s for a still pose"

@@ -41,6 +41,7 @@ class SessionEvents:
         self._fanout: Fanout[SessionEvent] = Fanout()
         self._lock = threading.Lock()
         self._lines: list[str] = []
+        self._warned: list[str] = []  # the kept lines that are warnings
         self._waiting: list[tuple[SessionEvent, bool]] = []
         self.count = 0
         #: called with every event, in the emitting thread, in order (the raw logger's queue:
@@ -62,7 +63,10 @@ class SessionEvents:
         (log.warning if warning else log.info)("%s", text)
         with self._lock:
             stamp = time.strftime("%H:%M:%S", time.localtime(event.time))
-            self._lines = [*self._lines[-(KEPT_LINES - 1):], f"{stamp} {text}"]
+            line = f"{stamp} {text}"
+            self._lines = [*self._lines[-(KEPT_LINES - 1):], line]
+            if warning:
+                self._warned = [*self._warned[-(KEPT_LINES - 1):], line]
             self.count += 1
             sinks = list(self.sinks)
         for sink in sinks:
@@ -94,6 +98,11 @@ class SessionEvents:
         """The kept ``HH:MM:SS text`` lines, newest last."""
         with self._lock:
             return list(self._lines)
+
+    def warning_lines(self) -> list[str]:
+        """Those of :meth:`lines` that are warnings."""
+        with self._lock:
+            return [w for w in self._warned if w in self._lines]
 
 
 __all__ = ["KEPT_LINES", "SessionEvents"]

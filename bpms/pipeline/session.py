@@ -332,6 +332,7 @@ class LiveSession:
         with self._lock:
             lat = sorted(self._latencies[-500:])
         events = self.events.lines()
+        proc = self.processor
         return LiveStatus(
             source=self.source.status(), running=self.running, rate_hz=self._rate.rate_hz(),
             frames=self._frames, processed=self._processed, error_bits=self._error_bits,
@@ -345,7 +346,10 @@ class LiveSession:
             events=events, reinit_count=self._reinit_seen,
             not_filtered=self.health.not_filtered,
             display_skipped=self._fanout.dropped, holes_marked=self.health.holes_marked,
-            reset_zero=self.processor.pose.state_text(self.processor.options.filter.dt))
+            reset_zero=proc.pose.state_text(proc.options.filter.dt),
+            calibration_source=proc.calibration_source, options_source=proc.options_source,
+            filter_name=proc.options.filter.algorithm,
+            event_warnings=self.events.warning_lines())
 
     # -- threads ----------------------------------------------------------------------------
     def _acquire(self) -> None:

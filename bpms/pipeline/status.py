@@ -48,8 +48,13 @@ class LiveStatus:
     not_filtered: int = 0
     display_skipped: int = 0
     holes_marked: int = 0
-    #: the Reset Zero in force, from the processor (``PoseCalibrator.state_text``)
+    #: What produced the numbers, from the processor itself: the Reset Zero in force
+    #: (``PoseCalibrator.state_text``), the calibration's and options' sources, the filter.
     reset_zero: str = ""
+    calibration_source: str = ""
+    options_source: str = ""
+    filter_name: str = ""
+    event_warnings: list[str] = field(default_factory=list)  # those of ``events`` that warn
 
     def health_line(self) -> str:
         """``not filtered N  backlog B  display skipped M`` (capitals when frames are lost)."""

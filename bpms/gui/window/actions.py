@@ -53,6 +53,9 @@ class WindowActions:
                       "Ctrl+Space", "Start or stop the stream (play/pause a recording)"),
             "reset_zero": a("Reset Zero", self.reset_zero, "Ctrl+R",
                             "Stand in the calibration pose, then press"),
+            "marker": a("Marker…", lambda: self.add_marker(), "Ctrl+M",
+                        "A marker note at this frame: in the recording, the event log and "
+                        "the LSL event stream"),
             "record": a("Start/Stop Logging", self.file_panel.toggle_logging, "Ctrl+L",
                         "Record raw and/or filtered files (Session dock)"),
             "plot": a("Plot selection", self.plot_selection, "Ctrl+P",
@@ -106,7 +109,7 @@ class WindowActions:
         for key in ("record", "quit"):
             menu.addAction(acts[key])
         menu = bar.addMenu("&Data")
-        for key in ("data", "reset_zero", "corrected", "lsl"):
+        for key in ("data", "reset_zero", "marker", "corrected", "lsl"):
             menu.addAction(acts[key])
         self._add_playback_actions(menu)
         menu = bar.addMenu("&View")

@@ -4,12 +4,7 @@ gains, the angle unit and which angles are shown. Mixed into
 
 from __future__ import annotations
 
-import numpy as np
-
 from bpms.gui.modes import ModeError
-
-#: Reset Zero warns when an IMU turned more than this during the averaging window, deg.
-RESET_MOTION_DEG = 5.0
 
 
 class SessionCommands:
@@ -38,31 +33,28 @@ class SessionCommands:
         self.status_panel.set_streaming(self.runner.data_on)
         self._update_toolbar()
 
-    def reset_zero(self) -> None:
-        """Reset Zero at the next frame (stand in the calibration pose); warns when an IMU
-        turned during the averaging window that ends there."""
+    def reset_zero(self, source: str = "manual") -> None:
+        """Reset Zero at the next frame (stand in the calibration pose). The session's event
+        says when it was captured and how much the subject moved during its window (a
+        warning when too much), in the event log, the recording and the LSL stream."""
         if self.runner.session is None or not self.runner.data_on:
             return
-        self.runner.session.reset_zero()
+        self.runner.session.reset_zero(source)
         self.statusBar().showMessage("Reset Zero requested", 3000)
-        self.event_log.add("Reset Zero")
-        moved = self._motion_in_window_deg()
-        if moved is not None and moved[0] > RESET_MOTION_DEG:
-            self.event_log.add(f"Reset Zero: the subject moved during its window "
-                               f"({moved[0]:.0f}° on IMU {moved[1]}); stand still in the "
-                               "calibration pose and press again", "warning")
 
-    def _motion_in_window_deg(self) -> tuple[float, int] | None:
-        """Largest rotation of one IMU's filter DCM over the last Reset Zero window, deg."""
-        if len(self._recent_R) < 2:
-            return None
-        R = np.asarray(self._recent_R)  # [n, 18, 3, 3]
-        rel = np.einsum("ikj,nikl->nijl", R[0], R)  # R0^T R_n
-        trace = np.clip((np.trace(rel, axis1=2, axis2=3) - 1.0) / 2.0, -1.0, 1.0)
-        angles = np.degrees(np.arccos(trace))
-        angles = np.where(np.isfinite(angles), angles, 0.0).max(axis=0)
-        k = int(np.argmax(angles))
-        return float(angles[k]), k
+    def add_marker(self, text: str | None = None) -> None:
+        """A marker note at the next frame (in the recording, the event log and the LSL event
+        stream); without ``text`` it is asked for."""
+        if self.runner.session is None:
+            return
+        if text is None:
+            from PyQt6.QtWidgets import QInputDialog
+
+            text, ok = QInputDialog.getText(self, "Marker", "Marker note:")
+            if not ok:
+                return
+        if text.strip():
+            self.runner.session.marker(text.strip())
 
     def _sensor_angles_toggled(self) -> None:
         """View ▸ Sensor angles (uncorrected): the table and the angle plots show ``euler``
@@ -77,11 +69,9 @@ class SessionCommands:
         """The original's v key: the session's output angles corrected by Reset Zero or not
         (what is shown, recorded and streamed), from the next frame."""
         on = self.actions_by_name["corrected"].isChecked()
-        if self.runner.session is not None:
+        if self.runner.session is not None:  # the session's event says it, at its frame
             self.runner.session.set_corrected_output(on)
         self.options.pose.corrected_output = on  # a new session (UDP restart) follows
-        self.event_log.add("Reset Zero correction of the output angles "
-                           + ("on (segment angles)" if on else "off (sensor angles)"))
 
     def _lsl_toggled(self) -> None:
         """Stream to LSL on/off (SessionRunner.set_lsl); the reason when it cannot start."""
@@ -114,8 +104,7 @@ class SessionCommands:
         if self.runner.session is not None:
             self.runner.session.select_filter(algorithm)
         self.options.filter.algorithm = algorithm
-        self.statusBar().showMessage(f"filter: {algorithm}", 3000)
-        self.event_log.add(f"filter re-initialised: {algorithm} on all 18 IMUs")
+        self.statusBar().showMessage(f"filter: {algorithm}", 3000)  # (the event: the session)
 
     def set_angle_unit(self, unit: str) -> None:
         self.table_model.set_angle_unit(unit)

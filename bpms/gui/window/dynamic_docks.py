@@ -49,7 +49,7 @@ class DynamicDocks:
         if self._view3d is None or not self.view3d_button.isEnabled():
             return None
         view = self._view3d.View3DWindow(self.model)  # type: ignore[attr-defined]
-        view.resetZeroRequested.connect(self.reset_zero)
+        view.resetZeroRequested.connect(lambda: self.reset_zero("3d-view"))
         dock = make_dock("3D view", name or self._next_name("view3d"), view, dynamic=True)
         views = [d for d in self.dynamic_docks if not isinstance(d.widget(), PlotWindow)
                  and not d.isFloating() and d.parent() is self and not d.isHidden()]

@@ -11,7 +11,6 @@ import numpy as np
 from bpms.gui.columns import shown_angles
 from bpms.gui.health import Health, stale_text
 from bpms.gui.plot_data import TickBlock
-from bpms.io.frames import FRAME_PERIOD_S
 from bpms.pipeline.session import LiveStatus
 
 #: Status numbers are refreshed this often, s (the link light at every display tick).
@@ -38,9 +37,6 @@ class StatusDisplay:
                                int(np.count_nonzero(last.acc_disturbed)))
         if self.joint_table.isVisible():
             self.joint_model.update(samples[-1])
-        window = max(2, round(self.options.pose.reset_window_s / FRAME_PERIOD_S))
-        self._recent_R.extend(s.R for s in samples[-window:])
-        del self._recent_R[:-window]
         for plot in self.plot_windows:
             plot.append(block)
         self.tick_times_s.append(time.perf_counter() - start)
@@ -73,7 +69,7 @@ class StatusDisplay:
             self.health_panel.show_disturbance(*(self._disturbed or (None, None)))
             self.status_panel.show_status(st, health.state if self.runner.data_on else None)
             self.file_panel.show_status(st)
-        self.event_log.merge_session_events(st.events)
+        self.event_log.merge_session_events(st.events, st.event_warnings)
         self._watch_counters(st)
         self._watch_recording(st)
         self._show_mode_status(st)
