@@ -140,9 +140,13 @@ def parse_event(data: bytes, q: int, size: int) -> SessionEvent | None:
     if zlib.crc32(data[q:end - EVENT_TAIL.size]) != crc:
         return None
     try:
-        return SessionEvent.from_json(data[q + EVENT_HEAD.size:end - EVENT_TAIL.size])
+        event = SessionEvent.from_json(data[q + EVENT_HEAD.size:end - EVENT_TAIL.size])
     except ValueError:
         return None
+    if event.time != event.time:  # not in the JSON: the record's time
+        event = SessionEvent(event.kind, event.frame, struct.unpack_from("<d", data, q)[0],
+                             event.data)
+    return event
 
 
 def is_frame_record_at(data: bytes, q: int) -> bool:

@@ -9,9 +9,10 @@ however long the recording.
 Damage: after bytes that are neither a frame record nor an event record (corruption, bytes
 lost or inserted), the reader resynchronises on the next record — a frame record confirmed by
 the record after it, or an event record whose CRC holds. A damaged stretch keeps its slots:
-it becomes ``round(bytes / 348)`` (at least one) placeholder frames with every sensor flagged
-failed, so every later frame keeps its position, hence its time (index × 0.02 s). A damaged
-event record costs only itself (no slot). A torn last record is ignored with a warning.
+it becomes ``round(bytes / 348)`` placeholder frames with every sensor flagged failed (none
+for fewer than 174 bytes between two intact records: bytes inserted there), so every later
+frame keeps its position, hence its time (index × 0.02 s). A damaged event record costs only
+itself (no slot). A torn last record is ignored with a warning.
 
 Events (format version 2) apply at the frame they name, whatever their place in the file: the
 live session writes an event after the frames it processed, so :meth:`RawFile.chunks` holds a
@@ -289,8 +290,8 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
         if event_size is not None and gap >= event_size - RECORD_SIZE // 2:
             counts.lost_events += 1  # a damaged event record, and what follows it
             count = max(0, round((gap - event_size) / RECORD_SIZE))
-        else:
-            count = max(1, round(gap / RECORD_SIZE))
+        else:  # (fewer than half a record between intact records: bytes inserted, no slot)
+            count = round(gap / RECORD_SIZE)
         next_time = float("nan") if q is None else struct.unpack_from("<d", buf, q)[0]
         if count:
             yield "gap", slot, _placeholders(count, last_time, next_time)
@@ -436,6 +437,9 @@ class RawFile:
                 f"{path}: {c.damaged} damaged record(s) ({c.skipped} bytes) without a valid "
                 "record structure: their slots are kept as frames with every sensor flagged "
                 "failed")
+        elif c.skipped and not c.lost_events:
+            self.problems.append(f"{path}: {c.skipped} byte(s) between intact records "
+                                 "(inserted): skipped, no frame lost")
         if c.lost_events:
             self.problems.append(f"{path}: {c.lost_events} damaged event record(s): lost")
         if late:
