@@ -266,3 +266,67 @@ def test_replay_streams_one_pose_per_frame_equal_to_the_api(field, api, tmp_path
     events = lsl["BPMS Events"]["values"]
     assert any(e.startswith("Reset Zero (manual)") for e in events), events
     assert any("arm coming down" in e for e in events), events
+
+
+def _damage(raw: Path, out: Path, case: str) -> Path:
+    """A damaged copy of the field recording. Record positions come from the bytes themselves
+    (a frame's 340 bytes found in the file; an event's JSON): events sit between frames."""
+    data = bytearray(raw.read_bytes())
+    intact = read_raw(raw)
+
+    def frame_at(k: int) -> int:
+        return bytes(data).index(intact.frames[k].tobytes()) - 8
+
+    manual = bytes(data).index(b'"source":"manual"')
+    event = bytes(data).rindex(b"$E", 0, manual) - 8
+    if case == "deleted":
+        at = frame_at(300) + 100
+        del data[at:at + 3]
+    elif case == "inserted":
+        data[event:event] = b"\x55" * 5  # just before the manual Reset Zero's record
+    elif case == "markers_lost":
+        for k in range(500, 505):
+            at = frame_at(k)
+            data[at + 8:at + 10] = b"\0\0"
+    elif case == "event_lost":
+        data[manual + 3] ^= 0x20  # inside its JSON: its CRC fails
+    elif case == "all_markers_lost":
+        start = bytes(data).index(intact.frames[0].tobytes())
+        for k in range(len(intact)):
+            at = bytes(data).index(intact.frames[k].tobytes()[:40], start)
+            data[at:at + 2] = b"\0\0"
+    out.write_bytes(bytes(data))
+    return out
+
+
+@pytest.mark.parametrize("case", ["deleted", "inserted", "markers_lost", "event_lost"])
+def test_damaged_copies_keep_every_slot_and_every_other_event(field, api, case, tmp_path,
+                                                               capsys):
+    damaged = _damage(field[0], tmp_path / f"Raw_{case}_1.bpmsraw", case)
+    rec = read_raw(damaged)
+    assert len(rec) == len(api)  # every slot kept: no time shift
+    lost = {"deleted": [300], "markers_lost": [500, 501, 502, 503, 504]}.get(case, [])
+    assert rec.damaged.tolist() == lost
+    out = tmp_path / "f.csv"
+    assert main(["filter", str(damaged), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert ("damaged" in err or "inserted" in err) and "warning" in err
+    rows = read_filtered(out)
+    np.testing.assert_array_equal(rows.t, np.arange(len(rec)) * 0.02)
+    np.testing.assert_allclose(rows.host_time, rec.times, rtol=0, atol=1e-6)
+    again = process_file(damaged)
+    want = [(z.source, z.frame) for z in api.zeros]
+    got = [(z.source, z.frame) for z in again.zeros]
+    assert got == (want[:-1] if case == "event_lost" else want)
+
+
+def test_a_copy_without_a_valid_frame_is_refused_in_one_line(field, tmp_path):
+    damaged = _damage(field[0], tmp_path / "Raw_none_1.bpmsraw", "all_markers_lost")
+    assert read_raw(damaged).valid_frames == 0
+    for args in (["filter", str(damaged), "-o", str(tmp_path / "f.csv")],
+                 ["replay", str(damaged), "--udp", "127.0.0.1:9", "--speed", "0"]):
+        run = subprocess.run([sys.executable, "-m", "bpms", *args], cwd=ROOT,
+                             capture_output=True, text=True, timeout=60)
+        lines = [ln for ln in run.stderr.strip().splitlines() if "WARNING" not in ln]
+        assert run.returncode == 2 and len(lines) == 1, run.stderr
+        assert lines[0].startswith(f"bpms {args[0]}: ") and "no valid frame" in lines[0]
