@@ -46,8 +46,8 @@ N_FLAG_PARAMS = 15
 #: Per-IMU state columns of the detector.
 (F_G0, F_G1, F_G2, F_H0, F_H1, F_H2, F_B0, F_B1, F_B2, F_W0, F_W1, F_W2, F_INIT, F_REST_T,
  F_LEARN_T, F_REF_NORM, F_REF_DIP, F_READY, F_NORM_LP, F_DIP_LP, F_ACC_MEAN, F_ACC_MS,
- F_DEV_LP, F_HEAD_LP, F_MAG_UP, F_ACC_UP, F_MAG_FLAG, F_OK_T) = range(28)
-N_FLAG_STATE = 28
+ F_DEV_LP, F_HEAD_LP, F_MAG_UP, F_ACC_UP, F_MAG_FLAG, F_OK_T, F_M0, F_M1, F_M2) = range(31)
+N_FLAG_STATE = 31
 #: Columns of the detector's value output ``[N, n, N_VALUES]``.
 (V_NORM_RATIO, V_DIP_DEV, V_ACC_MEAN, V_MAG_DEV, V_MAG_HEADING, V_ACC_LIN, V_MAG_UP,
  V_ACC_UP) = range(8)
@@ -207,10 +207,20 @@ def run_flags(acc, mag, gyr, gravity, valid, p, state, flags, values):
                 xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
                 if xn > 0.0:
                     x0, x1, x2 = x0 / xn, x1 / xn, x2 / xn
+                if rested and s[F_LEARN_T] > 0.0 and s[F_LEARN_T] < p[P_LEARN_S]:
+                    # still, so the field in sensor axes must stay put: a change is a magnet
+                    # coming (or going) while learning, which ends the learning here
+                    c0, c1, c2 = m0 - s[F_M0], m1 - s[F_M1], m2 - s[F_M2]
+                    if (math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+                            > 0.5 * mag_th * s[F_REF_NORM]):
+                        s[F_LEARN_T] = p[P_LEARN_S]
                 if rested and s[F_LEARN_T] < p[P_LEARN_S]:
                     n_prev = s[F_LEARN_T] / dt
                     s[F_REF_NORM] = (s[F_REF_NORM] * n_prev + mn) / (n_prev + 1.0)
                     s[F_REF_DIP] = (s[F_REF_DIP] * n_prev + dip) / (n_prev + 1.0)
+                    s[F_M0] = (s[F_M0] * n_prev + m0) / (n_prev + 1.0)
+                    s[F_M1] = (s[F_M1] * n_prev + m1) / (n_prev + 1.0)
+                    s[F_M2] = (s[F_M2] * n_prev + m2) / (n_prev + 1.0)
                     s[F_LEARN_T] += dt
                     if xn > 0.0:
                         h0, h1, h2 = x0, x1, x2
