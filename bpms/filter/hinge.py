@@ -26,7 +26,7 @@ hinge joints from orientation estimates of inertial sensors", ICORR 2017). Per h
    (:mod:`bpms.filter.flags`), fading as ``exp(−t/recover_s)`` after (5 s: the filters' heading
    needs about that long to come back). While neither segment of a hinge is suspect, ``δ̂``
    is the hinge's clean value ``δ̂₀`` and nothing is turned. Otherwise the change
-   ``e = δ̂ − δ̂₀`` is shared by suspicion: the distal segment turns by ``e s_d / (s_p + s_d)``,
+   ``e = δ̂ − δ̂₀`` is shared by sigma: the distal segment turns by ``e s_d / (s_p + s_d)``,
    the proximal one by ``−e s_p / (s_p + s_d)``. With every segment suspect (no field at
    all, the 6D mode) each hinge splits its whole offset in halves.
 
@@ -59,18 +59,32 @@ HINGES = np.array([(j.proximal, j.distal) for j in HINGE_JOINTS], dtype=np.int64
 
 @dataclass
 class HingeSettings:
-    """tau_s: s, averaging of the relative heading; recover_s: s, a segment's suspicion fades
-    with this time constant after its magnetometer flag drops; prior: rad², the weight of the
-    Reset Zero axis against the joint's own motion (≈ 1 s of flexing at 1.4 rad/s);
-    min_rate: rad/s, slower joint motion does not teach the axis."""
+    """Settings of the constraint (physical units).
+
+    tau_s: s, averaging of the relative heading. The heading uncertainty σ of a segment: while
+    its magnetometer is flagged, the field's heading deviation (``follows``: the filter turns
+    with a disturbed field, as the original Mahony and VQF do) or ``drift_dps`` per second
+    (the filter coasts on its gyro while the flag is up); after the flag, σ fades with
+    ``recover_s`` (the filters' heading returns over about that long). floor_deg: the
+    constraint's own error (Reset Zero's axes before the joint has moved are a few degrees
+    off): what it measures is shared as ``σ_d² / (σ_p² + σ_d² + floor²)``. clean_deg: both
+    segments below this σ: the hinge's present offset is its clean value. prior: rad², the
+    weight of Reset Zero's axis against the joint's own motion (≈ 1 s of flexing at
+    1.4 rad/s); min_rate: rad/s, slower joint motion does not teach the axis."""
 
     tau_s: float = 1.0
     recover_s: float = 5.0
+    follows: bool = True
+    drift_dps: float = 0.05
+    floor_deg: float = 2.0
+    clean_deg: float = 0.5
     prior: float = 2.0
     min_rate: float = 0.3
 
     def params(self, dt: float) -> np.ndarray:
-        return np.array([self.tau_s, self.recover_s, dt, self.prior, self.min_rate])
+        return np.array([self.tau_s, self.recover_s, dt, self.prior, self.min_rate,
+                         1.0 if self.follows else 0.0, math.radians(self.drift_dps),
+                         math.radians(self.floor_deg), math.radians(self.clean_deg)])
 
 
 #: Per-hinge state columns: the axis in the proximal and distal sensor frames, their
@@ -82,20 +96,20 @@ N_HINGE_STATE = 27
 @dataclass
 class HingeState:
     """hinges ``[h, N_HINGE_STATE]`` (the axis in each sensor frame, what teaches it, the
-    relative heading δ̂ and its clean value δ̂₀, rad); suspicion ``[18]`` (0–1) of each
-    segment's heading."""
+    relative heading δ̂ and its clean value δ̂₀, rad); sigma ``[18]`` rad, each segment's
+    heading uncertainty."""
 
     n_hinges: int = len(HINGES)
     hinges: np.ndarray = field(init=False)
-    suspicion: np.ndarray = field(init=False)
+    sigma: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         self.hinges = np.zeros((self.n_hinges, N_HINGE_STATE))
-        self.suspicion = np.zeros(N_IMUS)
+        self.sigma = np.zeros(N_IMUS)
 
     def reset(self) -> None:
         self.hinges[:] = 0.0
-        self.suspicion[:] = 0.0
+        self.sigma[:] = 0.0
 
 
 @numba.njit(cache=True)
@@ -126,21 +140,26 @@ def _world_xy(R, t, i, s, col):
 
 
 @numba.njit(cache=True)
-def run_hinges(R, C, gyr, mag_flag, hinges, p, hs, suspicion, turn):
+def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn):
     """N frames: R ``[N, n, 3, 3]`` sensor → NED, C ``[N, n, 3, 3]`` segment orientations
     (Reset Zero; only their first finite frame is used, for the starting axis), gyr
-    ``[N, n, 3]`` rad/s sensor axes, mag_flag ``[N, n]`` bool, hinges ``[h, 2]`` (proximal,
-    distal), p (:meth:`HingeSettings.params`), state hs ``[h, N_HINGE_STATE]`` / suspicion
+    ``[N, n, 3]`` rad/s sensor axes, mag_flag ``[N, n]`` bool and mag_heading ``[N, n]`` rad
+    (:class:`bpms.filter.flags.Flags` ``mag``, ``mag_heading_deg``), hinges ``[h, 2]`` (proximal,
+    distal), p (:meth:`HingeSettings.params`), state hs ``[h, N_HINGE_STATE]`` / sigma
     ``[n]`` updated in place. Writes turn ``[N, n]`` rad: the rotation about the world vertical (NED
     z) to apply to each segment (0 elsewhere)."""
     tau, recover, dt, prior, min_rate = p[0], p[1], p[2], p[3], p[4]
+    follows, drift, floor, clean = p[5], p[6], p[7], p[8]
     k = 1.0 - math.exp(-dt / tau)
     decay = math.exp(-dt / recover) if recover > 0.0 else 0.0
     for t in range(R.shape[0]):
         for i in range(R.shape[1]):
             turn[t, i] = 0.0
-            # suspicion: 1 while the magnetometer is flagged, fading as the filter recovers
-            suspicion[i] = 1.0 if mag_flag[t, i] else suspicion[i] * decay
+            if mag_flag[t, i]:
+                dev = abs(mag_heading[t, i]) if math.isfinite(mag_heading[t, i]) else 0.0
+                sigma[i] = dev if follows > 0.0 else sigma[i] + drift * dt
+            else:
+                sigma[i] *= decay
         for j in range(hinges.shape[0]):
             ip, id_ = hinges[j, 0], hinges[j, 1]
             s = hs[j]
@@ -190,7 +209,7 @@ def run_hinges(R, C, gyr, mag_flag, hinges, p, hs, suspicion, turn):
                     r0, r1, r2, d0, d1, d2 = -r0, -r1, -r2, -d0, -d1, -d2
                 # only while both headings are trusted: the relative orientation Q carries a
                 # suspect segment's heading error into the axes
-                if suspicion[ip] == 0.0 and suspicion[id_] == 0.0:
+                if sigma[ip] < clean and sigma[id_] < clean:
                     _teach(s, H_MP, H_JP, r0, r1, r2, dt)
                     _teach(s, H_MD, H_JD, d0, d1, d2, dt)
             # the axis in the world from each side, horizontal parts
@@ -200,15 +219,14 @@ def run_hinges(R, C, gyr, mag_flag, hinges, p, hs, suspicion, turn):
             if w > 1e-9:
                 e = math.atan2(dx * py - dy * px, dx * px + dy * py) - s[H_OFFSET]
                 s[H_OFFSET] += w * k * math.atan2(math.sin(e), math.cos(e))
-            sp, sd = suspicion[ip], suspicion[id_]
-            if sp + sd < 1e-6:  # neither suspect: what the offset reads now is its clean value
-                s[H_BASE] = s[H_OFFSET]
+            vp, vd = sigma[ip] * sigma[ip], sigma[id_] * sigma[id_]
+            if sigma[ip] < clean and sigma[id_] < clean:
+                s[H_BASE] = s[H_OFFSET]  # both trusted: the hinge's clean offset
                 continue
             e = s[H_OFFSET] - s[H_BASE]
-            e = math.atan2(math.sin(e), math.cos(e))
-            share = sd / (sp + sd)
-            turn[t, id_] += e * share
-            turn[t, ip] -= e * (1.0 - share)
+            e = math.atan2(math.sin(e), math.cos(e)) / (vp + vd + floor * floor)
+            turn[t, id_] += e * vd
+            turn[t, ip] -= e * vp
 
 
 class HingeConstraint:
@@ -222,20 +240,22 @@ class HingeConstraint:
     def reset(self) -> None:
         self.state.reset()
 
-    def turns(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray
-              ) -> np.ndarray:
+    def turns(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray,
+              mag_heading_deg: np.ndarray) -> np.ndarray:
         """``[N, 18]`` rad: the turn about the vertical for each segment (R, C
-        ``[N, 18, 3, 3]``, gyr ``[N, 18, 3]`` rad/s, mag_flag ``[N, 18]`` bool)."""
+        ``[N, 18, 3, 3]``, gyr ``[N, 18, 3]`` rad/s, the flags' mag ``[N, 18]`` bool and
+        mag_heading_deg ``[N, 18]``)."""
         out = np.zeros(np.shape(R)[:2])
         run_hinges(*(np.ascontiguousarray(v, dtype=np.float64) for v in (R, C, gyr)),
-                   np.ascontiguousarray(mag_flag, dtype=np.bool_), HINGES, self.params,
-                   self.state.hinges, self.state.suspicion, out)
+                   np.ascontiguousarray(mag_flag, dtype=np.bool_),
+                   np.ascontiguousarray(np.radians(mag_heading_deg), dtype=np.float64),
+                   HINGES, self.params, self.state.hinges, self.state.sigma, out)
         return out
 
-    def apply(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
+    def apply(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray,
+              mag_heading_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(R', C'): sensor attitudes and segment orientations turned by :meth:`turns`."""
-        Rz = vertical_turn(self.turns(R, C, gyr, mag_flag))
+        Rz = vertical_turn(self.turns(R, C, gyr, mag_flag, mag_heading_deg))
         return Rz @ R, Rz @ C
 
 
