@@ -45,7 +45,7 @@ def make_recording(folder: Path, seconds: float) -> Path:
 
 def plot_cells() -> list[list[tuple[int, int]]]:
     """8 × 6 numeric table cells, the same in both phases."""
-    from bpms.gui.data_table import COLUMNS, TEXT_GROUPS
+    from bpms.gui.columns import COLUMNS, TEXT_GROUPS
 
     rng = np.random.default_rng(0)
     numeric = [(i, c) for i in range(18) for c in range(len(COLUMNS))
@@ -134,7 +134,7 @@ def run_bare(app, recording: Path, folder: Path, refresh: float) -> dict:
 
     from bpms.filter.calibration import SensorCalibration
     from bpms.gui import avatar
-    from bpms.gui.data_table import COLUMNS, TEXT_GROUPS, calibrated, column_values
+    from bpms.gui.columns import COLUMNS, TEXT_GROUPS, calibrated, column_values
     from bpms.gui.view3d_geometry import to_display
     from bpms.io.calib_file import load_factory_calibration
     from bpms.io.rawfile import read_raw

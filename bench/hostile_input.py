@@ -21,7 +21,7 @@ import contextlib
 
 from bpms.io.legacy_raw import read_legacy_raw
 from bpms.io.rawfile import RawFileError
-from bpms.io.udp import SequenceTracker
+from bpms.io.udp.sequence import SequenceTracker
 
 FRAME = b"$#" + bytes(336) + b"#$"
 

@@ -16,7 +16,9 @@ import numpy as np
 
 from bpms.io.frames import encode_frame
 from bpms.io.legacy_raw import read_legacy_raw
-from bpms.io.udp import UdpForwarder, UdpSource, decode_datagram, encode_pose, encode_raw_frame
+from bpms.io.udp.codec import decode_datagram, encode_pose, encode_raw_frame
+from bpms.io.udp.receiver import UdpSource
+from bpms.io.udp.sender import UdpForwarder
 
 
 def rate(n: int, seconds: float, what: str) -> None:

@@ -14,7 +14,7 @@ from bpms.analysis.mocap_import import MocapFormatError, read_qualisys, read_vic
 from bpms.cli import main
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
-from bpms.io.filtered_file import FilteredWriter
+from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.rawfile import new_header, write_raw
 
 DATA = Path(__file__).parent / "data"

@@ -19,7 +19,7 @@ from bpms.cli import main
 from bpms.firmware.sim.geometry import zyx
 from bpms.firmware.sim.sensors import SensorModel, SensorValues, to_raw
 from bpms.io.calib_file import load_factory_calibration
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.frames import encode_frames
 from bpms.io.rawfile import new_header, write_raw
 

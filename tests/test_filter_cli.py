@@ -11,13 +11,9 @@ import pytest
 from bpms.cli import main
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
-from bpms.io.filtered_file import (
-    FilteredFileError,
-    FilteredWriter,
-    default_output_path,
-    filtered_columns,
-    read_filtered,
-)
+from bpms.io.filtered_file.columns import filtered_columns
+from bpms.io.filtered_file.reader import FilteredFileError, read_filtered
+from bpms.io.filtered_file.writer import FilteredWriter, default_output_path
 from bpms.io.rawfile import RECORD_SIZE, new_header, write_raw
 
 

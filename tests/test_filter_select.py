@@ -15,7 +15,7 @@ from bpms.cli import main
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.rotations import inclination_error
 from bpms.firmware.sim.session import simulate
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.options import FilterOptions, Options, load_options
 from bpms.io.rawfile import read_raw
 from bpms.io.replay import ReplaySource

@@ -7,15 +7,9 @@ import numpy as np
 import pytest
 
 from bpms.cli import main
-from bpms.io.filtered_file import (
-    ColumnGroup,
-    FilteredFileError,
-    FilteredWriter,
-    column_groups,
-    iter_filtered,
-    read_filtered,
-    register_column_group,
-)
+from bpms.io.filtered_file.columns import ColumnGroup, column_groups, register_column_group
+from bpms.io.filtered_file.reader import FilteredFileError, iter_filtered, read_filtered
+from bpms.io.filtered_file.writer import FilteredWriter
 
 START = 1354312345.678  # an epoch time (s) in December 2012, when the original suite ran
 
@@ -149,7 +143,7 @@ def test_flag_columns_are_written_as_the_row_format_writes_them(tmp_path):
     # row's printf format gives, and any other value (NaN, -0.0, 2) must fall back to it.
     import io
 
-    from bpms.io.filtered_file import FilteredWriter
+    from bpms.io.filtered_file.writer import FilteredWriter
 
     groups = ["euler", "corrected", "joints", "reinitialised", "mag_disturbed"]
     rng = np.random.default_rng(0)

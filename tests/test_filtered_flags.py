@@ -15,7 +15,7 @@ from bpms.filter.joints import CONVENTION_TEXT
 from bpms.firmware.sim.motion import generate_motion
 from bpms.firmware.sim.sensors import SensorModel
 from bpms.firmware.sim.session import default_disturbance, simulate
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 
 LEGS_AND_PELVIS = [0, 1, 2, 6, 12, 13, 14]
 BIAS_DPS = 3.0
@@ -93,7 +93,7 @@ def test_a_reinitialisation_is_flagged_in_the_file(tmp_path):
     marks."""
     from bpms.filter.door import filtered_arrays, filtered_layout
     from bpms.filter.processor import BodyPoseProcessor
-    from bpms.io.filtered_file import FilteredWriter
+    from bpms.io.filtered_file.writer import FilteredWriter
 
     rec = simulate(4.0, seed=5)
     proc = BodyPoseProcessor(rec.calibration)

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from bpms.gui.options_dialog import OptionsDialog
 from bpms.gui.settings_store import SettingsStore, settings_path
-from bpms.gui.startup import OptionsDialog, StartupWindow
+from bpms.gui.startup import StartupWindow
 from bpms.io.calib_file import FIELDS, load_calibration, load_factory_calibration, save_legacy
 from bpms.io.options import Options, load_options
 from bpms.io.rawfile import read_raw

@@ -19,7 +19,7 @@ from bpms.gui.main_window import MainWindow
 from bpms.gui.modes import ModeConfig, SessionRunner
 from bpms.gui.plots import PlotWindow
 from bpms.io.options import Options
-from bpms.io.udp import UdpForwarder
+from bpms.io.udp.sender import UdpForwarder
 
 
 @pytest.fixture(scope="module")

@@ -8,13 +8,9 @@ from PyQt6.QtTest import QTest
 from PyQt6.QtWidgets import QApplication
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
-from bpms.gui.plots import (
-    RingBuffer,
-    TickBlock,
-    cells_plot,
-    human_joint_name,
-    joint_angle_groups,
-)
+from bpms.gui.columns import human_joint_name
+from bpms.gui.plot_data import RingBuffer, TickBlock, joint_angle_groups
+from bpms.gui.plots import cells_plot
 
 
 def _block(t0: float, n: int) -> TickBlock:
@@ -89,7 +85,7 @@ def test_plot_window_pause_legend_and_reset(qtbot):
 
 
 def test_peak_decimation_keeps_every_extreme_and_the_newest_row():
-    from bpms.gui.plots import peak_decimate
+    from bpms.gui.plot_data import peak_decimate
 
     rng = np.random.default_rng(5)
     n = 3000

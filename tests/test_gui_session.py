@@ -13,10 +13,10 @@ import pytest
 from PyQt6.QtCore import Qt
 
 from bpms.firmware.sim.session import simulate
-from bpms.gui.data_table import COLUMNS
+from bpms.gui.columns import COLUMNS
 from bpms.gui.main_window import MainWindow
 from bpms.gui.startup import StartupWindow
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.rawfile import read_raw
 
 ROOT = Path(__file__).resolve().parents[1]

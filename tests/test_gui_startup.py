@@ -11,7 +11,8 @@ from PyQt6.QtWidgets import QApplication, QLineEdit
 from waiting import wait_until
 
 from bpms.gui.modes import ModeConfig, ModeError, SessionRunner
-from bpms.gui.startup import OptionsDialog, StartupWindow
+from bpms.gui.options_dialog import OptionsDialog
+from bpms.gui.startup import StartupWindow
 from bpms.io.calib_file import load_factory_calibration
 from bpms.io.options import Options, load_options
 

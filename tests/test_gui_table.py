@@ -7,7 +7,8 @@ from PyQt6.QtCore import Qt
 from PyQt6.QtTest import QTest
 
 from bpms.filter.calibration import SensorCalibration
-from bpms.gui.data_table import COLUMNS, DataTable, ImuTableModel
+from bpms.gui.columns import COLUMNS
+from bpms.gui.data_table import DataTable, ImuTableModel
 from bpms.io.calib_file import load_factory_calibration
 from bpms.pipeline.session import PoseSample
 

@@ -19,9 +19,9 @@ from bpms.gui.data_table import DISTURBANCE_COLUMN
 from bpms.gui.layouts import LayoutStore
 from bpms.gui.main_window import MainWindow
 from bpms.gui.modes import ModeConfig, SessionRunner
-from bpms.gui.plots import TickBlock, cell_curve
+from bpms.gui.plot_data import TickBlock, cell_curve
 from bpms.io.options import Options
-from bpms.io.udp import UdpForwarder
+from bpms.io.udp.sender import UdpForwarder
 from bpms.pipeline.session import RecordingStatus
 
 _H = Qt.Orientation.Horizontal
@@ -284,7 +284,7 @@ def test_stream_to_lsl_switch(qtbot, tmp_path, recording_path, monkeypatch):
 def test_filter_estimates_are_table_columns_and_plot_curves(qtbot, tmp_path, recording_path):
     """Issue 19.4: the observer's gyro-bias and body-acceleration estimates travel with each
     sample, show in their table columns and can be plotted like any cell."""
-    from bpms.gui.data_table import COLUMNS
+    from bpms.gui.columns import COLUMNS
 
     options = Options()
     options.filter.algorithm = "observer"

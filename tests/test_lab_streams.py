@@ -19,7 +19,7 @@ from waiting import receive_until_exit
 from bpms.filter.body_model import POINT_NAMES
 from bpms.firmware.sim.session import simulate
 from bpms.io.frames import IMU_NAMES
-from bpms.io.udp import (
+from bpms.io.udp.codec import (
     decode_datagram,
     encode_header,
     encode_pose_extensions,

@@ -14,7 +14,7 @@ from waiting import wait_until
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
 from bpms.io.events import FrameEvent, SourceStatus
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.frames import FRAME_SIZE
 from bpms.io.rawfile import read_raw
 from bpms.pipeline.handoff import Handoff

@@ -18,7 +18,7 @@ from waiting import wait_until
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
 from bpms.firmware.sim.server import PtyServer
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.options import Options, SerialOptions
 from bpms.io.rawfile import read_raw
 from bpms.pipeline.session import LiveSession

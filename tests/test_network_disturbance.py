@@ -22,7 +22,7 @@ from bpms.firmware.sim.motion import generate_motion
 from bpms.firmware.sim.session import default_disturbance, simulate
 from bpms.io.options import Options
 from bpms.io.rawfile import new_header, write_raw
-from bpms.io.udp import (
+from bpms.io.udp.codec import (
     decode_datagram,
     encode_header,
     encode_pose_extensions,

@@ -13,7 +13,7 @@ from bpms.cli import main
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
 from bpms.io.calib_file import FIELDS, load_factory_calibration, save_legacy
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 
 TOL = 1e-9  # rad
 

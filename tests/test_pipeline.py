@@ -12,10 +12,10 @@ from waiting import wait_until
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.rawfile import RecordingError, read_raw
 from bpms.io.replay import ReplaySource
-from bpms.io.udp import UdpSource
+from bpms.io.udp.receiver import UdpSource
 from bpms.pipeline.session import LiveSession
 from bpms.pipeline.sources import UdpFrameSource
 

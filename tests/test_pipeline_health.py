@@ -9,7 +9,7 @@ from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.firmware.sim.server import TcpServer
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.options import SerialOptions
 from bpms.io.rawfile import read_raw

@@ -11,7 +11,7 @@ from bpms.filter.guard import SO3_TOLERANCE, so3_error
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.firmware.sim.server import PtyServer
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.options import SerialOptions
 from bpms.pipeline.session import LiveSession
 from bpms.pipeline.sources import SuitFrameSource

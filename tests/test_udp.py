@@ -21,23 +21,21 @@ from hypothesis.extra.numpy import arrays
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.io.frames import FRAME_SIZE, encode_frame
-from bpms.io.udp import (
+from bpms.io.udp.addresses import UdpConfigError, parse_address
+from bpms.io.udp.codec import (
     HEADER_SIZE,
     MAX_DATAGRAM,
     SEQ_MOD,
     DatagramError,
     MessageType,
-    SequenceTracker,
-    UdpConfigError,
-    UdpForwarder,
-    UdpSource,
-    Verdict,
     decode_datagram,
     encode_header,
     encode_pose,
     encode_raw_frame,
-    parse_address,
 )
+from bpms.io.udp.receiver import UdpSource
+from bpms.io.udp.sender import UdpForwarder
+from bpms.io.udp.sequence import SequenceTracker, Verdict
 
 RNG_SEED = 20121
 

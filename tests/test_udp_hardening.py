@@ -14,15 +14,11 @@ import pytest
 from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import MotionSource
-from bpms.io.udp import (
-    REORDER_WINDOW,
-    SequenceTracker,
-    UdpForwarder,
-    UdpSource,
-    Verdict,
-    encode_raw_frame,
-    sign_datagram,
-)
+from bpms.io.udp.auth import sign_datagram
+from bpms.io.udp.codec import encode_raw_frame
+from bpms.io.udp.receiver import UdpSource
+from bpms.io.udp.sender import UdpForwarder
+from bpms.io.udp.sequence import REORDER_WINDOW, SequenceTracker, Verdict
 from bpms.pipeline.sources import UdpFrameSource
 
 pytestmark = pytest.mark.timeout(60)
@@ -210,7 +206,7 @@ def test_monitor_listen_shows_the_address_and_another_sender(frames):
 def test_the_key_comes_from_the_options_key_file(tmp_path, monkeypatch):
     """udp.key_file: its text is the key (the environment variable wins); an unreadable or
     empty key file is a one-line error, not a silent 'no key'."""
-    from bpms.io.udp import KEY_ENV, UdpKeyError, shared_key
+    from bpms.io.udp.auth import KEY_ENV, UdpKeyError, shared_key
 
     monkeypatch.delenv(KEY_ENV, raising=False)
     key_file = tmp_path / "udp.key"
@@ -233,7 +229,8 @@ def test_a_session_signs_with_the_key_file_and_a_keyed_receiver_accepts_it(tmp_p
     from bpms.io.options import Options
     from bpms.io.rawfile import read_raw
     from bpms.io.replay import ReplaySource
-    from bpms.io.udp import KEY_ENV, UdpSource
+    from bpms.io.udp.auth import KEY_ENV
+    from bpms.io.udp.receiver import UdpSource
     from bpms.pipeline.session import LiveSession
 
     monkeypatch.delenv(KEY_ENV, raising=False)

@@ -16,7 +16,7 @@ from test_legacy_raw import py2_record, write_legacy
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
 from bpms.io.calib_file import FIELDS, load_calibration, load_factory_calibration, save_legacy
-from bpms.io.filtered_file import read_filtered
+from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.frames import decode_frames
 from bpms.io.rawfile import read_raw
 

@@ -18,7 +18,7 @@ DEBIAN_PACKAGES=(
   xvfb xauth libgl1-mesa-dri libegl1 libgl1 libxkbcommon0 libxkbcommon-x11-0 libfontconfig1
   libglib2.0-0 libdbus-1-3 libxcb-icccm4 libxcb-image0 libxcb-keysyms1 libxcb-randr0
   libxcb-render-util0 libxcb-shape0 libxcb-xinerama0 libxcb-xfixes0 libxcb-cursor0
-  g++ make gcc-avr avr-libc arduino-core-avr
+  g++ make gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev libsimavrparts1
 )
 
 log() { printf '[dev.sh] %s\n' "$*" >&2; }
@@ -60,9 +60,31 @@ setup() {
   ensure_venv
 }
 
+build_firmware() {
+  # The AVR images and the simulator host that runs them (bpms sim --avr), into
+  # bpms/firmware/build (ignored by git); make rebuilds only what changed. Without the tools
+  # the firmware tests skip with the reason.
+  local tool
+  for tool in make g++ avr-gcc; do
+    command -v "$tool" >/dev/null 2>&1 || { log "no $tool: the firmware is not built"; return 0; }
+  done
+  local targets=(host avr)
+  if [ ! -d /usr/share/arduino/hardware/arduino/avr/cores/arduino ]; then
+    log "no Arduino AVR core (arduino-core-avr): only the firmware's host tests are built"
+    targets=(host)
+  fi
+  case "$(gcc -print-file-name=libsimavr.a 2>/dev/null)" in
+    /*) [ "${targets[*]}" = "host avr" ] && targets+=(avr-suit) ;;
+    *) log "no libsimavr.a (libsimavr-dev): the AVR simulator host is not built" ;;
+  esac
+  log "building the firmware (make ${targets[*]})"
+  make --no-print-directory -s -C bpms/firmware -j2 "${targets[@]}" >/dev/null
+}
+
 run_tests() {
   log "ruff check"
   "$VENV/bin/ruff" check bpms tests bench tools
+  build_firmware
   log "pytest"
   local rc=0
   # Modules load from cached bytecode, as installed (the tests start many `python -m bpms`

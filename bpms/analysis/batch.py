@@ -91,7 +91,7 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
         filtered = None
         if "filter" in outputs:
             from bpms.filter.door import filtered_convention, filtered_layout
-            from bpms.io.filtered_file import FilteredWriter
+            from bpms.io.filtered_file.writer import FilteredWriter
 
             path = stem.with_name(f"{job.trial}_filtered.csv")
             path.unlink(missing_ok=True)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from bpms.analysis.textout import write_rows
-from bpms.io.filtered_file import iter_filtered
+from bpms.io.filtered_file.reader import iter_filtered
 from bpms.io.frames import CHANNEL_NAMES, IMU_NAMES, N_IMUS
 from bpms.io.names import slug
 
@@ -128,7 +128,7 @@ def filtered_rows(filtered_path: str | Path, ids: Sequence[int], degrees: bool =
     extract filtered``: ``time_s`` (s since the start), ``host_time_s`` (s since the epoch,
     UTC; ``nan`` when the file has none), then roll, pitch, yaw of each IMU in rad (deg with
     ``degrees``). Reads every version of the filtered file, the original suite's included.
-    Raises :class:`bpms.io.filtered_file.FilteredFileError` for a file that is not one."""
+    Raises :class:`bpms.io.filtered_file.reader.FilteredFileError` for a file that is not one."""
     info, blocks, problems = iter_filtered(filtered_path)
     name = "euler" if "euler" in info.groups else "euler_sensor"
     unit = "deg" if degrees else "rad"

@@ -64,7 +64,7 @@ def recording_utc_start(recording) -> float:
         if len(first) and np.isfinite(first["time"][0]):
             return float(first["time"][0])
     elif kind == "filtered":
-        from bpms.io.filtered_file import FilteredReader
+        from bpms.io.filtered_file.reader import FilteredReader
 
         with FilteredReader(recording.path) as reader:
             for block in reader.blocks(1):

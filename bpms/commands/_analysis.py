@@ -20,7 +20,7 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     warnings so far on stderr. Returns the :class:`bpms.filter.door.OpenedRecording`."""
     from bpms.filter.door import open_for_processing
     from bpms.filter.vqf_filter import VqfMissingError
-    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
 
     try:
@@ -42,7 +42,7 @@ def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
     """The recording's chunks (:class:`bpms.filter.door.Chunk`) with progress on stderr;
     warnings met on the way are printed at the end. Raises CliError for a read error."""
     from bpms.analysis.source import stderr_progress
-    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.filtered_file.reader import FilteredFileError
 
     try:
         yield from opened.chunks(zero_at_s, stderr_progress)
@@ -60,7 +60,7 @@ def processed(command: str, path: str, calibration: str | None = None,
     """A whole recording joined into one result (:func:`bpms.analysis.source.
     process_recording`); for small recordings only: the commands stream."""
     from bpms.analysis.source import process_recording
-    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
 
     try:

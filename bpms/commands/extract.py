@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         read_qualisys,
         read_vicon,
     )
-    from bpms.io.filtered_file import FilteredFileError
+    from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
 
     _ask(args, "kind", "kind of input (raw, filtered, vicon, qualisys)")

@@ -58,7 +58,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from bpms.commands._analysis import open_recording_for, stream
     from bpms.filter.door import filtered_arrays, filtered_convention, filtered_layout
-    from bpms.io.filtered_file import FilteredWriter, default_output_path
+    from bpms.io.filtered_file.writer import FilteredWriter, default_output_path
 
     t_start = time.perf_counter()
     if args.filter is not None and args.filter not in FILTER_CHOICES:

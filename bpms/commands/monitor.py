@@ -160,12 +160,12 @@ def udp_status_line(elapsed: float, rate: float, frames: int, status: SourceStat
 
 
 def _monitor_udp(args: argparse.Namespace) -> int:
-    from bpms.io.udp import UdpConfigError
+    from bpms.io.udp.addresses import UdpConfigError
     from bpms.pipeline.sources import UdpFrameSource
 
     try:
         from bpms.io.defaults import default_options
-        from bpms.io.udp import shared_key
+        from bpms.io.udp.auth import shared_key
 
         source = UdpFrameSource(args.listen,
                                 key=shared_key(default_options(announce=False).udp.key_file))

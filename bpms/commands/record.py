@@ -24,7 +24,7 @@ from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.link import LinkError
 from bpms.io.rawfile import RecordingError
-from bpms.io.udp import UdpConfigError
+from bpms.io.udp.addresses import UdpConfigError
 from bpms.pipeline.streams import add_stream_arguments, start_streams, stop_streams
 
 if TYPE_CHECKING:  # the pipeline (numba, the filter bank) loads when recording starts, so

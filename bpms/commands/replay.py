@@ -81,7 +81,7 @@ def _wait_for_lsl(bridges: list, seconds: float) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.io.replay import ReplaySource
-    from bpms.io.udp import UdpConfigError
+    from bpms.io.udp.addresses import UdpConfigError
     from bpms.pipeline.session import LiveSession
     from bpms.pipeline.streams import start_streams, stop_streams
 

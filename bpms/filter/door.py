@@ -242,7 +242,7 @@ class OpenedRecording:
         """R from the logged sensor Euler angles (``R = Rz Ry Rx``), then Reset Zero, joints
         and positions as the processor does."""
         from bpms.filter.rotations import euler_to_dcm
-        from bpms.io.filtered_file import FilteredReader
+        from bpms.io.filtered_file.reader import FilteredReader
 
         proc = self.processor
         reader = FilteredReader(self.path)
@@ -342,7 +342,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         header, n = recording.header, len(recording)
         problems.extend(recording.problems)
     elif path.suffix.lower() in FILTERED_SUFFIXES:
-        from bpms.io.filtered_file import FilteredReader
+        from bpms.io.filtered_file.reader import FilteredReader
 
         FilteredReader(path).close()  # a file that is not a filtered file fails here
         kind, header, n = "filtered", {}, _count_rows(path)

@@ -31,7 +31,7 @@ from bpms.gui.safety import BackgroundTask, debounce, guard_wheel
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, option_range
 from bpms.io.rawfile import RecordingError
-from bpms.io.udp import UdpConfigError
+from bpms.io.udp.addresses import UdpConfigError
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not the window
     from bpms.pipeline.session import LiveStatus

@@ -13,7 +13,6 @@ marks IMUs whose magnetometer ("mag") or acceleration ("acc") is disturbed
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from PyQt6.QtCore import QAbstractTableModel, QMimeData, QModelIndex, Qt, pyqtSignal
@@ -21,72 +20,13 @@ from PyQt6.QtGui import QColor
 from PyQt6.QtWidgets import QAbstractItemView, QHeaderView, QTableView, QWidget
 
 from bpms.filter.calibration import SensorCalibration
-from bpms.io.frames import CHANNEL_NAMES, IMU_NAMES, N_IMUS, SENSOR_NAMES
+from bpms.gui.columns import COLUMNS, TEXT_GROUPS, calibrated, human_joint_name, shown_angles
+from bpms.gui.drag import CELLS_MIME, JOINTS_MIME, cells_to_mime, joints_to_mime
+from bpms.io.frames import IMU_NAMES, N_IMUS, SENSOR_NAMES
 from bpms.pipeline.session import PoseSample
 
-
-@dataclass(frozen=True)
-class Column:
-    """One table column: ``group`` raw/cal/euler/errors/disturbance, ``k`` the index inside
-    the group."""
-
-    group: str
-    k: int
-    name: str
-    unit: str
-
-    def label(self, angle_unit: str = "deg") -> str:
-        unit = angle_unit if self.group == "euler" else self.unit
-        return f"{self.name} [{unit}]" if unit else self.name
-
-
-_CAL_UNITS = ("m/s²", "m/s²", "m/s²", "G", "G", "G", "rad/s", "rad/s", "rad/s")
-#: Readable channel names (accelerometer, magnetometer, gyroscope; board axes).
-CHANNEL_LABELS = ("acc x", "acc y", "acc z", "mag x", "mag y", "mag z", "gyro x", "gyro y",
-                  "gyro z")
-#: What matters first: the attitude angles, the error flags, then calibrated, then raw.
-COLUMNS: tuple[Column, ...] = (
-    *(Column("euler", k, c, "rad") for k, c in enumerate(("roll", "pitch", "yaw"))),
-    Column("errors", 0, "errors", ""),
-    *(Column("cal", k, c, _CAL_UNITS[k]) for k, c in enumerate(CHANNEL_LABELS)),
-    *(Column("raw", k, f"raw {c}", "counts") for k, c in enumerate(CHANNEL_LABELS)),
-    # last in the model (cell indices of the others stay put), shown after "errors"
-    Column("disturbance", 0, "disturbance", ""),
-    # the filter's estimates (observer, adaptive and vqf; Mahony: bias only), after raw
-    *(Column("est", k, name, unit) for k, (name, unit) in enumerate(
-        [(f"gyro bias {a}", "rad/s") for a in "xyz"]
-        + [(f"body acc {a}", "m/s²") for a in ("north", "east", "down")])),
-)
-#: Columns of text (not plottable).
-TEXT_GROUPS = frozenset({"errors", "disturbance"})
-assert len(CHANNEL_NAMES) == len(CHANNEL_LABELS)
 #: Error flags stay red at least this long after the last faulty frame, s.
 ERROR_HOLD_S = 2.0
-
-
-def calibrated(calibration: SensorCalibration, raw: np.ndarray) -> np.ndarray:
-    """Raw ``[..., 18, 9]`` counts → ``[..., 18, 9]`` accel m/s², mag gauss, gyro rad/s."""
-    acc, mag, gyr = calibration.physical_units(raw)
-    return np.concatenate([acc, mag, gyr], axis=-1)
-
-
-def column_values(column: Column, raw: np.ndarray, cal: np.ndarray, euler: np.ndarray,
-                  degrees: bool, est: np.ndarray | None = None) -> np.ndarray:
-    """Values of ``column`` for blocks ``raw/cal [..., 18, 9]``, ``euler [..., 18, 3]`` rad,
-    ``est [..., 18, 6]`` (gyro bias rad/s, body acceleration m/s²) → ``[..., 18]`` in the
-    column's unit."""
-    if column.group == "est":
-        if est is None:
-            return np.full(raw.shape[:-1], np.nan)
-        return est[..., column.k]
-    if column.group == "raw":
-        return raw[..., column.k].astype(np.float64)
-    if column.group == "cal":
-        return cal[..., column.k]
-    if column.group == "euler":
-        values = euler[..., column.k]
-        return np.degrees(values) if degrees else values
-    raise ValueError(f"column {column.name} has no numeric value")
 
 
 def disturbance_text(mag: bool, acc: bool) -> str:
@@ -109,17 +49,6 @@ _AMBER = QColor("#c77c00")  # amber, dark enough to read on white
 _FAILED_ROW = QColor("#fde0e0")
 _ERRORS_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "errors")
 DISTURBANCE_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "disturbance")
-
-
-def shown_angles(sample: PoseSample, output: bool = True) -> tuple[np.ndarray, str]:
-    """The ``[18, 3]`` angles (rad) to show and what they are: ``output`` True → the sample's
-    output angles, "segment" when they differ from the sensor angles (corrected by Reset Zero),
-    else "sensor"; ``output`` False → the sensor angles."""
-    out = sample.euler_output
-    if not output or out is None:
-        return sample.euler, "sensor"
-    same = np.array_equal(out, sample.euler, equal_nan=True)
-    return out, "sensor" if same else "segment"
 
 
 class ImuTableModel(QAbstractTableModel):
@@ -244,14 +173,10 @@ class ImuTableModel(QAbstractTableModel):
         return base
 
     def mimeTypes(self) -> list[str]:
-        from bpms.gui.plots import CELLS_MIME
-
         return [CELLS_MIME]
 
     def mimeData(self, indexes) -> QMimeData:
         """Dragged cells (onto a plot, or onto empty space for a new plot)."""
-        from bpms.gui.plots import cells_to_mime
-
         cells = sorted({(i.row(), i.column()) for i in indexes
                         if COLUMNS[i.column()].group not in TEXT_GROUPS})
         return cells_to_mime(cells)
@@ -323,7 +248,6 @@ class JointAngleModel(QAbstractTableModel):
     def __init__(self, angle_unit: str = "deg", parent: QWidget | None = None) -> None:
         super().__init__(parent)
         from bpms.filter.joints import JOINT_ANGLE_NAMES
-        from bpms.gui.plots import human_joint_name
 
         self.names = [human_joint_name(n) for n in JOINT_ANGLE_NAMES]
         self.angle_unit = angle_unit
@@ -370,14 +294,10 @@ class JointAngleModel(QAbstractTableModel):
         return super().flags(index) | Qt.ItemFlag.ItemIsDragEnabled
 
     def mimeTypes(self) -> list[str]:
-        from bpms.gui.plots import JOINTS_MIME
-
         return [JOINTS_MIME]
 
     def mimeData(self, indexes) -> QMimeData:
         """Dragged joint angles (onto a plot, or onto empty space for a new plot)."""
-        from bpms.gui.plots import joints_to_mime
-
         return joints_to_mime(sorted({i.row() for i in indexes}))
 
 

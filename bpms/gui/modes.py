@@ -203,7 +203,7 @@ class SessionRunner:
 
     def _udp_source(self) -> UdpFrameSource:
         try:
-            from bpms.io.udp import shared_key
+            from bpms.io.udp.auth import shared_key
 
             return UdpFrameSource(self.config.listen, self.config.group or None,
                                   key=shared_key(self.options.udp.key_file))

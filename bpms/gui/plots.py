@@ -1,9 +1,6 @@
-"""Live plot windows: numpy ring buffers redrawn on the session model's display timer.
+"""Live plot windows, redrawn on the session model's display timer from the numpy ring
+buffers of :mod:`bpms.gui.plot_data`.
 
-- :class:`TickBlock`: the samples of one display tick as arrays (built once per tick, shared by
-  every plot window);
-- :class:`RingBuffer`: a fixed-capacity history (``Options.display.plot_history_s`` × 50 Hz)
-  whose newest ``n`` rows are always one contiguous numpy view (no copy to draw);
 - :class:`PlotWindow`: a top-level pyqtgraph window, one curve per selected cell (or joint
   angle), labelled IMU name + quantity + unit. Legend click hides/shows a curve; left-drag
   zooms a rectangle; right-click opens pyqtgraph's menu ("View All"); double-click resets the
@@ -12,15 +9,13 @@
 
 from __future__ import annotations
 
-import json
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import QMimeData, QPointF, Qt, pyqtSignal
+from PyQt6.QtCore import QPointF, Qt, pyqtSignal
 from PyQt6.QtGui import QKeySequence, QShortcut
 from PyQt6.QtWidgets import (
     QApplication,
@@ -32,16 +27,23 @@ from PyQt6.QtWidgets import (
     QWidget,
 )
 
-from bpms.filter.calibration import SensorCalibration
 from bpms.filter.joints import JOINT_ANGLE_NAMES
-from bpms.gui.data_table import COLUMNS, TEXT_GROUPS, calibrated, column_values, shown_angles
-from bpms.io.frames import FRAME_PERIOD_S, FRAME_RATE_HZ, IMU_NAMES
-from bpms.pipeline.session import PoseSample
+from bpms.gui.columns import COLUMNS, TEXT_GROUPS
+from bpms.gui.drag import accept_drag, take_drop
+from bpms.gui.plot_data import (
+    CurveSpec,
+    RingBuffer,
+    TickBlock,
+    cell_curve,
+    group_by_unit,
+    joint_angle_groups,
+    joint_curve,
+    peak_decimate,
+)
+from bpms.io.frames import FRAME_RATE_HZ, IMU_NAMES
 
 #: The time axis of a following plot moves by this much at a time, s.
 PAGE_S = 5.0
-#: Drag-and-drop payload of table cells: JSON ``[[imu, column], ...]``.
-CELLS_MIME = "application/x-bpms-cells"
 #: Colour-blind-safe palette: Okabe & Ito (2008) without black, then Paul Tol's "bright"
 #: purple and grey; curves beyond it repeat the colours dashed, then dotted.
 PALETTE = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442",
@@ -54,228 +56,6 @@ def curve_pen(k: int) -> Any:
     colour = PALETTE[k % len(PALETTE)]
     style = _STYLES[(k // len(PALETTE)) % len(_STYLES)]
     return pg.mkPen(colour, width=1, style=style)
-
-
-#: Drag-and-drop payload of joint angles: JSON ``[k, ...]`` (``JOINT_ANGLE_NAMES`` indices).
-JOINTS_MIME = "application/x-bpms-joints"
-
-
-def joints_to_mime(joints: Sequence[int]) -> QMimeData:
-    mime = QMimeData()
-    mime.setData(JOINTS_MIME, json.dumps([int(k) for k in joints]).encode())
-    return mime
-
-
-def joints_from_mime(mime: QMimeData | None) -> list[int]:
-    """The joint-angle indices of a drag, [] when it carries none."""
-    if mime is None or not mime.hasFormat(JOINTS_MIME):
-        return []
-    try:
-        data = json.loads(bytes(mime.data(JOINTS_MIME)).decode())
-        return [int(k) for k in data if 0 <= int(k) < len(JOINT_ANGLE_NAMES)]
-    except (ValueError, TypeError):
-        return []
-
-
-def cells_to_mime(cells: Sequence[tuple[int, int]]) -> QMimeData:
-    mime = QMimeData()
-    mime.setData(CELLS_MIME, json.dumps([[int(r), int(c)] for r, c in cells]).encode())
-    return mime
-
-
-def cells_from_mime(mime: QMimeData | None) -> list[tuple[int, int]]:
-    """The (IMU, column) cells of a drag, [] when it carries none."""
-    if mime is None or not mime.hasFormat(CELLS_MIME):
-        return []
-    try:
-        data = json.loads(bytes(mime.data(CELLS_MIME)).decode())
-        return [(int(r), int(c)) for r, c in data
-                if 0 <= int(r) < len(IMU_NAMES) and 0 <= int(c) < len(COLUMNS)
-                and COLUMNS[int(c)].group not in TEXT_GROUPS]
-    except (ValueError, TypeError):
-        return []
-
-
-def accept_drag(event) -> None:
-    """Accept a drag that carries table cells or joint names, ignore any other."""
-    mime = event.mimeData()
-    if cells_from_mime(mime) or joints_from_mime(mime):
-        event.acceptProposedAction()
-    else:
-        event.ignore()
-
-
-def take_drop(event) -> tuple[list[tuple[int, int]], list[int]]:
-    """The (cells, joints) a drop carries, the drop accepted; ([], []) and ignored when it
-    carries neither."""
-    cells, joints = cells_from_mime(event.mimeData()), joints_from_mime(event.mimeData())
-    if cells or joints:
-        event.acceptProposedAction()
-    else:
-        event.ignore()
-    return cells, joints
-
-
-def human_joint_name(name: str) -> str:
-    """``hip_r.abduction`` → "Right hip abduction"; ``torso.flexion`` → "Torso flexion"."""
-    segment, _, angle = name.partition(".")
-    side = ""
-    if segment.endswith("_r"):
-        side, segment = "Right ", segment[:-2]
-    elif segment.endswith("_l"):
-        side, segment = "Left ", segment[:-2]
-    words = f"{segment.replace('_', ' ')} {angle.replace('_', ' ')}".strip()
-    return (side + words) if side else words[:1].upper() + words[1:]
-
-
-@dataclass
-class TickBlock:
-    """One tick's samples as arrays: t ``[n]`` s (frame index × 20 ms), raw ``[n, 18, 9]``
-    counts, cal ``[n, 18, 9]`` (m/s², gauss, rad/s), euler ``[n, 18, 3]`` rad,
-    joint_angles ``[n, 28]`` rad."""
-
-    t: np.ndarray
-    raw: np.ndarray
-    cal: np.ndarray
-    euler: np.ndarray
-    joint_angles: np.ndarray
-    est: np.ndarray | None = None  # [n, 18, 6] gyro bias rad/s, body acceleration m/s²
-
-    @classmethod
-    def from_samples(cls, samples: Sequence[PoseSample], calibration: SensorCalibration,
-                     output: bool = True) -> TickBlock:
-        """``output``: Euler columns hold the output angles (after Reset Zero, the default)
-        rather than the sensor angles (:func:`bpms.gui.data_table.shown_angles`)."""
-        raw = np.array([s.raw for s in samples])
-        return cls(
-            t=np.array([s.index for s in samples], np.float64) * FRAME_PERIOD_S,
-            raw=raw,
-            cal=calibrated(calibration, raw),
-            euler=np.array([shown_angles(s, output)[0] for s in samples]),
-            joint_angles=np.array([s.joint_angles for s in samples]),
-            est=np.array([np.full((18, 6), np.nan) if s.estimates is None else s.estimates
-                          for s in samples]),
-        )
-
-
-class RingBuffer:
-    """The newest ``capacity`` rows of ``width`` float64 values.
-
-    Every row is written twice (at ``i`` and ``i + capacity``) so :meth:`view` is a contiguous
-    slice, oldest first, without copying.
-    """
-
-    def __init__(self, capacity: int, width: int) -> None:
-        if capacity < 1:
-            raise ValueError("capacity must be ≥ 1")
-        self.capacity = capacity
-        self._data = np.full((2 * capacity, width), np.nan)
-        self._head = 0  # next write position in [0, capacity)
-        self._count = 0
-
-    def __len__(self) -> int:
-        return self._count
-
-    def clear(self) -> None:
-        self._head = 0
-        self._count = 0
-
-    def extend(self, rows: np.ndarray) -> None:
-        """Append ``rows [n, width]`` (only the newest ``capacity`` are kept)."""
-        rows = np.asarray(rows, np.float64)[-self.capacity:]
-        n = len(rows)
-        if n == 0:
-            return
-        cap = self.capacity
-        first = min(n, cap - self._head)
-        for offset in (0, cap):
-            self._data[self._head + offset:self._head + offset + first] = rows[:first]
-            self._data[offset:offset + n - first] = rows[first:]
-        self._head = (self._head + n) % cap
-        self._count = min(cap, self._count + n)
-
-    def view(self) -> np.ndarray:
-        """``[len, width]`` rows, oldest first (a view: copy it to keep it)."""
-        end = self._head + self.capacity
-        return self._data[end - self._count:end]
-
-
-@dataclass(frozen=True)
-class CurveSpec:
-    """A curve: its legend label (with unit) and how to take its values from a block."""
-
-    label: str
-    values: Callable[[TickBlock], np.ndarray]
-    unit: str = ""
-    cell: tuple[int, int] | None = None  # (IMU, column) for a table cell
-    joint: int | None = None  # index into JOINT_ANGLE_NAMES for a joint angle
-
-
-def cell_curve(imu: int, col: int, angle_unit: str = "deg") -> CurveSpec:
-    """The curve of table cell (IMU ``imu``, column ``col``)."""
-    column = COLUMNS[col]
-    degrees = angle_unit == "deg"
-    unit = angle_unit if column.group == "euler" else column.unit
-    label = f"{IMU_NAMES[imu]} {column.name} [{unit}]"
-    return CurveSpec(label, lambda b: column_values(column, b.raw, b.cal, b.euler,
-                                                    degrees, b.est)[:, imu], unit, (imu, col))
-
-
-def _joint_curve(k: int, degrees: bool) -> CurveSpec:
-    unit = "deg" if degrees else "rad"
-    return CurveSpec(f"{human_joint_name(JOINT_ANGLE_NAMES[k])} [{unit}]",
-                     lambda b: np.degrees(b.joint_angles[:, k]) if degrees
-                     else b.joint_angles[:, k], unit, joint=k)
-
-
-def joint_curve(k: int, angle_unit: str = "deg") -> CurveSpec:
-    """The curve of joint angle ``k`` (``JOINT_ANGLE_NAMES`` order)."""
-    return _joint_curve(k, angle_unit == "deg")
-
-
-#: Groups of the joint-angle plot: (title, name prefixes).
-JOINT_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("Elbows, knees", ("elbow_", "knee_")),
-    ("Shoulders", ("shoulder_",)),
-    ("Hips", ("hip_",)),
-    ("Ankles", ("ankle_",)),
-    ("Torso, head", ("torso.", "head.")),
-)
-
-
-def joint_angle_groups(angle_unit: str = "deg") -> list[tuple[str, list[CurveSpec]]]:
-    """The 28 joint angles of ``JOINT_ANGLE_NAMES`` in :data:`JOINT_GROUPS`."""
-    degrees = angle_unit == "deg"
-    return [(title, [_joint_curve(k, degrees) for k, name in enumerate(JOINT_ANGLE_NAMES)
-                     if name.startswith(prefixes)])
-            for title, prefixes in JOINT_GROUPS]
-
-
-def peak_decimate(data: np.ndarray, pixels: int) -> np.ndarray:
-    """Rows ``[n, 1 + k]`` (time, k values) → at most ``2 × pixels`` rows keeping each bin's
-    minimum and maximum (a curve drawn from them looks the same at that width; NaN gaps stay
-    gaps). Bins end at the newest row, so the newest data are never merged away."""
-    n = len(data)
-    if pixels < 1 or n <= 2 * pixels:
-        return data
-    factor = -(-n // pixels)
-    m = (n // factor) * factor
-    head, body = data[:n - m], data[n - m:]
-    bins = body.reshape(-1, factor, data.shape[1])
-    out = np.empty((2 * len(bins), data.shape[1]))
-    out[0::2, 0] = bins[:, 0, 0]
-    out[1::2, 0] = bins[:, -1, 0]
-    out[0::2, 1:] = np.fmin.reduce(bins[:, :, 1:], axis=1)
-    out[1::2, 1:] = np.fmax.reduce(bins[:, :, 1:], axis=1)
-    return np.concatenate([head, out]) if len(head) else out
-
-
-def group_by_unit(specs: Sequence[CurveSpec]) -> list[tuple[str, list[CurveSpec]]]:
-    """One group per unit (one y axis per unit), in order of first appearance."""
-    groups: dict[str, list[CurveSpec]] = {}
-    for spec in specs:
-        groups.setdefault(spec.unit, []).append(spec)
-    return [("", specs) for specs in groups.values()]
 
 
 class PlotWindow(QWidget):

@@ -92,7 +92,7 @@ def write_with_holes(writer, indices: np.ndarray, host_times: np.ndarray,
                      arrays: dict[str, np.ndarray], holes: list[Hole], dt: float
                      ) -> tuple[int, int, list[Hole]]:
     """Write processed frames (source ``indices[N]``, ``host_times[N]`` s since the epoch,
-    per-group ``arrays`` of :meth:`bpms.io.filtered_file.FilteredWriter.write_block`) with a
+    per-group ``arrays`` of :meth:`bpms.io.filtered_file.writer.FilteredWriter.write_block`) with a
     marked NaN row (``hole`` = 1) for each hole among them, in frame order. Returns (rows
     written, holes marked, holes after the last frame: pass them with the next block)."""
     from bpms.io.timebase import stream_time_of

@@ -32,12 +32,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpms.io.events import FrameEvent, FrameSource, SourceStatus
-from bpms.io.filtered_file import FilteredWriter
+from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import FRAME_PERIOD_S, decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
-from bpms.io.udp import UdpForwarder, shared_key
+from bpms.io.udp.auth import shared_key
+from bpms.io.udp.sender import UdpForwarder
 from bpms.pipeline.fanout import Fanout, Subscription
 from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (

@@ -21,7 +21,8 @@ from bpms.io.link import (
 )
 from bpms.io.link_states import LOST_STATES, LinkEvent, LinkState, next_state
 from bpms.io.options import SerialOptions
-from bpms.io.udp import UdpSource, key_from_env
+from bpms.io.udp.auth import key_from_env
+from bpms.io.udp.receiver import UdpSource
 
 log = logging.getLogger(__name__)
 

@@ -42,6 +42,7 @@ bpms::ArbiterLogic arbiter(port, board, clock_source, stream_led);
 }  // namespace
 
 void setup() {
+    bpms::power_down_unused(/*keep_adc=*/true, /*keep_twi=*/false);
     stream_led.begin();
     board.begin();
     Serial.begin(BPMS_BAUD);

@@ -26,7 +26,11 @@ void ArbiterLogic::loop() {
     take_host_bytes();
     if (streaming_) {
         if (queue_count_ == 0) {
-            if (!time_reached(clock_.micros(), deadline_)) return;
+            const uint32_t t = clock_.micros();
+            if (!time_reached(t, deadline_)) {
+                if (deadline_ - t > IDLE_MARGIN_US) serial_.idle();
+                return;
+            }
             // The sampling instant is the first poll, after the previous frame has left.
             serial_.flush();
             const uint32_t now = clock_.micros();
@@ -46,7 +50,11 @@ void ArbiterLogic::loop() {
     }
     // ... and is then interpreted as a command.
     uint8_t command;
-    if (pop_host(command)) handle_command(command);
+    if (pop_host(command)) {
+        handle_command(command);
+    } else if (!streaming_) {
+        serial_.idle();  // until the host sends a byte
+    }
 }
 
 void ArbiterLogic::handle_command(uint8_t command) {
@@ -112,7 +120,7 @@ void ArbiterLogic::leave_radio() {
     serial_.flush();          // the previous frame must reach the radio before the mux moves
     board_.hold_radio(true);  // the RN-41 keeps the host's bytes while we talk to clusters
     clock_.delay_micros(GUARD_US);
-    take_host_bytes();
+    take_host_bytes(/*all=*/true);
 }
 
 void ArbiterLogic::return_to_radio() {
@@ -124,9 +132,13 @@ void ArbiterLogic::return_to_radio() {
     board_.hold_radio(false);
 }
 
-void ArbiterLogic::take_host_bytes() {
-    int c;
-    while ((c = serial_.read()) >= 0) {
+void ArbiterLogic::take_host_bytes(bool all) {
+    // Bytes beyond the queue's room wait in the USART's receive buffer (64 bytes) for a later
+    // loop, one command per loop. Only before the multiplexer leaves the radio must the buffer
+    // be emptied (what it receives next belongs to a cluster): then the overflow is dropped.
+    while (all || queue_count_ < QUEUE_SIZE) {
+        const int c = serial_.read();
+        if (c < 0) break;
         if (queue_count_ == QUEUE_SIZE) {
             ++stats_.dropped_host_bytes;
             continue;

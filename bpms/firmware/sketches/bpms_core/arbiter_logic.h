@@ -16,7 +16,7 @@ struct ArbiterStats {
     uint32_t resyncs;           // frames started a whole period or more late (grid re-anchored)
     uint32_t late_starts;       // frames started >= LATE_US after their deadline (overrun)
     uint32_t unknown_commands;  // bytes other than 0x00..0x02 received while idle
-    uint32_t dropped_host_bytes;  // host bytes lost because the command queue was full
+    uint32_t dropped_host_bytes;  // host bytes lost: queue and receive buffer full at a poll
 };
 
 class ArbiterLogic {
@@ -28,12 +28,15 @@ public:
     static const uint8_t GUARD_US = 50;
     // A frame starting this late means the previous one overran its 20 ms.
     static const uint16_t LATE_US = 1000;
+    // The CPU sleeps between frames only while the deadline is further away than this: the
+    // timer tick that wakes it comes every 1024 us, so the frame still starts on time.
+    static const uint16_t IDLE_MARGIN_US = 1100;
 
     ArbiterLogic(SerialPort& serial, ArbiterBoard& board, Clock& clock, DigitalOut& stream_led,
                  const BatteryDivider& divider = DEFAULT_DIVIDER);
 
     void begin();  // connect the USART to the radio and let it talk
-    void loop();   // call repeatedly; never blocks longer than one frame
+    void loop();   // call repeatedly; never blocks longer than one frame; sleeps when idle
 
     bool streaming() const { return streaming_; }
     const ArbiterStats& stats() const { return stats_; }
@@ -44,7 +47,7 @@ private:
     void poll_cluster(uint8_t cluster, uint8_t* out);
     void leave_radio();
     void return_to_radio();
-    void take_host_bytes();
+    void take_host_bytes(bool all = false);
     void discard_rx();
     bool pop_host(uint8_t& byte);
 

@@ -18,7 +18,10 @@ void ClusterLogic::begin() {
 }
 
 void ClusterLogic::loop() {
-    if (serial_.available() <= 0) return;
+    if (serial_.available() <= 0) {
+        serial_.idle();  // until the next poll byte (or the timer tick)
+        return;
+    }
     while (serial_.read() >= 0) {
     }
     serial_.write(reply_, CLUSTER_REPLY_BYTES);  // fits the 64-byte TX buffer: returns at once

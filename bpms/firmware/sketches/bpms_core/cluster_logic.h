@@ -18,7 +18,8 @@ public:
     void begin();
 
     // Call repeatedly. On a poll (any byte; a burst of bytes counts as one poll) send the
-    // stored 56-byte reply, then sample anew, so every answer is one poll old.
+    // stored 56-byte reply, then sample anew, so every answer is one poll old. Between polls
+    // the CPU sleeps in idle mode (the USART wakes it).
     void loop();
 
     // Read the three IMUs into the stored reply and drive the error LED.

@@ -25,6 +25,11 @@ public:
     virtual int read() = 0;                              // next byte, or -1 when empty
     virtual void write(const uint8_t* data, uint16_t n) = 0;  // may return before sent
     virtual void flush() = 0;                            // wait until every byte is on the wire
+    // Sleep (CPU idle mode: the USART and the timers keep running) until the next interrupt:
+    // a received or transmitted byte, or the 1.024 ms timer tick behind micros(). Returns at
+    // once when a received byte is already waiting (checked with interrupts off, so a byte
+    // that arrives just before the sleep still wakes it).
+    virtual void idle() = 0;
 protected:
     ~SerialPort() {}
 };

@@ -33,6 +33,7 @@ bpms::ClusterLogic cluster(bus, port, error_led);
 }  // namespace
 
 void setup() {
+    bpms::power_down_unused(/*keep_adc=*/false, /*keep_twi=*/true);
     error_led.begin();
     error_led.set(true);  // lit until the first reading proves every sensor answers
     Serial.begin(BPMS_BAUD);

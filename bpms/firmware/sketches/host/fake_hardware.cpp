@@ -191,6 +191,13 @@ void ArbiterPort::flush() {
     if (!tx.empty()) world_.advance(tx.back().time - world_.now);
 }
 
+void ArbiterPort::idle() {
+    ++idles;
+    world_.process();
+    const uint64_t tick = (world_.now / TICK_US + 1) * TICK_US;
+    while (rx.empty() && world_.now < tick) world_.advance(1);
+}
+
 void ArbiterPort::select_channel(uint8_t c) {
     world_.process();
     channel = c;

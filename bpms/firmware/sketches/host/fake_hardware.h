@@ -98,7 +98,9 @@ public:
     int read() override;
     void write(const uint8_t* data, uint16_t n) override;
     void flush() override;
+    void idle() override { ++idles; }  // the world runs loop() only when a byte is there
     std::deque<uint8_t> rx;
+    uint32_t idles = 0;
     std::deque<TimedByte> tx;
     int max_reply_bytes = -1;  // >= 0: every write is cut after that many bytes (broken wire)
     uint64_t reply_delay_us = 0;  // a slow board: its bytes start this long after the write
@@ -116,6 +118,10 @@ public:
     int read() override;
     void write(const uint8_t* data, uint16_t n) override;
     void flush() override;
+    // Sleeps until a byte is received or the next timer tick (every TICK_US of world time).
+    void idle() override;
+    static const uint64_t TICK_US = 1024;
+    uint32_t idles = 0;
     void select_channel(uint8_t channel) override;
     void hold_radio(bool hold) override;
     uint16_t read_battery_adc() override { return battery_adc; }

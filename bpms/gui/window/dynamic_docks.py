@@ -1,0 +1,163 @@
+"""The main window's dynamic docks: plots and 3D views, opened, fed their history, closed
+and pruned. Mixed into :class:`bpms.gui.main_window.MainWindow`."""
+
+from __future__ import annotations
+
+from PyQt6 import sip
+from PyQt6.QtCore import Qt
+from PyQt6.QtWidgets import QDockWidget, QWidget
+
+from bpms.gui.docks import make_dock
+from bpms.gui.plot_data import TickBlock
+from bpms.gui.plots import PlotWindow, cells_plot, joint_angle_plot, plot_from
+
+_RIGHT = Qt.DockWidgetArea.RightDockWidgetArea
+_BOTTOM = Qt.DockWidgetArea.BottomDockWidgetArea
+
+
+class DynamicDocks:
+    """Plot and 3D-view docks: ``plot_windows``, ``view3d_windows``, ``dynamic_docks``."""
+
+    def _next_name(self, kind: str) -> str:
+        self._dock_serial += 1
+        return f"{kind}-{self._dock_serial}"
+
+    def add_plot_dock(self, plot: PlotWindow, name: str | None = None,
+                      area: Qt.DockWidgetArea = _BOTTOM) -> QDockWidget:
+        """Show ``plot`` in a new dock (closing the dock deletes the plot)."""
+        dock = make_dock(plot.windowTitle(), name or self._next_name("plot"), plot,
+                         dynamic=True)
+        plot.setMinimumSize(200, 150)
+        plot.cellsDropped.connect(self._cells_dropped)
+        plot.jointsDropped.connect(self._joints_dropped)
+        self.addDockWidget(area, dock)
+        self.plot_windows.append(plot)
+        self.dynamic_docks.append(dock)
+        plot.redraw()
+        return dock
+
+    def add_view3d_dock(self, name: str | None = None,
+                        area: Qt.DockWidgetArea = _RIGHT) -> QDockWidget | None:
+        if self._view3d is None or not self.view3d_button.isEnabled():
+            return None
+        view = self._view3d.View3DWindow(self.model)  # type: ignore[attr-defined]
+        view.resetZeroRequested.connect(self.reset_zero)
+        dock = make_dock("3D view", name or self._next_name("view3d"), view, dynamic=True)
+        self.addDockWidget(area, dock)
+        self.view3d_windows.append(view)
+        self.dynamic_docks.append(dock)
+        return dock
+
+    def _forget(self, window: QWidget) -> None:
+        if window in self.plot_windows:
+            self.plot_windows.remove(window)
+        if window in self.view3d_windows:
+            self.view3d_windows.remove(window)
+
+    def _prune(self) -> None:
+        """Forget plots and 3D views whose dock the user closed (deleted by Qt). No
+        ``destroyed`` slots: they would run while this window itself is torn down."""
+        self.dynamic_docks = [d for d in self.dynamic_docks if not sip.isdeleted(d)]
+        self.plot_windows = [w for w in self.plot_windows
+                             if not sip.isdeleted(w) and not w.closed]
+        self.view3d_windows = [w for w in self.view3d_windows if not sip.isdeleted(w)]
+
+    def clear_dynamic_docks(self) -> None:
+        """Remove every plot and 3D view dock."""
+        self._prune()
+        for dock in list(self.dynamic_docks):
+            widget = dock.widget()
+            self._forget(widget)
+            self.removeDockWidget(dock)
+            # Out of the window at once: restoreState() looks docks up by object name among
+            # the window's children, and must never find one that is about to be deleted.
+            dock.setObjectName("")
+            dock.setParent(None)
+            if widget is not None:
+                widget.close()
+            dock.deleteLater()
+        self.dynamic_docks.clear()
+
+    def dock_of(self, widget: QWidget) -> QDockWidget | None:
+        for dock in self.dynamic_docks:
+            if dock.widget() is widget:
+                return dock
+        return None
+
+    def plot_selection(self) -> PlotWindow | None:
+        """A new plot dock of the selected cells (one curve each), or of the selected joint
+        angles when their tab is in front."""
+        if self.table_tabs.currentWidget() is self.joint_table:
+            joints = self.joint_table.selected_joints()
+            if joints:
+                return self._joints_dropped(joints, None)
+        cells = self.table.selected_cells()
+        if not cells:
+            self.statusBar().showMessage("Select one or more numeric cells first "
+                                         "(Ctrl/Shift+click)", 5000)
+            return None
+        return self._new_cells_plot(cells)
+
+    def _new_cells_plot(self, cells: list[tuple[int, int]]) -> PlotWindow:
+        number = 1 + sum(isinstance(d.widget(), PlotWindow) for d in self.dynamic_docks)
+        window = cells_plot(cells, self.table_model.angle_unit,
+                            self.options.display.plot_history_s, number)
+        self._show_plot(window)
+        return window
+
+    def _cells_dropped(self, cells: list, plot: object) -> None:
+        """Cells dragged from the table: onto a plot (added there) or elsewhere (new plot)."""
+        if isinstance(plot, PlotWindow):
+            plot.add_cells(cells)
+        elif cells:
+            self._new_cells_plot(cells)
+
+    def _joints_dropped(self, joints: list, plot: object) -> PlotWindow | None:
+        """Joint angles dragged from their list: onto a plot or elsewhere (new plot)."""
+        if isinstance(plot, PlotWindow):
+            plot.add_joints(joints, self.table_model.angle_unit)
+            return plot
+        if not joints:
+            return None
+        number = 1 + sum(isinstance(d.widget(), PlotWindow) for d in self.dynamic_docks)
+        window = plot_from({"kind": "cells", "title": f"Plot {number}", "joints": joints},
+                           self.table_model.angle_unit, self.options.display.plot_history_s)
+        if window is not None:
+            self._show_plot(window)
+        return window
+
+    def open_joint_plot(self) -> PlotWindow:
+        window = joint_angle_plot(self.table_model.angle_unit,
+                                  self.options.display.plot_history_s)
+        return self._show_plot(window)
+
+    def _show_plot(self, window: PlotWindow) -> PlotWindow:
+        self.add_plot_dock(window)
+        block = self._history_block()
+        if block is not None:
+            window.append(block)
+        return window
+
+    def _history_block(self) -> TickBlock | None:
+        latest = self.model.latest
+        if latest is None:
+            return None
+        return TickBlock.from_samples([latest], self.table_model.calibration,
+                                      self.table_model.show_output)
+
+    def open_3d_view(self) -> QWidget | None:
+        """A new 3D view dock (when bpms.gui.view3d is available)."""
+        dock = self.add_view3d_dock()
+        return None if dock is None else dock.widget()
+
+    def open_browser_view(self) -> object | None:
+        """The figure in a browser (the vpython extra), fed from this window's model."""
+        if self._vpython is None or not self.browser_button.isEnabled():
+            return None
+        try:
+            view = self._vpython.open_browser_view(self.model)  # type: ignore[union-attr]
+        except (RuntimeError, OSError) as exc:
+            self.statusBar().showMessage(f"Browser 3D view: {exc}", 10000)
+            return None
+        self.browser_views.append(view)
+        return view

@@ -1,0 +1,249 @@
+"""The BPMS datagram (docs/udp.md): its layout, encoding and the one decoder.
+
+The byte-exact format, the counter semantics and multicast notes are in ``docs/udp.md``.
+Every datagram is a 32-byte header followed by a payload; all fields are big-endian (network
+byte order, like the suit's frame)::
+
+    offset size type     field
+    0      4    bytes    magic b"BPMS"
+    4      1    uint8    format version (1)
+    5      1    uint8    message type: 1 RAW_FRAME, 2 POSE
+    6      2    uint16   flags (senders write 0; readers ignore unknown bits)
+    8      4    uint32   session id (random per forwarder, never 0)
+    12     4    uint32   sequence number (per message type and session, wraps 2**32-1 -> 0)
+    16     8    float64  suit time, s (frame index × 0.02 since the stream started)
+    24     8    float64  host send time, s since the Unix epoch
+    32     ...           payload
+
+RAW_FRAME payload: the 340-byte suit frame exactly as received. POSE payload: uint16 segment
+count S, uint16 angle count A, S quaternions (w, x, y, z float32, body→NED, IMU order), then A
+joint angles (float32 rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`). POSE version 2
+appends extension blocks (uint16 tag, uint16 length, data; readers skip unknown tags): tag 1
+joint positions (uint16 P, P × 3 float32 m NED, order ``POINT_NAMES``), tag 2 the joint-angle
+convention name (ASCII).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from bpms.io.frames import FRAME_SIZE, is_frame
+
+MAGIC = b"BPMS"
+VERSION = 1
+POSE_VERSION = 2  # POSE with extension blocks (joint positions, convention); docs/udp.md
+READ_VERSIONS = (1, 2)
+EXT_BLOCK = struct.Struct("!HH")
+EXT_JOINT_POSITIONS = 1
+EXT_CONVENTION = 2
+#: POSE extension: two uint32 masks, bit i = IMU i magnetometer / acceleration disturbed.
+EXT_DISTURBANCE = 3
+DISTURBANCE_MASKS = struct.Struct("!II")
+HEADER = struct.Struct("!4sBBHIIdd")
+HEADER_SIZE = HEADER.size
+assert HEADER_SIZE == 32
+POSE_COUNTS = struct.Struct("!HH")
+N_POSE_SEGMENTS = 18
+N_POSE_ANGLES = 28
+#: Largest UDP payload over IPv4.
+MAX_DATAGRAM = 65507
+#: |‖q‖ − 1| above this makes a POSE datagram malformed (float32 rounding is ~1e-7).
+QUAT_NORM_TOLERANCE = 1e-3
+SEQ_MOD = 1 << 32
+
+
+class MessageType(IntEnum):
+    RAW_FRAME = 1
+    POSE = 2
+
+
+class DatagramError(ValueError):
+    """The only exception :func:`decode_datagram` raises: the datagram is malformed (the
+    message says why, in one line)."""
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Filtered pose: ``quaternions[S, 4]`` (w, x, y, z; body→NED; S = 18 in IMU order) and
+    ``angles[A]`` joint angles in rad (A = 28, order ``JOINT_ANGLE_NAMES``), both float32."""
+
+    quaternions: np.ndarray
+    angles: np.ndarray
+    positions: np.ndarray | None = None  # [P, 3] m NED (POSE version 2)
+    convention: str | None = None  # joint-angle convention (POSE version 2)
+    #: bit i set: IMU i's magnetometer disturbed / acceleration far from gravity (tag 3)
+    mag_disturbed: int | None = None
+    acc_disturbed: int | None = None
+
+
+@dataclass(frozen=True)
+class Datagram:
+    """One decoded datagram. ``frame`` is set for RAW_FRAME, ``pose`` for POSE."""
+
+    type: MessageType
+    flags: int
+    session: int
+    seq: int
+    suit_time: float
+    send_time: float
+    frame: bytes | None = None
+    pose: Pose | None = None
+
+
+
+def encode_header(mtype: int, session: int, seq: int, suit_time: float, send_time: float,
+                  flags: int = 0, version: int = VERSION) -> bytes:
+    """The 32-byte header. ``seq`` is reduced modulo 2**32."""
+    return HEADER.pack(MAGIC, version, int(mtype), flags, session, seq % SEQ_MOD,
+                       float(suit_time), float(send_time))
+
+
+def encode_raw_frame(frame: bytes, *, session: int, seq: int, suit_time: float,
+                     send_time: float, flags: int = 0) -> bytes:
+    """A RAW_FRAME datagram. Raises ValueError when ``frame`` is not a 340-byte frame."""
+    if not is_frame(frame):
+        raise ValueError(f"not a {FRAME_SIZE}-byte frame with $#/#$ markers")
+    return encode_header(MessageType.RAW_FRAME, session, seq, suit_time, send_time,
+                         flags) + bytes(frame)
+
+
+def encode_pose_payload(quaternions: np.ndarray, angles: np.ndarray) -> bytes:
+    """POSE payload from ``quaternions[S, 4]`` (normalised here) and ``angles[A]`` rad.
+
+    Raises ValueError on wrong shapes, non-finite values or a zero quaternion."""
+    q = np.asarray(quaternions, dtype=np.float64)
+    a = np.asarray(angles, dtype=np.float64).reshape(-1)
+    if q.ndim != 2 or q.shape[1] != 4:
+        raise ValueError(f"quaternions must have shape [S, 4], got {q.shape}")
+    if not (np.isfinite(q).all() and np.isfinite(a).all()):
+        raise ValueError("pose contains NaN or infinite values")
+    norms = np.linalg.norm(q, axis=1)
+    if (norms < 1e-6).any():
+        raise ValueError("pose contains a zero quaternion")
+    q = q / norms[:, None]
+    return (POSE_COUNTS.pack(len(q), len(a)) + q.astype(">f4").tobytes()
+            + a.astype(">f4").tobytes())
+
+
+def disturbance_mask(flags: np.ndarray) -> int:
+    """``flags[n]`` bool (IMU order) → an int with bit i set where ``flags[i]``."""
+    bits = np.flatnonzero(np.asarray(flags, dtype=bool).reshape(-1))
+    return int(sum(1 << int(i) for i in bits))
+
+
+def encode_pose_extensions(positions: np.ndarray | None = None,
+                           convention: str | None = None,
+                           disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> bytes:
+    """POSE version 2 extension blocks: joint positions ``[P, 3]`` m (NED), the joint-angle
+    convention name and/or the disturbance flags ``(mag[18], acc[18])`` bool (tag 3, two
+    masks). Raises ValueError on non-finite positions."""
+    out = b""
+    if positions is not None:
+        p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        if not np.isfinite(p).all():
+            raise ValueError("joint positions contain NaN or infinite values")
+        data = POSE_COUNTS.pack(len(p), 0)[:2] + p.astype(">f4").tobytes()
+        out += EXT_BLOCK.pack(EXT_JOINT_POSITIONS, len(data)) + data
+    if convention:
+        data = convention.encode("ascii")
+        out += EXT_BLOCK.pack(EXT_CONVENTION, len(data)) + data
+    if disturbance is not None:
+        data = DISTURBANCE_MASKS.pack(*(disturbance_mask(f) for f in disturbance))
+        out += EXT_BLOCK.pack(EXT_DISTURBANCE, len(data)) + data
+    return out
+
+
+def _decode_extensions(data: bytes) -> dict:
+    out: dict = {}
+    pos = 0
+    while pos < len(data):
+        if len(data) - pos < EXT_BLOCK.size:
+            raise DatagramError("POSE extension block header is truncated")
+        tag, length = EXT_BLOCK.unpack_from(data, pos)
+        pos += EXT_BLOCK.size
+        block = data[pos:pos + length]
+        if len(block) != length:
+            raise DatagramError(f"POSE extension block {tag} is truncated")
+        pos += length
+        if tag == EXT_JOINT_POSITIONS:
+            n = struct.unpack_from("!H", block)[0] if length >= 2 else -1
+            if length != 2 + 12 * n:
+                raise DatagramError("POSE joint-position block has the wrong length")
+            p = np.frombuffer(block, ">f4", 3 * n, 2).reshape(n, 3)
+            if not np.isfinite(p).all():
+                raise DatagramError("POSE joint positions hold NaN or infinite values")
+            out["positions"] = p.astype(np.float32)
+        elif tag == EXT_CONVENTION:
+            out["convention"] = block.decode("ascii", "replace")
+        elif tag == EXT_DISTURBANCE:
+            if length != DISTURBANCE_MASKS.size:
+                raise DatagramError("POSE disturbance block has the wrong length")
+            out["mag_disturbed"], out["acc_disturbed"] = DISTURBANCE_MASKS.unpack(block)
+        # other tags: skipped (later extensions)
+    return out
+
+
+def encode_pose(quaternions: np.ndarray, angles: np.ndarray, *, session: int, seq: int,
+                suit_time: float, send_time: float, flags: int = 0) -> bytes:
+    """A POSE datagram (see :func:`encode_pose_payload`)."""
+    return encode_header(MessageType.POSE, session, seq, suit_time, send_time,
+                         flags) + encode_pose_payload(quaternions, angles)
+
+
+def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
+    if len(payload) < POSE_COUNTS.size:
+        raise DatagramError(f"POSE payload is {len(payload)} bytes, shorter than its counts")
+    n_seg, n_ang = POSE_COUNTS.unpack_from(payload)
+    expected = POSE_COUNTS.size + 16 * n_seg + 4 * n_ang
+    extensions = {}
+    if version >= 2 and len(payload) >= expected:  # i16: extension blocks after the angles
+        extensions = _decode_extensions(payload[expected:])
+        payload = payload[:expected]
+    if len(payload) != expected:
+        raise DatagramError(f"POSE payload is {len(payload)} bytes, its counts "
+                            f"({n_seg} segments, {n_ang} angles) need {expected}")
+    q = np.frombuffer(payload, ">f4", 4 * n_seg, POSE_COUNTS.size).reshape(n_seg, 4)
+    a = np.frombuffer(payload, ">f4", n_ang, POSE_COUNTS.size + 16 * n_seg)
+    if not (np.isfinite(q).all() and np.isfinite(a).all()):
+        raise DatagramError("POSE holds NaN or infinite values")
+    with np.errstate(over="ignore"):
+        norms = np.sqrt(np.sum(q.astype(np.float64) ** 2, axis=1))
+    bad = np.flatnonzero(np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE)
+    if bad.size:
+        raise DatagramError(f"POSE quaternion {bad[0]} is not a unit quaternion "
+                            f"(norm {norms[bad[0]]:.4g})")
+    return Pose(q.astype(np.float32), a.astype(np.float32), **extensions)
+
+
+def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:
+    """Decode one datagram. Raises :class:`DatagramError` (and nothing else) when it is short,
+    has the wrong magic, an unknown version or type, the wrong length, non-finite times, a
+    RAW_FRAME payload that is not a valid frame, or a POSE with NaN / non-unit quaternions."""
+    data = bytes(data)
+    if len(data) < HEADER_SIZE:
+        raise DatagramError(f"{len(data)} bytes, shorter than the {HEADER_SIZE}-byte header")
+    magic, version, mtype, flags, session, seq, suit_time, send_time = HEADER.unpack_from(data)
+    if magic != MAGIC:
+        raise DatagramError(f"wrong magic {magic!r} (expected {MAGIC!r})")
+    if version not in READ_VERSIONS:
+        raise DatagramError(f"unknown format version {version} (this software reads "
+                            f"{', '.join(map(str, READ_VERSIONS))})")
+    if not (math.isfinite(suit_time) and math.isfinite(send_time)):
+        raise DatagramError("suit time or send time is not a finite number")
+    payload = data[HEADER_SIZE:]
+    if mtype == MessageType.RAW_FRAME:
+        if len(payload) != FRAME_SIZE:
+            raise DatagramError(f"RAW_FRAME payload is {len(payload)} bytes, not {FRAME_SIZE}")
+        if not is_frame(payload):
+            raise DatagramError("RAW_FRAME payload lacks the $#/#$ frame markers")
+        return Datagram(MessageType.RAW_FRAME, flags, session, seq, suit_time, send_time,
+                        frame=payload)
+    if mtype == MessageType.POSE:
+        return Datagram(MessageType.POSE, flags, session, seq, suit_time, send_time,
+                        pose=_decode_pose(payload, version))
+    raise DatagramError(f"unknown message type {mtype}")

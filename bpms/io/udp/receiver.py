@@ -1,0 +1,299 @@
+"""The receiver: :class:`UdpSource` listens for BPMS datagrams and yields raw frames
+(docs/udp.md "Receiver"). Nothing a peer sends can raise here. Thread-safe: any thread may
+read stats or close."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import select
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+from bpms.io.udp.addresses import DEFAULT_PORT, UdpConfigError, is_multicast, parse_address
+from bpms.io.udp.auth import split_tag, tag_is_valid
+from bpms.io.udp.codec import MAX_DATAGRAM, DatagramError, MessageType, decode_datagram
+from bpms.io.udp.ratelog import RateLimitedLog
+from bpms.io.udp.sequence import REORDER_WINDOW, SequenceTracker, Verdict
+
+log = logging.getLogger(__name__)
+
+#: Receiver's sanity range of header times: suit time, s (≈ 3 years of frames) and send
+#: time, s since the epoch (1970 .. 2286). Outside: a malformed datagram.
+MAX_SUIT_TIME_S = 1e8
+MAX_SEND_TIME_S = 1e10
+#: An active session keeps the receiver until it has been silent this long, s.
+TAKEOVER_AFTER_S = 1.0
+#: "another sender" shows while foreign datagrams came within this time, s.
+FOREIGN_SHOWN_S = 5.0
+
+
+@dataclass(frozen=True)
+class SourceStats:
+    """Counters of a :class:`UdpSource` (semantics in docs/udp.md).
+
+    ``datagrams = received + malformed + ignored + stale + foreign + unauthenticated``;
+    ``received = delivered + duplicated`` (RAW_FRAME datagrams of the current sessions);
+    ``reordered`` ⊂ ``delivered``; ``lost`` = sequence numbers never received between the
+    first and the highest of each session (``pending`` of them may still arrive late).
+    """
+
+    datagrams: int = 0
+    received: int = 0
+    delivered: int = 0
+    lost: int = 0
+    pending: int = 0
+    duplicated: int = 0
+    reordered: int = 0
+    malformed: int = 0
+    ignored: int = 0
+    stale: int = 0
+    restarts: int = 0
+    socket_errors: int = 0
+    last_malformed: str = ""
+    foreign: int = 0  # datagrams of another session while the active one streams: dropped
+    unauthenticated: int = 0  # refused: no valid HMAC tag while a key is set
+    another_sender: str = ""  # "host:port" of a foreign sender seen in the last few seconds
+
+
+@dataclass(frozen=True)
+class ReceivedFrame:
+    """One raw frame from the network, in arrival order."""
+
+    frame: bytes
+    seq: int
+    session: int
+    suit_time: float  # s, from the sender
+    send_time: float  # s since the epoch, the sender's clock
+    recv_time: float  # s since the epoch, this host's clock
+    reordered: bool = False
+    sender: tuple[str, int] = field(default=("", 0))
+
+
+class UdpSource:
+    """Receives BPMS datagrams on ``listen`` (``"host:port"``), optionally joining an IPv4
+    ``multicast_group`` (on ``multicast_interface``, default any), and yields raw frames.
+
+    ``read(timeout)`` returns the next frame, or None after ``timeout`` s or once closed;
+    iterating yields frames until :meth:`close`, which any thread may call and which wakes a
+    blocked reader at once. Duplicates and datagrams of a replaced session are dropped;
+    reordered frames are delivered (flagged) in arrival order. Malformed datagrams (including
+    times outside the sanity range) are counted and logged at most once per second with the
+    reason. Nothing a peer sends can raise here.
+
+    One sender at a time: while the active session streams, datagrams of another session are
+    dropped and counted (``stats.foreign``, ``stats.another_sender``); a new session takes
+    over once the active one has been silent for ``takeover_after_s`` (a restarted sender
+    thus loses at most that long). ``key``: the shared key; datagrams without a valid
+    HMAC-SHA256 tag are then refused and counted (``stats.unauthenticated``).
+    """
+
+    def __init__(self, listen: str = f"0.0.0.0:{DEFAULT_PORT}",
+                 multicast_group: str | None = None, *, multicast_interface: str = "0.0.0.0",
+                 rcvbuf: int | None = 1 << 22, poll_s: float = 0.5,
+                 window: int = REORDER_WINDOW, takeover_after_s: float = TAKEOVER_AFTER_S,
+                 key: bytes | None = None) -> None:
+        host, port = parse_address(listen)
+        self.poll_s = poll_s
+        self.takeover_after_s = takeover_after_s
+        self.key = key or None
+        self._last_active = -math.inf  # monotonic time of the active session's last datagram
+        self._last_foreign = -math.inf
+        self._foreign_sender = ""
+        self._foreign_log = RateLimitedLog(log, 5.0)
+        self._auth_log = RateLimitedLog(log, 5.0)
+        self._lock = threading.Lock()
+        self._read_lock = threading.Lock()
+        self._tracker = SequenceTracker(window)
+        self._counts = {"datagrams": 0, "malformed": 0, "ignored": 0, "socket_errors": 0,
+                        "foreign": 0, "unauthenticated": 0}
+        self._last_malformed = ""
+        self._malformed_log = RateLimitedLog(log)
+        self._error_log = RateLimitedLog(log)
+        self._closed = False
+        try:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        except OSError as exc:
+            raise UdpConfigError(f"cannot open a UDP socket: {exc}") from None
+        self._wake_r, self._wake_w = socket.socketpair()
+        try:
+            if rcvbuf:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+            if multicast_group is not None:
+                group = parse_address(f"{multicast_group}:0")[0]
+                if not is_multicast(group):
+                    raise UdpConfigError(f"{multicast_group!r} is not an IPv4 multicast group "
+                                         "(224.0.0.0 - 239.255.255.255)")
+                # Several receivers on one host may share a multicast port.
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                sock.bind((host, port))
+                mreq = socket.inet_aton(group) + socket.inet_aton(multicast_interface)
+                sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, mreq)
+            else:
+                sock.bind((host, port))
+            sock.setblocking(False)
+        except UdpConfigError:
+            self._close_sockets(sock)
+            raise
+        except OSError as exc:
+            self._close_sockets(sock)
+            where = f"{listen}" + (f" (group {multicast_group})" if multicast_group else "")
+            raise UdpConfigError(f"cannot listen on {where}: {exc.strerror or exc}") from None
+        self._sock = sock
+        self.address: tuple[str, int] = sock.getsockname()
+        #: Effective receive buffer, bytes (the kernel caps the request at net.core.rmem_max).
+        self.rcvbuf: int = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        self.multicast_group = multicast_group
+
+    def _close_sockets(self, sock: socket.socket) -> None:
+        sock.close()
+        self._wake_r.close()
+        self._wake_w.close()
+
+    @property
+    def stats(self) -> SourceStats:
+        with self._lock:
+            t = self._tracker
+            c = self._counts
+            return SourceStats(
+                datagrams=c["datagrams"], received=t.unique + t.duplicated, delivered=t.unique,
+                lost=t.lost, pending=t.pending, duplicated=t.duplicated, reordered=t.reordered,
+                malformed=c["malformed"], ignored=c["ignored"], stale=t.stale,
+                restarts=t.restarts, socket_errors=c["socket_errors"],
+                last_malformed=self._last_malformed, foreign=c["foreign"],
+                unauthenticated=c["unauthenticated"], another_sender=self._another_sender())
+
+    def _another_sender(self) -> str:
+        fresh = time.monotonic() - self._last_foreign < FOREIGN_SHOWN_S
+        return self._foreign_sender if fresh else ""
+
+    @property
+    def listening(self) -> str:
+        """Where it listens, in words, with the exposure (docs/udp.md "Exposure")."""
+        host, port = self.address
+        if host == "0.0.0.0":
+            where = f"all interfaces, port {port} (any host that can reach this one may send)"
+        elif host.startswith("127."):
+            where = f"{host}:{port} (this computer only)"
+        else:
+            where = f"{host}:{port} (hosts that reach this address may send)"
+        group = f", group {self.multicast_group}" if self.multicast_group else ""
+        return where + group + (", shared key required" if self.key else "")
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def _malformed(self, sender: tuple[str, int], why: object) -> None:
+        self._counts["malformed"] += 1
+        self._last_malformed = f"{sender[0]}:{sender[1]}: {why}"
+        self._malformed_log.warn("malformed UDP datagram from %s:%s ignored: %s",
+                                 sender[0], sender[1], why)
+
+    def _handle(self, data: bytes, sender: tuple[str, int]) -> ReceivedFrame | None:
+        recv_time = time.time()
+        now = time.monotonic()
+        with self._lock:
+            self._counts["datagrams"] += 1
+            body, tag = split_tag(data)
+            if self.key is not None and not tag_is_valid(body, tag, self.key):
+                self._counts["unauthenticated"] += 1
+                self._auth_log.warn("UDP datagram from %s:%s refused: %s", sender[0],
+                                    sender[1], "no shared-key tag" if tag is None
+                                    else "wrong shared-key tag")
+                return None
+            try:
+                dg = decode_datagram(body)
+            except DatagramError as exc:
+                self._malformed(sender, exc)
+                return None
+            if not (0.0 <= dg.suit_time <= MAX_SUIT_TIME_S
+                    and 0.0 <= dg.send_time <= MAX_SEND_TIME_S):
+                self._malformed(sender, f"times out of range (suit {dg.suit_time:.6g} s, "
+                                        f"send {dg.send_time:.6g} s)")
+                return None
+            if dg.type != MessageType.RAW_FRAME:
+                self._counts["ignored"] += 1
+                return None
+            t = self._tracker
+            if (t.session is not None and dg.session != t.session
+                    and not t.is_retired(dg.session)
+                    and now - self._last_active < self.takeover_after_s):
+                self._counts["foreign"] += 1
+                self._foreign_sender = f"{sender[0]}:{sender[1]}"
+                self._last_foreign = now
+                self._foreign_log.warn("UDP datagrams of another sender (%s:%s, session %08x) "
+                                       "ignored while session %08x streams", sender[0],
+                                       sender[1], dg.session, t.session)
+                return None
+            verdict = t.observe(dg.session, dg.seq)
+            if verdict != Verdict.STALE:
+                self._last_active = now
+        if verdict in (Verdict.DUPLICATE, Verdict.STALE):
+            return None
+        assert dg.frame is not None
+        return ReceivedFrame(dg.frame, dg.seq, dg.session, dg.suit_time, dg.send_time,
+                             recv_time, verdict == Verdict.REORDERED, sender)
+
+    def read(self, timeout: float | None = None) -> ReceivedFrame | None:
+        """The next frame, or None when ``timeout`` s (default ``poll_s``) pass without one or
+        the source is closed. Waits on the socket with a timeout every time."""
+        timeout = self.poll_s if timeout is None else timeout
+        deadline = time.monotonic() + timeout
+        with self._read_lock:
+            while not self._closed:
+                try:
+                    data, sender = self._sock.recvfrom(MAX_DATAGRAM + 1)
+                except (BlockingIOError, InterruptedError):
+                    remaining = deadline - time.monotonic()
+                    if remaining <= 0:
+                        return None
+                    try:
+                        select.select([self._sock, self._wake_r], [], [], remaining)
+                    except (OSError, ValueError):
+                        return None  # closed under our feet
+                    continue
+                except OSError as exc:
+                    if self._closed:
+                        return None
+                    with self._lock:
+                        self._counts["socket_errors"] += 1
+                    self._error_log.warn("UDP receive error on %s: %s", self.address, exc)
+                    if time.monotonic() >= deadline:
+                        return None
+                    continue
+                frame = self._handle(data, sender)
+                if frame is not None:
+                    return frame
+                if time.monotonic() >= deadline:
+                    return None
+            return None
+
+    def __iter__(self) -> Iterator[ReceivedFrame]:
+        """Frames in arrival order until :meth:`close`."""
+        while not self._closed:
+            frame = self.read()
+            if frame is not None:
+                yield frame
+
+    def close(self) -> None:
+        """Stop receiving; a reader blocked in :meth:`read` returns None promptly."""
+        if self._closed:
+            return
+        self._closed = True
+        with contextlib.suppress(OSError):
+            self._wake_w.send(b"x")
+        with self._read_lock:  # wait for a reader to leave select() before closing its fds
+            self._sock.close()
+            self._wake_r.close()
+            self._wake_w.close()
+
+    def __enter__(self) -> UdpSource:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

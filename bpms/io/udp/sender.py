@@ -1,0 +1,198 @@
+"""The sender: :class:`UdpForwarder` sends frames and poses to one or more targets
+(docs/udp.md "Sender"). Thread-safe: any thread may send, read stats or close."""
+
+from __future__ import annotations
+
+import errno
+import logging
+import os
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE, is_frame
+from bpms.io.udp.addresses import UdpConfigError, is_multicast, parse_address
+from bpms.io.udp.auth import sign_datagram
+from bpms.io.udp.codec import (
+    POSE_VERSION,
+    SEQ_MOD,
+    VERSION,
+    MessageType,
+    encode_header,
+    encode_pose_extensions,
+    encode_pose_payload,
+    encode_raw_frame,
+)
+from bpms.io.udp.ratelog import RateLimitedLog
+
+log = logging.getLogger(__name__)
+
+
+def new_session_id() -> int:
+    """A random non-zero 32-bit session id."""
+    return int.from_bytes(os.urandom(4), "big") or 1
+
+
+
+@dataclass(frozen=True)
+class ForwarderStats:
+    """Counters of a :class:`UdpForwarder`. ``sent`` and ``errors`` count datagrams (one per
+    target and message); ``frames`` / ``poses`` count messages handed to ``send_*``."""
+
+    frames: int = 0
+    poses: int = 0
+    sent: int = 0
+    errors: int = 0
+    last_error: str = ""
+
+
+class _Target:
+    def __init__(self, text: str, ttl: int, loop: bool, interface: str | None) -> None:
+        self.text = text
+        self.address = parse_address(text, default_host="127.0.0.1")
+        self.multicast = is_multicast(self.address[0])
+        try:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        except OSError as exc:
+            raise UdpConfigError(f"cannot open a UDP socket: {exc}") from None
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+            if self.multicast:
+                sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
+                sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, int(loop))
+                if interface:
+                    sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF,
+                                    socket.inet_aton(interface))
+            sock.setblocking(False)
+            # connect(): per-target errors (ECONNREFUSED from ICMP) are reported on send.
+            sock.connect(self.address)
+        except OSError as exc:
+            sock.close()
+            raise UdpConfigError(f"{text!r}: cannot send there ({exc.strerror or exc})") from None
+        self.sock = sock
+        self.log = RateLimitedLog(log)
+
+
+class UdpForwarder:
+    """Sends every frame (and optionally poses) to one or more ``"host:port"`` targets.
+
+    Unicast and IPv4 multicast (224.0.0.0/4: TTL ``multicast_ttl``, loopback ``multicast_loop``,
+    outgoing interface ``multicast_interface`` or the system's default) and broadcast addresses.
+    Sockets are non-blocking: a send never waits; a failed send (nobody listening, full buffer,
+    network down) is counted in ``stats.errors`` and logged at most once per second per target.
+    Sequence numbers count per message type from 0 in a fresh random session.
+    """
+
+    def __init__(self, targets: Sequence[str], multicast_ttl: int = 1, *,
+                 multicast_loop: bool = True, multicast_interface: str | None = None,
+                 session: int | None = None, key: bytes | None = None) -> None:
+        self._key = key or None  # shared key: every datagram signed (docs/udp.md)
+        if isinstance(targets, str):
+            targets = [targets]
+        if not targets:
+            raise UdpConfigError("no UDP target given (host:port)")
+        self.session = new_session_id() if session is None else session & 0xFFFFFFFF
+        self._targets: list[_Target] = []
+        try:
+            for text in targets:
+                self._targets.append(_Target(text, multicast_ttl, multicast_loop,
+                                             multicast_interface))
+        except UdpConfigError:
+            self.close()
+            raise
+        self._lock = threading.Lock()
+        self._seq = {MessageType.RAW_FRAME: 0, MessageType.POSE: 0}
+        self._stats = ForwarderStats()
+        self._closed = False
+
+    @property
+    def targets(self) -> list[tuple[str, int]]:
+        return [t.address for t in self._targets]
+
+    @property
+    def stats(self) -> ForwarderStats:
+        with self._lock:
+            return self._stats
+
+    def next_seq(self, mtype: MessageType) -> int:
+        """The sequence number the next message of this type will carry."""
+        with self._lock:
+            return self._seq[mtype]
+
+    def _send(self, mtype: MessageType, build: object) -> int:
+        with self._lock:
+            if self._closed:
+                return 0
+            seq = self._seq[mtype]
+            self._seq[mtype] = (seq + 1) % SEQ_MOD
+            datagram = build(seq)  # type: ignore[operator]
+            if self._key is not None:
+                datagram = sign_datagram(datagram, self._key)
+            sent = errors = 0
+            last_error = self._stats.last_error
+            for target in self._targets:
+                try:
+                    target.sock.send(datagram)
+                    sent += 1
+                except OSError as exc:
+                    errors += 1
+                    reason = (errno.errorcode.get(exc.errno or 0, "")
+                              + f" {exc.strerror or exc}").strip()
+                    last_error = f"{target.text}: {reason}"
+                    target.log.warn("UDP send to %s failed: %s", target.text, reason)
+            s = self._stats
+            self._stats = ForwarderStats(
+                s.frames + (mtype == MessageType.RAW_FRAME), s.poses + (mtype == MessageType.POSE),
+                s.sent + sent, s.errors + errors, last_error)
+            return sent
+
+    def send_frame(self, frame: bytes, suit_time: float | None = None) -> int:
+        """Forward one 340-byte frame. ``suit_time`` defaults to its sequence number × 0.02 s.
+        Returns the number of targets it was handed to. Raises ValueError on a non-frame."""
+        if not is_frame(frame):
+            raise ValueError(f"not a {FRAME_SIZE}-byte frame with $#/#$ markers")
+        frame = bytes(frame)
+
+        def build(seq: int) -> bytes:
+            t = seq * FRAME_PERIOD_S if suit_time is None else suit_time
+            return encode_raw_frame(frame, session=self.session, seq=seq, suit_time=t,
+                                    send_time=time.time())
+
+        return self._send(MessageType.RAW_FRAME, build)
+
+    def send_pose(self, quaternions: np.ndarray, angles: np.ndarray, suit_time: float,
+                  positions: np.ndarray | None = None, convention: str | None = None,
+                  disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> int:
+        """Forward one filtered pose: ``quaternions[18, 4]`` (w, x, y, z, body→NED) and
+        ``angles[28]`` rad; with ``positions[21, 3]`` (m, NED), ``convention`` and/or
+        ``disturbance`` = (mag[18], acc[18]) bool flags a version-2 POSE carrying them. Raises
+        ValueError on bad shapes or non-finite values."""
+        payload = encode_pose_payload(quaternions, angles)
+        version = VERSION
+        if positions is not None or convention or disturbance is not None:
+            payload += encode_pose_extensions(positions, convention, disturbance)
+            version = POSE_VERSION
+
+        def build(seq: int) -> bytes:
+            return encode_header(MessageType.POSE, self.session, seq, suit_time,
+                                 time.time(), version=version) + payload
+
+        return self._send(MessageType.POSE, build)
+
+    def close(self) -> None:
+        lock = getattr(self, "_lock", None)
+        if lock is not None:
+            with lock:
+                self._closed = True
+        for target in self._targets:
+            target.sock.close()
+
+    def __enter__(self) -> UdpForwarder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
