@@ -44,9 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.adaptive_bank import adaptive_gains
-from bpms.filter.adaptive_observer import AdaptiveObserver
-from bpms.filter.algorithms import ALGORITHMS, observer_gains
+from bpms.filter.algorithms import ALGORITHMS, adaptive_gains, observer_gains
 from bpms.filter.bank import MahonyBank
 from bpms.filter.observer import Observer
 from bpms.filter.rotations import dcm_to_quaternion
@@ -152,7 +150,7 @@ def run_filter(name: str, trial: Trial, settings: dict[str, float] | None = None
         q_ned = obs.process(trial.acc[:, None], (trial.mag / 50.0)[:, None], trial.gyr[:, None],
                             store_q=True).q[:, 0]
     elif name == "adaptive":
-        obs = AdaptiveObserver(1, adaptive_gains(options))
+        obs = Observer(1, adaptive_gains(options))
         q_ned = obs.process(trial.acc[:, None], (trial.mag / 50.0)[:, None],
                             trial.gyr[:, None], store_q=True).q[:, 0]
     elif name == "vqf":

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from waiting import wait_until
 
+from bpms.filter.door import process_file
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.motion import Move, Still
 from bpms.firmware.sim.session import simulate
@@ -78,7 +79,7 @@ def test_live_session_gives_corrected_angles_and_toggles_through_the_queue(turn,
     with session:
         assert wait_until(lambda: session.status().processed == len(recording), 60)
     samples = sub.drain()
-    reference = BodyPoseProcessor(options=_options()).process_file(path)
+    reference = process_file(path, options=_options())
     np.testing.assert_array_equal(np.array([s.euler_output for s in samples]),
                                   reference.euler_output)
     np.testing.assert_array_equal(np.array([s.euler for s in samples]), reference.euler_sensor)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bpms.filter.door import process_file
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.rotations import dcm_to_euler, heading_error, inclination_error
 from bpms.firmware.sim.session import simulate
@@ -77,7 +78,7 @@ def test_process_file_equals_process(tmp_path, short_rec):
     rec = short_rec
     path = tmp_path / "Raw_sim.bpmsraw"
     write_raw(path, rec.t + 1.7e9, rec.frames, new_header(calibration=rec.calibration.values))
-    res = BodyPoseProcessor(rec.calibration).process_file(path)
+    res = process_file(path, rec.calibration)
     ref = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors)
     np.testing.assert_array_equal(res.euler, ref.euler)
 

@@ -240,7 +240,7 @@ def test_disturbance_flags_reach_the_table_and_the_status(qtbot, tmp_path, recor
     acc = np.zeros(18, bool)
     mag[[2, 7]] = True
     acc[[7, 11]] = True
-    window._on_samples([dataclasses.replace(s, mag_disturbed=mag, acc_disturbed=acc)])
+    window._on_samples([s.replace(mag_disturbed=mag, acc_disturbed=acc)])
     texts = [model.data(model.index(i, DISTURBANCE_COLUMN)) for i in range(18)]
     assert texts[2] == "mag" and texts[7] == "mag acc" and texts[11] == "acc"
     assert sum(bool(t) for t in texts) == 3

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from waiting import wait_until
 
-from bpms.filter.processor import BodyPoseProcessor
+from bpms.filter.door import process_file
 from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
 from bpms.firmware.sim.server import PtyServer
 from bpms.io.filtered_file.reader import read_filtered
@@ -62,7 +62,7 @@ def test_record_30_s_holds_every_frame_and_replays_to_the_live_outputs(motion, t
     expected = b"".join(motion.frame(j) for j in range(n))
     assert recording.frames.tobytes() == expected  # every frame, in order, stale one dropped
     live = np.array([s.euler for s in sub.drain()])
-    replayed = BodyPoseProcessor().process_file(status.raw_path)
+    replayed = process_file(status.raw_path)
     assert sub.dropped == 0 and len(live) == n
     np.testing.assert_array_equal(live, replayed.euler)
 

@@ -37,11 +37,8 @@ sys.exit(rc)
 
 
 def _run(argv: list[str], limit: int) -> tuple[int, int, str]:
-    # compiled kernels for both lengths: a 1-minute recording would otherwise run on the numpy
-    # twins without numba, whose address space is not the long run's reference
-    env = {**os.environ, "BPMS_TWIN_FRAMES": "0"}
     proc = subprocess.run([sys.executable, "-c", _CHILD, str(limit), *argv],
-                          capture_output=True, text=True, timeout=900, env=env)
+                          capture_output=True, text=True, timeout=900)
     lines = proc.stderr.strip().splitlines()
     peak = int(lines[-1]) if lines and lines[-1].isdigit() else 0
     return proc.returncode, peak, proc.stderr

@@ -10,6 +10,7 @@ import pytest
 from waiting import wait_until
 
 from bpms.cli import main
+from bpms.filter.door import process_file
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
 from bpms.io.calib_file import FIELDS, load_factory_calibration, save_legacy
@@ -95,16 +96,16 @@ def test_bpms_export_matlab_uses_the_header_and_says_so(site, tmp_path, capsys):
 
 def test_python_api_uses_the_header_and_says_so(site):
     _, raw, cfg, explicit, factory = site
-    res = BodyPoseProcessor().process_file(raw)
+    res = process_file(raw)
     assert res.calibration_source == "recording header"
     assert res.options_source == "factory"
     _close(res.euler, res.joint_angles, explicit)
-    given = BodyPoseProcessor(cfg).process_file(raw)  # explicit beats the header
+    given = process_file(raw, cfg)  # explicit beats the header
     assert given.calibration_source == f"given ({cfg})"
     _close(given.euler, given.joint_angles, explicit)
     from bpms.io.calib_file import load_factory_calibration as factory_table
 
-    forced = BodyPoseProcessor(factory_table()).process_file(raw)
+    forced = process_file(raw, factory_table())
     assert forced.calibration_source.startswith("given")
     _close(forced.euler, forced.joint_angles, factory)
 

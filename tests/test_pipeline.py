@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from waiting import wait_until
 
-from bpms.filter.processor import BodyPoseProcessor
+from bpms.filter.door import process_file
 from bpms.firmware.sim.session import simulate
 from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.rawfile import RecordingError, read_raw
@@ -39,7 +39,7 @@ def test_replay_records_every_frame_and_matches_the_batch_filter(recording_path,
     again = read_raw(status.raw_path)
     assert again.frames.tobytes() == recording.frames.tobytes()
     np.testing.assert_array_equal(again.times, recording.times)
-    reference = BodyPoseProcessor().process_file(recording_path)
+    reference = process_file(recording_path)
     filtered = read_filtered(status.filtered_path)
     assert len(filtered.t) == len(recording)
     np.testing.assert_allclose(filtered.euler, reference.euler_output, atol=1e-8)
@@ -102,7 +102,7 @@ def test_forwarding_and_udp_client_mode(recording_path, tmp_path):
     assert client.status().source.counters["lost"] == 0
     assert read_raw(status.raw_path).frames.tobytes() == recording.frames.tobytes()
     filtered = read_filtered(status.filtered_path)
-    reference = BodyPoseProcessor().process_file(recording_path)
+    reference = process_file(recording_path)
     np.testing.assert_allclose(filtered.euler, reference.euler_output, atol=1e-8)
     np.testing.assert_allclose(filtered.t, np.arange(len(recording)) * 0.02)
 

@@ -52,10 +52,10 @@ def test_the_unguarded_state_really_leaves_so3():
 
     bank = MahonyBank(np.full(1, 256.0))
     acc, mag = np.array([[0.0, 0.0, 256.0]]), np.array([[60.0, 0.0, 80.0]])
-    bank.step(acc, mag, np.zeros((1, 3)))
-    w = np.full((1, 3), FULL_SCALE * GYRO_RAD_S_PER_COUNT)
-    out = bank.step(acc, mag, w)
-    assert so3_error(out.R[0]) > SO3_TOLERANCE
+    bank.process(acc[None], mag[None], np.zeros((1, 1, 3)))
+    w = np.full((1, 1, 3), FULL_SCALE * GYRO_RAD_S_PER_COUNT)
+    out = bank.process(acc[None], mag[None], w)
+    assert so3_error(out.R[0, 0]) > SO3_TOLERANCE
 
 
 @pytest.mark.parametrize("dps", [300.0, 800.0, 1500.0, 2000.0])

@@ -17,20 +17,10 @@ from pathlib import Path
 
 import pytest
 
-#: The import circles that issue 24's rewrite of the filter core removes, each one
-#: elementary cycle as the tuple of its modules, starting from the smallest name (every
-#: one of them closes through an import inside a function). Only cycles inside bpms/filter
-#: or between bpms/filter and bpms/pipeline may stand here; every other cycle is a bug.
-#: Remove an entry as soon as its cycle is gone (test_allowed_cycles_still_exist says so):
-#: the list is meant to end empty.
-ALLOWED_CYCLES: frozenset[tuple[str, ...]] = frozenset({
-    # the batch and live entry points import each other through lazy imports
-    ("bpms.filter.door", "bpms.filter.processor"),
-    ("bpms.filter.live_frame", "bpms.filter.processor"),
-    ("bpms.filter.processor", "bpms.filter.warmup"),
-    # the adaptive filter bank and the algorithm registry
-    ("bpms.filter.adaptive_bank", "bpms.filter.algorithms"),
-})
+#: Import circles allowed to stand (each one elementary cycle as the tuple of its modules,
+#: starting from the smallest name): none. Keep it empty; test_allowed_cycles_still_exist
+#: fails for an entry whose cycle is gone.
+ALLOWED_CYCLES: frozenset[tuple[str, ...]] = frozenset()
 
 MAX_LINES = 600
 REPO = Path(__file__).resolve().parents[1]

@@ -179,7 +179,7 @@ def _warm_up() -> None:
     """Load the compiled filter kernels in this process (whole-recording path)."""
     from bpms.filter.processor import BodyPoseProcessor
 
-    BodyPoseProcessor().load_kernels(live=False)
+    BodyPoseProcessor().load_kernels()
 
 
 def write_table(path: str | Path, outcomes: list[Outcome]) -> int:

@@ -63,9 +63,11 @@ def process_recording(path: str | Path, calibration: str | Path | None = None,
     the Python API)."""
     opened = open_for_processing(path, calibration, options, algorithm, heading)
     chunks = list(opened.chunks(zero_at_s, progress))
-    from bpms.filter.door import join_results
+    from bpms.filter.result import Result
 
-    result = join_results([c.result for c in chunks], opened.processor)
+    options = opened.processor.options
+    result = (Result.concat([c.result for c in chunks]) if chunks
+              else Result.empty(options.body, options.joints.convention))
     result.problems.extend(opened.problems)
     result.calibration_source = opened.calibration_source
     result.options_source = opened.options_source

@@ -17,16 +17,16 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                        description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--filter", dest="filters", action="append", metavar="NAME",
-                   choices=("mahony", "observer"),
-                   help="only this filter (repeatable; default: every compiled filter)")
+                   choices=("mahony", "observer", "adaptive", "vqf"),
+                   help="only this filter (repeatable; default: every filter)")
     p.set_defaults(run=run)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.filter.warmup import COMPILED_FILTERS, ensure_kernels
+    from bpms.filter.warmup import FILTERS, ensure_kernels
 
-    names = tuple(args.filters or COMPILED_FILTERS)
+    names = tuple(args.filters or FILTERS)
     seconds = ensure_kernels(names)  # progress shown when it takes a while
     print(f"bpms warmup: the filters ({', '.join(names)}) are ready ({seconds:.1f} s)",
           file=sys.stderr)

@@ -2,17 +2,17 @@
 
 Every bank filters ``n`` IMUs from the calibrated filter-frame vectors of
 :meth:`bpms.filter.calibration.SensorCalibration.calibrate` (accel in Gravity counts pointing
-down, mag ±100, gyro rad/s, ``[N, n, 3]`` batch or ``[n, 3]`` live) and returns
-:class:`bpms.filter.bank.BankOutput` (DCM filter frame → NED ``[.., n, 3, 3]``, Euler
-``[.., n, 3]`` rad, NaN while an IMU is not initialised). All banks share the suite's rules:
+down, mag ±100, gyro rad/s, ``[N, n, 3]``; a live frame is N = 1) and returns
+:class:`bpms.filter.bank.BankOutput` (DCM filter frame → NED ``[N, n, 3, 3]``, Euler
+``[N, n, 3]`` rad, NaN while an IMU is not initialised). All banks share the suite's rules:
 the first valid frame of a stream (or after :meth:`reset`) aligns the filter, a failed sensor
 holds its last good value (counted in ``held_count``), gains change from the next frame on.
 
 - ``mahony``: :class:`bpms.filter.bank.MahonyBank`, the original (docs/filter.md), unchanged;
 - ``observer``: :class:`ObserverBank` over :mod:`bpms.filter.observer`;
 - ``vqf``: :class:`VqfBank` over :mod:`bpms.filter.vqf_filter` (needs the ``vqf`` package);
-- ``adaptive``: :class:`bpms.filter.adaptive_bank.AdaptiveBank` over
-  :mod:`bpms.filter.adaptive_observer` (the observer + trapezoidal rates + bias at rest).
+- ``adaptive``: :class:`AdaptiveBank`, the same observer in its adaptive setting
+  (trapezoidal rates + bias at rest, :data:`bpms.filter.observer.ADAPTIVE`).
 
 Unit conversion (inside the adapters): specific force ``f = −a · 9.81 / Gravity`` m/s² (the
 suite's accel is the gravity direction, counts of 1 g), magnetometer ``m / 100`` (≈ unit
@@ -22,16 +22,17 @@ norm; only directions and relative norms are used), gyro unchanged.
 from __future__ import annotations
 
 import dataclasses
+import math
 from itertools import pairwise
 from typing import Protocol
 
 import numpy as np
 
 from bpms.filter.bank import BankOutput, MahonyBank
-from bpms.filter.observer import ObserverGains, ObserverState
+from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
 from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
-from bpms.filter.vqf_filter import VqfFilters, enu_to_ned
+from bpms.filter.vqf_filter import VqfFilters
 from bpms.io.options import FilterOptions
 
 ALGORITHMS = ("mahony", "observer", "vqf", "adaptive")
@@ -47,9 +48,6 @@ class AttitudeBank(Protocol):
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None,
                 resets: np.ndarray | None = None) -> BankOutput: ...
-
-    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-             errors: np.ndarray | None = None) -> BankOutput: ...
 
     def reset(self, imu: int | None = None) -> None: ...
 
@@ -79,17 +77,31 @@ def make_bank(gravity: np.ndarray, options: FilterOptions) -> AttitudeBank:
     if name == "vqf":
         return VqfBank(gravity, options)
     if name == "adaptive":
-        from bpms.filter.adaptive_bank import AdaptiveBank
         return AdaptiveBank(gravity, options)
     raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
 
 
 def observer_gains(options: FilterOptions) -> ObserverGains:
+    """The ``observer`` setting of :mod:`bpms.filter.observer` from the options."""
     return ObserverGains(k_incl=options.observer_k_incl, k_head=options.observer_k_head,
                          k_bias=options.observer_k_bias, tau_acc=options.observer_tau_acc_s,
                          dt=options.dt, mag_norm_th=options.observer_mag_norm_th,
                          mag_dip_th_deg=options.observer_mag_dip_th_deg,
                          mag_new_time_s=options.observer_mag_new_time_s)
+
+
+def adaptive_gains(options: FilterOptions) -> ObserverGains:
+    """The ``adaptive`` setting from the options (``adaptive_*`` plus the observer's bias
+    gain, gravity low-pass and new-field time, which it shares)."""
+    return ObserverGains(
+        k_incl=options.adaptive_k_incl, k_head=options.adaptive_k_head,
+        k_bias=options.observer_k_bias, tau_acc=options.observer_tau_acc_s, dt=options.dt,
+        mag_norm_th=options.adaptive_mag_norm_th,
+        mag_dip_th_deg=options.adaptive_mag_dip_th_deg,
+        mag_new_time_s=options.observer_mag_new_time_s,
+        rest_gyr=math.radians(options.adaptive_rest_gyr_dps),
+        rest_time=options.adaptive_rest_time_s, rest_tau=options.adaptive_rest_tau_s,
+        trapezoid=ADAPTIVE["trapezoid"])
 
 
 class _PhysicalBank:
@@ -143,7 +155,12 @@ class _PhysicalBank:
 
 
 class ObserverBank(_PhysicalBank):
-    """The quaternion observer (:mod:`bpms.filter.observer`) for ``n`` IMUs."""
+    """The quaternion observer (:mod:`bpms.filter.observer`) for ``n`` IMUs, with the
+    gyro-bias estimate ``gyro_bias`` ``[N, n, 3]`` rad/s (body axes) and the
+    body-acceleration estimate ``body_acc`` ``[N, n, 3]`` m/s² (NED) beside its outputs."""
+
+    #: the settings of this bank's kind from the options
+    gains_from = staticmethod(observer_gains)
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
         super().__init__(gravity, options)
@@ -151,7 +168,7 @@ class ObserverBank(_PhysicalBank):
         self._apply_options()
 
     def _apply_options(self) -> None:
-        self.params = observer_gains(self.options).params()
+        self.params = self.gains_from(self.options).params()
 
     @property
     def initialised(self) -> np.ndarray:
@@ -174,20 +191,16 @@ class ObserverBank(_PhysicalBank):
         out_e = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
         body_acc = np.empty((n, self.n, 3))
-        self._run_kernel(f, m, g, err, rs, out_R, out_e, bias, body_acc)
+        observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
+                       np.empty((0, self.n, 4)), bias, body_acc, np.empty((0, self.n), np.bool_))
         return BankOutput(out_R, out_e, gyro_bias=bias, body_acc=body_acc)
 
-    def _run_kernel(self, f, m, g, err, rs, out_R, out_e, bias, body_acc) -> None:
-        observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
-                       np.empty((len(f), self.n, 4)), bias, body_acc)
 
-    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-             errors: np.ndarray | None = None) -> BankOutput:
-        """One live frame (``[n, 3]`` each)."""
-        out = self.process(np.asarray(acc)[None], np.asarray(mag)[None], np.asarray(gyr)[None],
-                           None if errors is None else np.asarray(errors)[None])
-        return BankOutput(out.R[0], out.euler[0], gyro_bias=out.gyro_bias[0],
-                          body_acc=out.body_acc[0])
+class AdaptiveBank(ObserverBank):
+    """The observer in its ``adaptive`` setting (trapezoidal rates with coning correction,
+    gyro bias learnt at rest) for ``n`` IMUs."""
+
+    gains_from = staticmethod(adaptive_gains)
 
 
 class VqfBank(_PhysicalBank):
@@ -272,34 +285,6 @@ class VqfBank(_PhysicalBank):
         out.gyro_bias = bias
         return out
 
-    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-             errors: np.ndarray | None = None) -> BankOutput:
-        """One live frame (VQF's per-sample API)."""
-        f, m, g = self.physical(np.asarray(acc)[None], np.asarray(mag)[None],
-                                np.asarray(gyr)[None])
-        err = None if errors is None else np.asarray(errors, dtype=np.bool_)
-        q = np.full((self.n, 4), np.nan)
-        bias = np.full((self.n, 3), np.nan)
-        for i in range(self.n):
-            if self._pending_reset[i]:
-                self._init[i] = False
-            bad = np.zeros(3, np.bool_) if err is None else err[i]
-            for s, arr in enumerate((f, m, g)):
-                if not bad[s]:
-                    self._held[i, s] = arr[0, i]
-            if not self._init[i]:
-                if bad.any() or not np.isfinite(self._held[i]).all():
-                    continue
-                self.vqf.reset(i)
-                self._init[i] = True
-            else:
-                self._held_count[i] += bad
-            q[i] = self.vqf.step_imu(i, *self._held[i])
-            bias[i] = self.vqf.bias(i)
-        self._pending_reset[:] = False
-        out = _outputs(enu_to_ned(q)[None])
-        return BankOutput(out.R[0], out.euler[0], gyro_bias=bias)
-
 
 def _outputs(q: np.ndarray) -> BankOutput:
     """Quaternions ``[N, n, 4]`` (NaN rows allowed) → DCM and Euler."""
@@ -310,5 +295,5 @@ def _outputs(q: np.ndarray) -> BankOutput:
     return BankOutput(R, dcm_to_euler(R))
 
 
-__all__ = ["ALGORITHMS", "AttitudeBank", "ObserverBank", "VqfBank", "make_bank",
-           "observer_gains"]
+__all__ = ["ALGORITHMS", "AdaptiveBank", "AttitudeBank", "ObserverBank", "VqfBank",
+           "adaptive_gains", "make_bank", "observer_gains"]

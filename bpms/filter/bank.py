@@ -2,9 +2,9 @@
 :mod:`bpms.filter.mahony`, with run-time gains, resets and the failed-sensor hold.
 
 Inputs are calibrated filter-frame vectors (``SensorCalibration.calibrate``): accel in Gravity
-counts pointing down, mag ±100, gyro rad/s, ``[N, 18, 3]`` (batch) or ``[18, 3]`` (live).
-Outputs: DCM ``[.., 18, 3, 3]`` (filter frame → NED), Euler ``[.., 18, 3]`` (roll, pitch, yaw)
-rad, ωI and ωP ``[.., 18, 3]`` rad/s; NaN for an IMU that is not initialised.
+counts pointing down, mag ±100, gyro rad/s, ``[N, 18, 3]`` (a live frame is N = 1).
+Outputs: DCM ``[N, 18, 3, 3]`` (filter frame → NED), Euler ``[N, 18, 3]`` (roll, pitch, yaw)
+rad, ωI and ωP ``[N, 18, 3]`` rad/s; NaN for an IMU that is not initialised.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpms.filter.mahony import N_PARAMS, MahonyState, run_batch, step_frame
+from bpms.filter.mahony import N_PARAMS, MahonyState, run_batch
 from bpms.io.frames import N_IMUS
 from bpms.io.options import FilterOptions
 
@@ -62,9 +62,8 @@ class MahonyBank:
         self.params = params_from_options(options or FilterOptions())
         self.state = MahonyState(self.n)
         self._pending_reset = np.zeros(self.n, dtype=np.bool_)
-        self._no_errors = np.zeros((self.n, 3), dtype=np.bool_)
-        self._live_out = (np.empty((self.n, 3, 3)), np.empty((self.n, 3)), np.empty((self.n, 3)),
-                          np.empty((self.n, 3)))
+        self._none = (np.zeros((0, self.n, 3), np.bool_), np.zeros((0, self.n), np.bool_),
+                      np.empty((0, self.n, 3)))  # "no errors", "no resets", "no ωI, ωP"
 
     # -- settings -----------------------------------------------------------------------
     def set_gains(self, kp_rollpitch: float | None = None, ki_rollpitch: float | None = None,
@@ -104,12 +103,14 @@ class MahonyBank:
         errors: bool ``[N, n, 3]`` failed-sensor flags; resets: bool ``[N, n]`` re-initialise
         at frame k; params: ``[N, 5]`` per-frame gains (default: :attr:`params` for all).
         """
-        acc, mag, gyr = (np.ascontiguousarray(v, dtype=np.float64) for v in (acc, mag, gyr))
+        acc = np.ascontiguousarray(acc, dtype=np.float64)
+        mag = np.ascontiguousarray(mag, dtype=np.float64)
+        gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         n = acc.shape[0]
-        err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
-               else np.ascontiguousarray(errors, dtype=np.bool_))
+        no_errors, no_resets, no_terms = self._none
+        err = no_errors if errors is None else np.ascontiguousarray(errors, dtype=np.bool_)
         if resets is None and not self._pending_reset.any():
-            rs = np.zeros((0, self.n), np.bool_)
+            rs = no_resets
         else:
             rs = (np.zeros((n, self.n), np.bool_) if resets is None
                   else np.array(resets, dtype=np.bool_))
@@ -122,27 +123,12 @@ class MahonyBank:
             raise ValueError(f"params must be [1, {N_PARAMS}] or [N, {N_PARAMS}]")
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
-        k = n if store_terms else 0
-        out_wi = np.empty((k, self.n, 3))
-        out_wp = np.empty((k, self.n, 3))
+        out_wi = np.empty((n, self.n, 3)) if store_terms else no_terms
+        out_wp = np.empty((n, self.n, 3)) if store_terms else no_terms
         run_batch(acc, mag, gyr, err, rs, prm, self.gravity, *self.state.arrays(),
                   out_R, out_e, out_wi, out_wp)
         return BankOutput(out_R, out_e, out_wi if store_terms else None,
                           out_wp if store_terms else None)
-
-    def step(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-             errors: np.ndarray | None = None) -> BankOutput:
-        """Filter one live frame (``[n, 3]`` each). The returned arrays are fresh copies."""
-        # contiguous arrays of fixed dtypes: another layout would trigger a numba recompile
-        err = (self._no_errors if errors is None
-               else np.ascontiguousarray(errors, dtype=np.bool_))
-        out = self._live_out
-        step_frame(np.ascontiguousarray(acc, dtype=np.float64),
-                   np.ascontiguousarray(mag, dtype=np.float64),
-                   np.ascontiguousarray(gyr, dtype=np.float64), err, self._pending_reset,
-                   self.params, self.gravity, *self.state.arrays(), *out)
-        self._pending_reset[:] = False
-        return BankOutput(out[0].copy(), out[1].copy(), out[2].copy(), out[3].copy())
 
 
 __all__ = ["N_IMUS", "BankOutput", "MahonyBank", "params_from_options"]

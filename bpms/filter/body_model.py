@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpms.filter.body_kernels import body_context, joint_position_frames
 from bpms.io.options import BodyOptions
 
 UP = (0.0, 0.0, -1.0)
@@ -73,11 +72,29 @@ for _p in BODY_POINTS:
     SEGMENT_AXIS.setdefault(_p.imu, _p.direction)
 
 
-# The tables the compiled kernel (bpms.filter.body_kernels.joint_position_frames) reads.
+# The chain as arrays: each point's IMU; its direction in segment axes as (axis, sign) — every
+# direction is a segment axis; which segments lie on the way from the pelvis to each point;
+# the foot points.
 _POINT_IMUS = np.array([p.imu for p in BODY_POINTS], dtype=np.int64)
-_PARENTS = np.array([POINT_INDEX[p.parent] for p in BODY_POINTS], dtype=np.int64)
 _DIRECTIONS = np.array([p.direction for p in BODY_POINTS], dtype=np.float64)
+assert (np.abs(_DIRECTIONS).sum(axis=1) == 1).all(), "directions must be segment axes"
+_AXIS = np.abs(_DIRECTIONS).argmax(axis=1)
+_SIGN = _DIRECTIONS[np.arange(len(BODY_POINTS)), _AXIS]
 _FOOT_INDEX = np.array([POINT_INDEX[n] for n in FOOT_POINTS], dtype=np.int64)
+
+
+def _on_the_way() -> np.ndarray:
+    """``[21, 20]``: 1 where segment p (ending at point p + 1) lies on the way from the pelvis to
+    point q, so that point positions = this @ segment vectors."""
+    way = np.zeros((len(POINT_NAMES), len(BODY_POINTS)))
+    for p, point in enumerate(BODY_POINTS):
+        q = p + 1
+        way[q] = way[POINT_INDEX[point.parent]]
+        way[q, p] = 1.0
+    return way
+
+
+_ON_THE_WAY = _on_the_way()
 
 
 def segment_lengths(lengths: BodyOptions | None = None) -> np.ndarray:
@@ -88,20 +105,21 @@ def segment_lengths(lengths: BodyOptions | None = None) -> np.ndarray:
 
 def joint_positions(C: np.ndarray, lengths: BodyOptions | None = None,
                     on_ground: bool = True) -> np.ndarray:
-    """Joint positions ``[..., 21, 3]`` (order :data:`POINT_NAMES`), metres, world NED axes,
-    pelvis above the origin. With ``on_ground`` the lowest foot point is at z = 0."""
-    C = np.ascontiguousarray(C, dtype=np.float64)
-    frames = C.reshape(-1, *C.shape[-3:])
-    out = np.empty((len(frames), len(POINT_NAMES), 3))
-    with body_context(len(frames)):  # one kernel live and in batch (docs/body-model.md)
-        joint_position_frames(frames, *position_tables(lengths), bool(on_ground), out)
-    return out.reshape(*C.shape[:-3], len(POINT_NAMES), 3)
-
-
-def position_tables(lengths: BodyOptions | None = None
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The chain tables :func:`bpms.filter.body_kernels.joint_position_frames` takes after
-    ``C``: each point's IMU, its parent point, its vector in segment axes (m) and the foot
-    points."""
-    vectors = _DIRECTIONS * segment_lengths(lengths)[:, None]
-    return _POINT_IMUS, _PARENTS, vectors, _FOOT_INDEX
+    """Joint positions ``[..., 21, 3]`` (order :data:`POINT_NAMES`), metres, world NED axes:
+    each point = its parent + ``C[imu] @ (direction × length)``, the pelvis at the origin.
+    With ``on_ground`` the whole figure is shifted along z (down) so that the lowest foot
+    point is at z = 0 (NaN when one of the foot points is). NaN below a NaN orientation."""
+    C = np.asarray(C, dtype=np.float64)
+    # C[imu] @ axis is a column of C: the rows of Cᵀ, picked for every segment at once
+    columns = np.swapaxes(C, -1, -2)[..., _POINT_IMUS, _AXIS, :]
+    segments = columns * (_SIGN * segment_lengths(lengths))[:, None]
+    missing = np.isnan(segments).any(axis=-1)
+    if missing.any():  # a NaN segment makes the points beyond it NaN, and no others
+        segments = np.where(missing[..., None], 0.0, segments)
+        out = _ON_THE_WAY @ segments
+        out[(missing @ _ON_THE_WAY.T) > 0] = np.nan
+    else:
+        out = _ON_THE_WAY @ segments
+    if on_ground:
+        out[..., 2] -= out[..., _FOOT_INDEX, 2].max(axis=-1)[..., None]
+    return out

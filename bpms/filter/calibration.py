@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -107,10 +108,15 @@ class SensorCalibration:
         return replace(self, mag_matrix=matrix, mag_center=center)
 
     def mag_correction(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The ellipsoid correction (:meth:`_mag_affine`, computed once), or None."""
+        return self._mag_affine
+
+    @cached_property
+    def _mag_affine(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The ellipsoid correction as an affine map on the *default* (min/max) filter-frame
         magnetometer: ``m_ellipsoid = K @ m_default + c``, ``K [18, 3, 3]``, ``c [18, 3]``
-        (calibrated units). None without ellipsoids. Lets a compiled min/max pass (the
-        processor's ``calibrate_batch``) be corrected afterwards, exactly."""
+        (calibrated units). None without ellipsoids. :meth:`calibrate` applies it after the
+        min/max formula."""
         if self.mag_matrix is None or self.mag_center is None:
             return None
         rot = self.pre_rotations
@@ -123,47 +129,48 @@ class SensorCalibration:
         c = np.einsum("kij,kj->ki", new, self.mag_offset - self.mag_center)
         return K, c
 
-    def correct_mag(self, mag: np.ndarray) -> np.ndarray:
-        """Apply :meth:`mag_correction` to default filter-frame magnetometer values
-        ``[..., 18, 3]`` (returned unchanged without ellipsoids)."""
-        corr = self.mag_correction()
-        if corr is None:
-            return mag
-        K, c = corr
-        return np.einsum("kij,...kj->...ki", K, mag) + c
-
     # -- raw counts → filter units -------------------------------------------------------
-    def board_units(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Raw ``[..., 18, 9]`` → (accel, mag, gyro) ``[..., 18, 3]`` in filter units, signed,
-        in board axes (before the pre-rotation)."""
-        raw = np.asarray(raw, dtype=np.float64)
-        acc = (raw[..., 0:3] - self.accel_offset) * self.accel_scale * self.accel_signs
-        if self.mag_matrix is None or self.mag_center is None:
-            mag = (raw[..., 3:6] - self.mag_offset) * self.mag_scale * self.mag_signs
-        else:
-            mag = np.einsum("kij,...kj->...ki", self.mag_matrix,
-                            raw[..., 3:6] - self.mag_center) * self.mag_signs
-        gyr = (raw[..., 6:9] - self.gyro_avg) * GYRO_RAD_S_PER_COUNT * self.gyro_signs
-        return acc, mag, gyr
+    @cached_property
+    def _counts_to_units(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(offset ``[18, 9]`` counts, gain ``[18, 9]`` units per count with the axis signs,
+        pre-rotations transposed ``[18, 3, 3]``) for :meth:`calibrate` (computed once)."""
+        offset = np.concatenate([self.accel_offset, self.mag_offset,
+                                 np.broadcast_to(self.gyro_avg, (N_IMUS, 3))], axis=-1)
+        gain = np.concatenate([self.accel_scale * self.accel_signs,
+                               self.mag_scale * self.mag_signs,
+                               np.broadcast_to(GYRO_RAD_S_PER_COUNT * self.gyro_signs,
+                                               (N_IMUS, 3))], axis=-1)
+        return offset, gain, np.ascontiguousarray(np.swapaxes(self.pre_rotations, -1, -2))
 
     def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Raw ``[..., 18, 9]`` → pre-rotated (accel counts-of-g, mag ±100, gyro rad/s),
-        each ``[..., 18, 3]`` in the filter frame. This is what the filter consumes."""
-        acc, mag, gyr = self.board_units(raw)
-        rot = self.pre_rotations
-        return (
-            np.einsum("kij,...kj->...ki", rot, acc),
-            np.einsum("kij,...kj->...ki", rot, mag),
-            np.einsum("kij,...kj->...ki", rot, gyr),
-        )
+        """Raw ``[N, 18, 9]`` counts → pre-rotated (accel counts-of-g, mag ±100, gyro rad/s),
+        each ``[N, 18, 3]`` C-contiguous float64 in the filter frame. This is what the filters
+        consume, the one implementation of docs/units.md's formulas: ``v = R* · s ·
+        (raw − offset) · scale`` per sensor (``s`` the axis signs; a magnetometer ellipsoid fit,
+        when present, in place of the min/max offset and scale)."""
+        offset, gain, rot_t = self._counts_to_units
+        raw = np.asarray(raw)
+        v = ((raw - offset) * gain).reshape(*raw.shape[:-1], 3, 3)  # [N, 18, sensor, axis]
+        out = np.ascontiguousarray((v @ rot_t).transpose(2, 0, 1, 3))  # [sensor, N, 18, axis]
+        acc, mag, gyr = out[0], out[1], out[2]
+        correction = self.mag_correction()
+        if correction is not None:
+            K, c = correction
+            mag = np.ascontiguousarray((K @ mag[..., None])[..., 0] + c)
+        return acc, mag, gyr
 
     def physical_units(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Raw ``[..., 18, 9]`` → (accel m/s², mag gauss, gyro rad/s) in signed board axes,
-        for display and logging (docs/units.md)."""
-        acc, _, gyr = self.board_units(raw)
-        raw = np.asarray(raw, dtype=np.float64)
+        """Raw ``[..., 18, 9]`` → (accel m/s², mag gauss, gyro rad/s) in signed board axes
+        (before the pre-rotation), for display and logging (docs/units.md): the accelerometer
+        and gyroscope as :meth:`calibrate` before its pre-rotation, the accelerometer then in
+        m/s² (``× 9.81 / Gravity``), the magnetometer after offset removal with the HMC5883L
+        gain (no scaling to ±100, no ellipsoid)."""
+        offset, gain, _ = self._counts_to_units
+        raw = np.asarray(raw)
+        v = (raw - offset) * gain
+        acc = v[..., 0:3] * (STANDARD_GRAVITY / self.gravity)[:, None]
         mag = (raw[..., 3:6] - self.mag_offset) * MAG_GAUSS_PER_COUNT * self.mag_signs
-        return acc * STANDARD_GRAVITY / self.gravity[:, None], mag, gyr
+        return acc, mag, v[..., 6:9]
 
     # -- filter units → raw counts (the simulated suit) ----------------------------------
     def uncalibrate(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray) -> np.ndarray:

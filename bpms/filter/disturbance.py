@@ -1,4 +1,5 @@
-"""Per-IMU disturbance indicators, whichever attitude filter runs (numba).
+"""Per-IMU disturbance indicators, whichever attitude filter runs (one numba kernel: its state
+recurs from frame to frame).
 
 Two questions an investigator asks of every sensor and frame:
 
@@ -35,9 +36,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from bpms.filter.bank import checked_gravity
-from bpms.filter.kernels import kernel
 
 #: per-IMU state columns
 (S_REST_T, S_LEARN_T, S_REF_NORM, S_REF_DIP, S_READY, S_NORM_LP, S_DIP_LP, S_ACC_LP,
@@ -68,7 +69,7 @@ class DisturbanceSettings:
                          self.rest_acc_g, self.rest_time_s, self.rest_learn_s, dt])
 
 
-@kernel(twin="bpms.filter.twins:run_disturbance")
+@njit(cache=True)
 def run_disturbance(acc, mag, gyr, R, gravity, valid, p, state, mag_dist, acc_dist, norm_ratio,
                     dip_dev, acc_mean):
     """N frames × n IMUs. acc/mag/gyr ``[N, n, 3]``, R ``[N, n, 3, 3]``, gravity ``[n]``,

@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.processor import BodyPoseProcessor, Result
+from bpms.filter.processor import BodyPoseProcessor
+from bpms.filter.result import Result
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import Options, load_options, options_from_dict
@@ -163,18 +164,14 @@ class OpenedRecording:
         zero = sorted({round(t / dt) for t in zero_at_s} | {int(k) for k in zero_at_frames})
         label = f"filtering {self.path.name}"
         self.processor.restart()
-        self.processor.plan(self.n_frames)
         if self.kind == "filtered":
             source = self._filtered_chunks(zero, chunk_frames)
         else:
             source = self._raw_chunks(zero, chunk_frames)
-        try:
-            for chunk in source:
-                yield chunk
-                if progress:
-                    progress(label, chunk.start + len(chunk), self.n_frames)
-        finally:
-            self.processor.plan(None)  # the processor may go on with other frames
+        for chunk in source:
+            yield chunk
+            if progress:
+                progress(label, chunk.start + len(chunk), self.n_frames)
         self.problems.extend(p for p in self.processor.problems if p not in self.problems)
 
     def raw_chunks(self, chunk_frames: int = CHUNK_FRAMES
@@ -257,8 +254,7 @@ class OpenedRecording:
                 euler = block.groups[name]
                 R = euler_to_dcm(euler[..., 0], euler[..., 1], euler[..., 2])
                 before = len(proc.pose.captures)
-                with proc.kernels_for(len(block), filter_kernels=False):
-                    C = proc.pose.apply(R, self._frames_in(zero, lo, len(block)))
+                C = proc.pose.apply(R, self._frames_in(zero, lo, len(block)))
                 result = Result(t=block.t, R=R, euler=euler, C=C, body=proc.options.body,
                                 zeros=list(proc.pose.captures[before:]),
                                 convention=proc.options.joints.convention)
@@ -269,27 +265,46 @@ class OpenedRecording:
 
     def result(self, zero_at_s: Sequence[float] = (), progress: Progress | None = None,
                zero_at_frames: Sequence[int] = ()) -> Result:
-        """The whole recording as one :class:`Result` (memory grows with the recording: for
-        long ones iterate :meth:`chunks`). The result carries ``calibration_source`` and
+        """The whole recording as one :class:`Result`, its arrays allocated once and filled
+        chunk by chunk (memory: the returned arrays plus one chunk's; iterate :meth:`chunks`
+        for constant memory). The result carries ``calibration_source`` and
         ``options_source``."""
-        parts = [c.result for c in self.chunks(zero_at_s, progress,
-                                              zero_at_frames=zero_at_frames)]
-        result = join_results(parts, self.processor)
+        result: Result | None = None
+        filled = 0
+        for chunk in self.chunks(zero_at_s, progress, zero_at_frames=zero_at_frames):
+            if result is None:
+                result = Result.allocate(max(self.n_frames, len(chunk)), chunk.result)
+            if filled + len(chunk) > len(result):  # more rows than counted: grow (rare)
+                result = Result.concat([result.head(filled), chunk.result])
+            else:
+                result.put(filled, chunk.result)
+            filled += len(chunk)
+        if result is None:
+            result = Result.empty(self.processor.options.body,
+                                  self.processor.options.joints.convention)
+        elif filled < len(result):
+            result = result.head(filled)
         result.problems.extend(self.problems)
         result.calibration_source = self.calibration_source
         result.options_source = self.options_source
         return result
 
 
-def join_results(parts: list[Result], processor: BodyPoseProcessor) -> Result:
-    """One Result from consecutive chunk Results (:meth:`Result.concat`); an empty one for no
-    chunks."""
-    if not parts:
-        z = np.zeros((0, 18, 3, 3))
-        return Result(t=np.zeros(0), R=z, euler=np.zeros((0, 18, 3)), C=z.copy(),
-                      body=processor.options.body,
-                      convention=processor.options.joints.convention)
-    return Result.concat(parts)
+def process_file(path: str | Path, calibration: str | Path | CalibrationTable | None = None,
+                 options: str | Path | Options | None = None, *,
+                 zero_at_s: Sequence[float] = (), zero_at_frames: Sequence[int] = (),
+                 algorithm: str | None = None, heading: str | None = None,
+                 auto_zero: bool = True, progress: Progress | None = None) -> Result:
+    """Filter a whole recording (native raw, the original suite's pickled raw, or a filtered
+    CSV) through :func:`open_for_processing`: calibration and options given here, else the
+    recording's header, else the user's default, else factory (the result's
+    ``calibration_source`` / ``options_source`` say which). ``zero_at_s`` /
+    ``zero_at_frames``: extra Reset Zero captures. Raises :class:`bpms.io.rawfile.RawFileError`
+    for an unreadable file. For long recordings in constant memory iterate
+    ``open_for_processing(path).chunks()`` instead."""
+    opened = open_for_processing(path, calibration, options, algorithm=algorithm,
+                                 heading=heading, auto_zero=auto_zero)
+    return opened.result(zero_at_s, progress, zero_at_frames=zero_at_frames)
 
 
 def is_raw_recording(path: str | Path) -> bool:

@@ -34,9 +34,9 @@ import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from bpms.filter.bank import BankOutput, MahonyBank
-from bpms.filter.kernels import kernel
 
 #: ‖RᵀR − I‖ (Frobenius) above which a DCM is no rotation any more.
 SO3_TOLERANCE = 1e-3
@@ -53,12 +53,10 @@ def so3_error(R: np.ndarray) -> np.ndarray:
         return np.sqrt(((gram - np.eye(3)) ** 2).sum(axis=(-1, -2)))
 
 
-@kernel(twin="bpms.filter.twins:guard_check")
-def _check(R, gyr, c4, expected, tol, bad, seen):
-    """bad[k, i]: IMU i should give a rotation at frame k (``expected`` or a finite frame
-    before k) and R[k, i] is non-finite, or finite with ‖RᵀR − I‖_F > tol + c4·|ω|⁴
-    (``gyr[k, i]`` rad/s; c4 = 0: no allowance). ``seen`` ends as ``expected`` or'ed with "a
-    finite frame in the batch". Scalars only, no allocation."""
+@njit(cache=True)
+def _check(R, gyr, c4, tol, expected, bad, seen):
+    """The loop of :func:`check_rotations` (``gyr`` may be ``[0, n, 3]``: no allowance)."""
+    use_rate = c4 > 0.0 and gyr.shape[0] > 0
     for i in range(R.shape[1]):
         seen[i] = expected[i]
     for k in range(R.shape[0]):
@@ -74,18 +72,39 @@ def _check(R, gyr, c4, expected, tol, bad, seen):
             err2 = 0.0
             for a in range(3):
                 for b in range(3):
-                    g = R[k, i, 0, a] * R[k, i, 0, b] + R[k, i, 1, a] * R[k, i, 1, b] \
-                        + R[k, i, 2, a] * R[k, i, 2, b]
+                    g = (R[k, i, 0, a] * R[k, i, 0, b] + R[k, i, 1, a] * R[k, i, 1, b]
+                         + R[k, i, 2, a] * R[k, i, 2, b])
                     if a == b:
                         g -= 1.0
                     err2 += g * g
             limit = tol
-            if c4 > 0.0:
+            if use_rate:
                 w2 = gyr[k, i, 0] ** 2 + gyr[k, i, 1] ** 2 + gyr[k, i, 2] ** 2
                 if math.isfinite(w2):
                     limit += c4 * w2 * w2
             bad[k, i] = not (err2 <= limit * limit)  # NaN / overflow count as bad
             seen[i] = True
+
+
+def check_rotations(R: np.ndarray, gyr: np.ndarray | None, c4: float, expected: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(bad ``[N, n]``, seen ``[n]``) of the DCMs ``R[N, n, 3, 3]``: bad[k, i] when IMU i
+    should give a rotation at frame k (``expected[i]``, or a finite frame before k) and R[k, i]
+    is non-finite, or finite with ``‖RᵀR − I‖_F`` > ``SO3_TOLERANCE + c4·|ω|⁴`` (``gyr[N, n,
+    3]`` rad/s; ``c4`` = 0 or ``gyr`` None: no allowance). seen: ``expected`` or'ed with "a
+    finite frame in the batch".
+
+    A compiled loop because "should give a rotation" carries from frame to frame (and from
+    batch to batch through ``expected``); a live frame is N = 1."""
+    R = np.ascontiguousarray(R, dtype=np.float64)
+    gyr = _NO_RATE if gyr is None else np.ascontiguousarray(gyr, dtype=np.float64)
+    bad = np.empty(R.shape[:2], dtype=np.bool_)
+    seen = np.empty(R.shape[1], dtype=np.bool_)
+    _check(R, gyr, float(c4), SO3_TOLERANCE, expected, bad, seen)
+    return bad, seen
+
+
+_NO_RATE = np.zeros((0, 0, 3))
 
 
 class StateGuard:
@@ -115,20 +134,7 @@ class StateGuard:
         """``[N, n]`` bool: frames where an IMU that should give a rotation does not (an IMU
         is expected from the frame after its first finite output on); ``gyr[N, n, 3]`` rad/s
         and ``c4`` give the rate allowance (:func:`renorm_allowance`)."""
-        bad, _ = self._check(R, gyr, c4)
-        return bad
-
-    def _check(self, R: np.ndarray, gyr: np.ndarray | None = None, c4: float = 0.0
-               ) -> tuple[np.ndarray, np.ndarray]:
-        R = np.ascontiguousarray(R, dtype=np.float64)
-        if gyr is None or c4 == 0.0:
-            gyr, c4 = np.zeros((1, 1, 3)), 0.0
-        else:
-            gyr = np.ascontiguousarray(gyr, dtype=np.float64).reshape((*R.shape[:2], 3))
-        bad = np.empty(R.shape[:2], dtype=np.bool_)
-        seen = np.empty(self.n, dtype=np.bool_)
-        _check(R, gyr, c4, self.expected, SO3_TOLERANCE, bad, seen)
-        return bad, seen
+        return check_rotations(np.asarray(R, dtype=np.float64), gyr, c4, self.expected)[0]
 
     def accept(self, R: np.ndarray) -> None:
         """Outputs ``R[N, n, 3, 3]`` were delivered: IMUs with a finite one are expected."""
@@ -224,6 +230,13 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
     ``reinitialised[N, n]`` bool). See the module docstring."""
     n_frames = len(acc)
     c4 = renorm_allowance(bank)
+    if n_frames == 1:  # a live frame: nothing to rewind
+        out = bank.process(acc, mag, gyr, errors, **bank_options)
+        bad, guard.expected[:] = check_rotations(out.R, gyr, c4, guard.expected)
+        if bad.any():
+            _mark(out, np.array([0]), bad[0])
+            _reinit(bank, guard, bad[0])
+        return out, bad
     flags = np.zeros((n_frames, guard.n), dtype=np.bool_)
     parts: list[BankOutput] = []
     pos, chunk = 0, max(n_frames, 1)
@@ -233,7 +246,7 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
         sl = slice(pos, end)
         out = bank.process(acc[sl], mag[sl], gyr[sl],
                            None if errors is None else errors[sl], **bank_options)
-        bad, seen = guard._check(out.R, gyr[sl], c4)
+        bad, seen = check_rotations(out.R, gyr[sl], c4, guard.expected)
         if not bad.any():
             guard.expected[:] = seen
             parts.append(out)
@@ -270,21 +283,5 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
     return _concat(parts), flags
 
 
-def guarded_step(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
-                 gyr: np.ndarray, errors: np.ndarray | None = None
-                 ) -> tuple[BankOutput, np.ndarray]:
-    """``bank.step`` of one live frame (``[n, 3]`` inputs) with the state check: (outputs,
-    ``reinitialised[n]``). A bad IMU gives NaN for this frame and re-initialises at the next."""
-    out = bank.step(acc, mag, gyr, errors)
-    bad, seen = guard._check(out.R[None], np.asarray(gyr)[None], renorm_allowance(bank))
-    bad = bad[0]
-    guard.expected[:] = seen
-    if bad.any():
-        out.R[bad] = np.nan
-        out.euler[bad] = np.nan
-        _reinit(bank, guard, bad)
-    return out, bad
-
-
-__all__ = ["MAHONY_RENORM_K", "SO3_TOLERANCE", "StateGuard", "failed_inputs", "guarded_process",
-           "guarded_step", "renorm_allowance", "restore", "snapshot", "so3_error"]
+__all__ = ["MAHONY_RENORM_K", "SO3_TOLERANCE", "StateGuard", "check_rotations", "failed_inputs",
+           "guarded_process", "renorm_allowance", "restore", "snapshot", "so3_error"]

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpms.filter.body_kernels import body_context, joint_angle_frames
 from bpms.filter.body_model import SEGMENT_AXIS
+from bpms.filter.rotations import dcm_to_euler
 from bpms.io.names import JOINT_ANGLE_NAMES
 
 
@@ -68,10 +68,14 @@ assert (
 ) == JOINT_ANGLE_NAMES, "bpms.io.names.JOINT_ANGLE_NAMES disagrees with the joint tables"
 
 
-# The tables the compiled kernel (bpms.filter.body_kernels.joint_angle_frames) reads.
+# The joint tables as arrays: IMU pairs; each hinge segment's axis as (axis, sign), every one a
+# segment axis.
 _HINGE = np.array([(j.proximal, j.distal) for j in HINGE_JOINTS], dtype=np.int64)
 _HINGE_AXES = np.array([(SEGMENT_AXIS[j.proximal], SEGMENT_AXIS[j.distal])
                         for j in HINGE_JOINTS], dtype=np.float64)
+assert (np.abs(_HINGE_AXES).sum(axis=-1) == 1).all(), "hinge axes must be segment axes"
+_HINGE_AXIS = np.abs(_HINGE_AXES).argmax(axis=-1)
+_HINGE_SIGN = np.take_along_axis(_HINGE_AXES, _HINGE_AXIS[..., None], -1)[..., 0]
 _BALL = np.array([(j.static, j.dynamic) for j in BALL_JOINTS], dtype=np.int64)
 
 
@@ -127,22 +131,21 @@ def convert(angles: np.ndarray, source: str, target: str) -> np.ndarray:
 
 def joint_angles(C: np.ndarray, convention: str = DEFAULT_CONVENTION) -> np.ndarray:
     """Joint angles ``[..., 28]`` in radians, order :data:`JOINT_ANGLE_NAMES`, from calibrated
-    segment orientations ``C[..., 18, 3, 3]``, in ``convention`` (:data:`CONVENTIONS`)."""
-    C = np.ascontiguousarray(C, dtype=np.float64)
-    frames = C.reshape(-1, *C.shape[-3:])
-    out = np.empty((len(frames), len(JOINT_ANGLE_NAMES)))
-    with body_context(len(frames)):  # one kernel live and in batch (docs/joint-angles.md)
-        joint_angle_frames(frames, *angle_tables(convention), out)
-    return out.reshape(*C.shape[:-3], len(JOINT_ANGLE_NAMES))
+    segment orientations ``C[..., 18, 3, 3]``, in ``convention`` (:data:`CONVENTIONS`).
 
-
-def angle_tables(convention: str = DEFAULT_CONVENTION
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The joint tables :func:`bpms.filter.body_kernels.joint_angle_frames` takes after
-    ``C``: hinge IMU pairs, their segment axes, ball-joint IMU pairs and the column signs of
-    ``convention``."""
+    Hinge flexion = ``acos`` of the cosine between the two segments' axes (clipped to
+    [−1, 1]); ball joints: the Euler angles of ``C_staticᵀ C_dynamic``. NaN where an
+    orientation involved is NaN."""
     signs = ISB_SIGNS if check_convention(convention) == "isb" else _ORIGINAL_SIGNS
-    return _HINGE, _HINGE_AXES, _BALL, signs
+    C = np.asarray(C, dtype=np.float64)
+    # each segment's axis in the world: a column of C (a row of Cᵀ), both of a hinge at once
+    axes = np.swapaxes(C, -1, -2)[..., _HINGE, _HINGE_AXIS, :] * _HINGE_SIGN[:, :, None]
+    u, v = axes[..., 0, :], axes[..., 1, :]
+    cosine = (u * v).sum(axis=-1) / np.sqrt((u * u).sum(axis=-1) * (v * v).sum(axis=-1))
+    flexion = np.arccos(np.clip(cosine, -1.0, 1.0))
+    relative = np.swapaxes(C[..., _BALL[:, 0], :, :], -1, -2) @ C[..., _BALL[:, 1], :, :]
+    ball = dcm_to_euler(relative).reshape(*C.shape[:-3], 3 * len(_BALL))
+    return np.concatenate([flexion, ball], axis=-1) * signs
 
 
 #: OpenSim coordinate (Rajagopal 2016 / gait2392 / Hamner names) → (BPMS ISB column, factor):

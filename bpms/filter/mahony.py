@@ -1,9 +1,9 @@
 """The DCM Mahony complementary filter (docs/filter.md, Razor AHRS lineage) for 18 IMUs at once.
 
-numba-compiled kernels, no Python per frame and no heap allocation per IMU update:
-
-- :func:`run_batch` filters N frames × 18 IMUs in one call;
-- :func:`step_frame` filters one live frame (18 IMUs) and is the same per-frame code.
+One numba kernel, :func:`run_batch`, filters N frames × 18 IMUs in one call, with no Python
+per frame and no heap allocation per IMU update; a live frame is N = 1 (the same code). The
+kernels here call only kernels of this module, so numba's on-disk cache (``cache=True``,
+keyed by this file) never holds stale machine code.
 
 Inputs are the calibrated, pre-rotated filter-frame vectors of
 :meth:`bpms.filter.calibration.SensorCalibration.calibrate`: accelerometer in "Gravity counts"
@@ -38,12 +38,11 @@ cosines of the previous roll and pitch (step 1) are taken algebraically from the
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
-from bpms.filter.kernels import kernel
 from bpms.io.frames import N_IMUS
 
 #: Indices into ``params``.
@@ -51,7 +50,7 @@ KP_RP, KI_RP, KP_YAW, KI_YAW, DT = range(5)
 N_PARAMS = 5
 
 
-@kernel
+@njit(cache=True)
 def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> float:
     """docs/filter.md step 1: tilt-compensated magnetic heading H, rad."""
     cr = math.cos(roll)
@@ -63,7 +62,7 @@ def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> floa
     return math.atan2(-my, mx)
 
 
-@kernel
+@njit(cache=True)
 def _init_imu(i, a, m, R, w_i, w_p, euler, trig):
     """"Reset_Mahony" of IMU ``i`` from accel ``a[3]`` and mag ``m[3]``."""
     for k in range(3):
@@ -92,7 +91,7 @@ def _init_imu(i, a, m, R, w_i, w_p, euler, trig):
     trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = c1, s1, c2, s2
 
 
-@kernel
+@njit(cache=True)
 def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, euler, trig):
     """One filter step (docs/filter.md steps 1–5) of IMU ``i``; scalars only, no allocation."""
     # 1. heading with the previous roll and pitch; their sines and cosines were cached by the
@@ -167,7 +166,7 @@ def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, eu
     trig[i, 2], trig[i, 3] = math.sqrt(1.0 - s20 * s20), -s20
 
 
-@kernel
+@njit(cache=True)
 def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
            R, w_i, w_p, euler, trig, initialised, held, seen, held_count):
     """One frame for all IMUs: reset flags, failed-sensor hold, initialise or step."""
@@ -206,7 +205,7 @@ def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
                   dt, R, w_i, w_p, euler, trig)
 
 
-@kernel
+@njit(cache=True)
 def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp, store_terms):
     nan = np.nan
     for i in range(R.shape[0]):
@@ -220,7 +219,7 @@ def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
                 out_wp[k, i, r] = w_p[i, r] if ok else nan
 
 
-@kernel(twin="bpms.filter.twins:mahony_run_batch")
+@njit(cache=True)
 def run_batch(acc, mag, gyr, errors, resets, params, gravity,
               R, w_i, w_p, euler, trig, initialised, held, seen, held_count,
               out_R, out_euler, out_wi, out_wp):
@@ -247,26 +246,6 @@ def run_batch(acc, mag, gyr, errors, resets, params, gravity,
                R, w_i, w_p, euler, trig, initialised, held, seen, held_count)
         _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
                store_terms)
-
-
-@kernel(twin="bpms.filter.twins:mahony_step_frame")
-def step_frame(acc, mag, gyr, errors, resets, params, gravity,
-               R, w_i, w_p, euler, trig, initialised, held, seen, held_count,
-               out_R, out_euler, out_wi, out_wp):
-    """Filter one live frame: acc, mag, gyr ``[18, 3]``, errors bool ``[18, 3]``, resets bool
-    ``[18]``, params ``[5]``; writes ``out_R[18, 3, 3]``, ``out_euler[18, 3]``,
-    ``out_wi[18, 3]``, ``out_wp[18, 3]`` (NaN for uninitialised IMUs)."""
-    _frame(acc, mag, gyr, errors, True, resets, True, params, gravity,
-           R, w_i, w_p, euler, trig, initialised, held, seen, held_count)
-    nan = np.nan
-    for i in range(R.shape[0]):
-        ok = initialised[i]
-        for r in range(3):
-            out_euler[i, r] = euler[i, r] if ok else nan
-            out_wi[i, r] = w_i[i, r] if ok else nan
-            out_wp[i, r] = w_p[i, r] if ok else nan
-            for c in range(3):
-                out_R[i, r, c] = R[i, r, c] if ok else nan
 
 
 @dataclass
@@ -314,63 +293,3 @@ class MahonyState:
                      "held_count"):
             setattr(other, name, getattr(self, name).copy())
         return other
-
-
-def warm_up() -> float:
-    """Compile (or load from numba's cache) the kernels with the argument types the suite
-    uses; returns the seconds it took."""
-    t0 = time.perf_counter()
-    st = MahonyState(1)
-    a = np.zeros((1, 1, 3))
-    a[..., 2] = 256.0
-    m = np.ones((1, 1, 3))
-    params = np.array([[0.02, 2e-5, 1.2, 2e-5, 0.02]])
-    gravity = np.array([256.0])
-    run_batch(a, m, a * 0, np.zeros((0, 1, 3), np.bool_), np.zeros((0, 1), np.bool_), params,
-              gravity, *st.arrays(), np.empty((1, 1, 3, 3)), np.empty((1, 1, 3)),
-              np.empty((0, 1, 3)), np.empty((0, 1, 3)))
-    step_frame(a[0], m[0], a[0] * 0, np.zeros((1, 3), np.bool_), np.zeros(1, np.bool_),
-               params[0], gravity, *st.arrays(), np.empty((1, 3, 3)), np.empty((1, 3)),
-               np.empty((1, 3)), np.empty((1, 3)))
-    z3 = np.zeros((1, 3))
-    rot = np.eye(3)[None]
-    calibrate_batch(np.zeros((1, 1, 9), np.int16), z3, z3, z3, z3, z3, z3, rot,
-                    np.empty((1, 1, 3)), np.empty((1, 1, 3)), np.empty((1, 1, 3)))
-    right_multiply(np.empty((1, 1, 3, 3)), rot, np.empty((1, 1, 3, 3)))
-    return time.perf_counter() - t0
-
-
-@kernel(twin="bpms.filter.twins:calibrate_batch")
-def calibrate_batch(raw, acc_off, acc_gain, mag_off, mag_gain, gyr_off, gyr_gain, rot,
-                    out_acc, out_mag, out_gyr):
-    """The arithmetic of ``SensorCalibration.calibrate`` in one compiled pass (no temporaries).
-
-    raw ``[N, n, 9]`` counts; per IMU ``[n, 3]`` offsets and gains (gain = scale × sign, so
-    ``v = (raw - off) * scale * sign``); rot ``[n, 3, 3]`` pre-rotations; outputs ``[N, n, 3]``
-    ``= rot @ v``. The parameters come from a SensorCalibration, which stays the definition.
-    """
-    v = np.empty(3)
-    for k in range(raw.shape[0]):
-        for i in range(raw.shape[1]):
-            for s in range(3):
-                if s == 0:
-                    off, gain, out = acc_off, acc_gain, out_acc
-                elif s == 1:
-                    off, gain, out = mag_off, mag_gain, out_mag
-                else:
-                    off, gain, out = gyr_off, gyr_gain, out_gyr
-                for j in range(3):
-                    v[j] = (raw[k, i, 3 * s + j] - off[i, j]) * gain[i, j]
-                for r in range(3):
-                    out[k, i, r] = (rot[i, r, 0] * v[0] + rot[i, r, 1] * v[1]) + rot[i, r, 2] * v[2]
-
-
-@kernel(twin="bpms.filter.twins:right_multiply")
-def right_multiply(R, M, out):
-    """``out[k, i] = R[k, i] @ M[i]`` for ``R[N, n, 3, 3]``, ``M[n, 3, 3]`` (Reset Zero)."""
-    for k in range(R.shape[0]):
-        for i in range(R.shape[1]):
-            for r in range(3):
-                a0, a1, a2 = R[k, i, r, 0], R[k, i, r, 1], R[k, i, r, 2]
-                for c in range(3):
-                    out[k, i, r, c] = (a0 * M[i, 0, c] + a1 * M[i, 1, c]) + a2 * M[i, 2, c]

@@ -1,13 +1,20 @@
-"""The quaternion nonlinear observer of the second seed paper, for 18 IMUs at once (numba).
+"""The quaternion nonlinear observer of the second seed paper, for n IMUs at once (numba),
+in two settings: ``observer`` (the paper's structure) and ``adaptive`` (two physical
+additions). One state, one kernel; :class:`ObserverGains` chooses.
 
 State per IMU: attitude quaternion ``q`` (body → NED, scalar first), gyro-bias estimate
 ``b`` (rad/s), the low-passed gravity vector ``ℓ`` in the estimated earth frame (m/s²) whose
-difference from the measurement is the body-acceleration estimate, and the magnetic reference
-(field norm and dip) used to reject disturbed magnetometer samples.
+difference from the measurement is the body-acceleration estimate, the magnetic reference
+(field norm and dip) used to reject disturbed magnetometer samples, the previous gyro sample
+and the time the sensor has been still.
 
 Per sample (derivation and the equations the paper leaves out: docs/filters.md):
 
-1. prediction ``q ← q ⊗ exp(½(ω − b)dt)`` (exact for ω constant over the step);
+1. prediction ``q ← q ⊗ exp(½ φ)`` with the rotation vector ``φ`` of the step: the rectangle
+   rule ``φ = (ω − b)dt`` (``trapezoid`` off, the observer), or the trapezoid with coning
+   correction ``φ = (½(ω_{k−1} + ω_k) − b)dt + (1/12)(ω_{k−1} × ω_k)dt²`` (``trapezoid`` on,
+   the adaptive setting): a gyro sample is the rate *at* the sample instant, and the
+   rectangle rule lets the attitude lead by ``½·dt·Δω``;
 2. body acceleration: ``d = R(q)(−f)`` is the measured "down" vector in the earth frame,
    ``ℓ ← ℓ + k(d − ℓ)`` with ``k = 1 − exp(−dt/τ_acc)`` (the explicit minimiser of the
    two-term cost of the paper: prediction of the gravity vs. measurement), and
@@ -17,13 +24,19 @@ Per sample (derivation and the equations the paper leaves out: docs/filters.md):
 4. correction towards ``q_m``: the error ``q_m ⊗ q⁻¹`` is split into its inclination part
    (rotation vector ``θ``, horizontal axis) and heading part ``−ψ`` about the vertical, applied
    with gains ``k_incl``, ``k_head`` (1/s); ``ℓ`` is carried along with the correction;
+   magnetically disturbed samples (norm or dip off the reference) get no heading correction;
 5. bias ``b ← b − k_bias·dt·R(q)ᵀ e`` with ``e`` the error rotation vector (PI action),
-   held while ``|e|`` > 0.2 rad (anti-windup);
-   magnetically disturbed samples (norm or dip off the reference) get no heading correction.
+   held while ``|e|`` > 0.2 rad (anti-windup); with ``rest_tau`` > 0 (adaptive), while
+   ``|ω − b|`` < ``rest_gyr`` and ``||f| − g|`` < ``rest_acc`` for longer than ``rest_time``
+   the sensor is still and the bias follows the measured rate with time constant
+   ``rest_tau`` instead (what a still gyro reads *is* its bias).
 
-Inputs (the adapter :class:`ObserverBank` converts the suite's calibrated units): specific
-force ``f`` in m/s² (reads (0, 0, −9.81) level in a Z-down body frame), magnetometer in any
-unit (≈ 1 is convenient), gyro rad/s, all ``[N, n, 3]`` or ``[n, 3]``.
+Inputs (the adapters in :mod:`bpms.filter.algorithms` convert the suite's calibrated units):
+specific force ``f`` in m/s² (reads (0, 0, −9.81) level in a Z-down body frame),
+magnetometer in any unit (≈ 1 is convenient), gyro rad/s, all ``[N, n, 3]``.
+
+The kernels here call only kernels of this module, so numba's cache (keyed by this file)
+never holds stale machine code.
 """
 
 from __future__ import annotations
@@ -32,22 +45,24 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
-from bpms.filter.kernels import kernel
 from bpms.io.frames import N_IMUS
 
 #: Indices into ``params``.
-K_INCL, K_HEAD, K_BIAS, TAU_ACC, DT, MAG_NORM_TH, MAG_DIP_TH, MAG_NEW_TIME, BIAS_CLIP = range(9)
-N_PARAMS = 9
+(K_INCL, K_HEAD, K_BIAS, TAU_ACC, DT, MAG_NORM_TH, MAG_DIP_TH, MAG_NEW_TIME, BIAS_CLIP,
+ REST_GYR, REST_ACC, REST_TIME, REST_TAU, TRAPEZOID) = range(14)
+N_PARAMS = 14
 #: Indices into the per-IMU magnetic state.
 M_REF_NORM, M_REF_DIP, M_CAND_NORM, M_CAND_DIP, M_CAND_TIME, M_REJECT_TIME = range(6)
 #: Time constant (s) of the slow update of the accepted magnetic reference.
 MAG_REF_TAU_S = 60.0
 #: Error angle (rad) above which the bias integrator holds (anti-windup).
 BIAS_MAX_ERR = 0.2
+G_MS2 = 9.81
 
 
-@kernel
+@njit(cache=True)
 def _dcm(q0, q1, q2, q3, R, i):
     R[i, 0, 0] = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
     R[i, 0, 1] = 2.0 * (q1 * q2 - q0 * q3)
@@ -60,7 +75,7 @@ def _dcm(q0, q1, q2, q3, R, i):
     R[i, 2, 2] = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
 
 
-@kernel
+@njit(cache=True)
 def _exp(vx, vy, vz):
     """Quaternion of the rotation vector v (rad)."""
     ang = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -70,7 +85,7 @@ def _exp(vx, vy, vz):
     return math.cos(0.5 * ang), vx * s, vy * s, vz * s
 
 
-@kernel
+@njit(cache=True)
 def _mul(a0, a1, a2, a3, b0, b1, b2, b3):
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
             a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
@@ -78,7 +93,7 @@ def _mul(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
 
 
-@kernel
+@njit(cache=True)
 def _rotate(vx, vy, vz, x, y, z):
     """Rotate (x, y, z) by the rotation vector v (Rodrigues)."""
     ang = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -93,7 +108,7 @@ def _rotate(vx, vy, vz, x, y, z):
     return x * c + cx * s + kx * d, y * c + cy * s + ky * d, z * c + cz * s + kz * d
 
 
-@kernel
+@njit(cache=True)
 def _init_imu(i, f, m, q, bias, lp, acc_est, mag_state):
     """Alignment from one sample: TRIAD of the measured down vector and magnetic field."""
     dx, dy, dz = -f[0], -f[1], -f[2]
@@ -152,17 +167,29 @@ def _init_imu(i, f, m, q, bias, lp, acc_est, mag_state):
     mag_state[i, M_REJECT_TIME] = 0.0
 
 
-@kernel
-def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
+@njit(cache=True)
+def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, rest, R):
     dt = p[DT]
-    # 1. prediction with the bias-corrected rate
-    d0, d1, d2, d3 = _exp((g[0] - bias[i, 0]) * dt, (g[1] - bias[i, 1]) * dt,
-                          (g[2] - bias[i, 2]) * dt)
+    # 1. prediction: trapezoid + coning correction (or the observer's rectangle rule)
+    if p[TRAPEZOID] > 0.0:
+        ax, ay, az = gprev[i, 0], gprev[i, 1], gprev[i, 2]
+        wx = 0.5 * (ax + g[0]) - bias[i, 0]
+        wy = 0.5 * (ay + g[1]) - bias[i, 1]
+        wz = 0.5 * (az + g[2]) - bias[i, 2]
+        c = dt * dt / 12.0
+        vx = wx * dt + c * (ay * g[2] - az * g[1])
+        vy = wy * dt + c * (az * g[0] - ax * g[2])
+        vz = wz * dt + c * (ax * g[1] - ay * g[0])
+    else:
+        vx, vy, vz = ((g[0] - bias[i, 0]) * dt, (g[1] - bias[i, 1]) * dt,
+                      (g[2] - bias[i, 2]) * dt)
+    gprev[i, 0], gprev[i, 1], gprev[i, 2] = g[0], g[1], g[2]
+    d0, d1, d2, d3 = _exp(vx, vy, vz)
     q0, q1, q2, q3 = _mul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], d0, d1, d2, d3)
     n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     q0, q1, q2, q3 = q0 / n, q1 / n, q2 / n, q3 / n
     _dcm(q0, q1, q2, q3, R, i)
-    # 2. measured down vector in the (estimated) earth frame, gravity low-pass, acceleration
+    # 2. gravity low-pass in the estimated earth frame; body acceleration
     bx, by, bz = -f[0], -f[1], -f[2]
     dnx = R[i, 0, 0] * bx + R[i, 0, 1] * by + R[i, 0, 2] * bz
     dny = R[i, 1, 0] * bx + R[i, 1, 1] * by + R[i, 1, 2] * bz
@@ -172,7 +199,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
     ly = lp[i, 1] + k * (dny - lp[i, 1])
     lz = lp[i, 2] + k * (dnz - lp[i, 2])
     acc_est[i, 0], acc_est[i, 1], acc_est[i, 2] = lx - dnx, ly - dny, lz - dnz
-    # 3a. inclination part of the pseudo-measurement: rotation taking ℓ onto +z (down)
+    # 3a. inclination pseudo-measurement
     ln = math.sqrt(lx * lx + ly * ly + lz * lz)
     tx, ty = 0.0, 0.0
     if ln > 0.0:
@@ -181,7 +208,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
         if sh > 1e-12:
             theta = math.atan2(sh, uz)
             tx, ty = uy / sh * theta, -ux / sh * theta
-    # 3b. heading part: heading of the tilt-corrected field, reference checks
+    # 3b. heading pseudo-measurement and magnetic reference (as the observer)
     mx = R[i, 0, 0] * m[0] + R[i, 0, 1] * m[1] + R[i, 0, 2] * m[2]
     my = R[i, 1, 0] * m[0] + R[i, 1, 1] * m[1] + R[i, 1, 2] * m[2]
     mz = R[i, 2, 0] * m[0] + R[i, 2, 1] * m[1] + R[i, 2, 2] * m[2]
@@ -195,7 +222,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
             and abs(mn / ms[i, M_CAND_NORM] - 1.0) < p[MAG_NORM_TH] \
             and abs(dip - ms[i, M_CAND_DIP]) < p[MAG_DIP_TH]:
         ms[i, M_CAND_TIME] += dt
-        kc = min(1.0, dt)  # candidate: ~1 s average of the present field
+        kc = min(1.0, dt)
         ms[i, M_CAND_NORM] += kc * (mn - ms[i, M_CAND_NORM])
         ms[i, M_CAND_DIP] += kc * (dip - ms[i, M_CAND_DIP])
     else:
@@ -206,7 +233,6 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
     if disturbed:
         ms[i, M_REJECT_TIME] += dt
         if ms[i, M_REJECT_TIME] > p[MAG_NEW_TIME] and ms[i, M_CAND_TIME] > p[MAG_NEW_TIME]:
-            # a new, steady field for longer than the rejection allows: take it
             ms[i, M_REF_NORM], ms[i, M_REF_DIP] = ms[i, M_CAND_NORM], ms[i, M_CAND_DIP]
             ms[i, M_REJECT_TIME] = 0.0
             disturbed = False
@@ -217,7 +243,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
         ms[i, M_REF_DIP] += kr * (dip - ms[i, M_REF_DIP])
     mag_dist[i] = disturbed
     hz = 0.0 if disturbed or mh == 0.0 else -psi
-    # 4. correction towards the pseudo-measurement (earth frame), ℓ carried along
+    # 4. correction towards the pseudo-measurement, ℓ carried along
     ci, ch = p[K_INCL] * dt, p[K_HEAD] * dt
     cx, cy, cz = ci * tx, ci * ty, ch * hz
     c0, c1, c2, c3 = _exp(cx, cy, cz)
@@ -227,44 +253,52 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, R):
         n = -n
     q[i, 0], q[i, 1], q[i, 2], q[i, 3] = q0 / n, q1 / n, q2 / n, q3 / n
     lp[i, 0], lp[i, 1], lp[i, 2] = _rotate(cx, cy, cz, lx, ly, lz)
-    # 5. bias: integral action on the error rotation vector, in body axes
-    kb = p[K_BIAS] * dt
-    # anti-windup: a large error is alignment or a transient, not bias
-    if kb > 0.0 and tx * tx + ty * ty + hz * hz < BIAS_MAX_ERR * BIAS_MAX_ERR:
+    # 5. gyro bias: at rest it is what the gyro reads; in motion the observer's integral
+    clip = p[BIAS_CLIP]
+    rx, ry, rz = g[0] - bias[i, 0], g[1] - bias[i, 1], g[2] - bias[i, 2]
+    fn = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+    still = (p[REST_TAU] > 0.0 and math.sqrt(rx * rx + ry * ry + rz * rz) < p[REST_GYR]
+             and abs(fn - G_MS2) < p[REST_ACC])
+    if still:
+        rest[i] += dt
+    else:
+        rest[i] = 0.0
+    if still and rest[i] >= p[REST_TIME]:
+        kr = 1.0 - math.exp(-dt / p[REST_TAU])
         for j in range(3):
-            e_b = R[i, 0, j] * tx + R[i, 1, j] * ty + R[i, 2, j] * hz
-            v = bias[i, j] - kb * e_b
-            clip = p[BIAS_CLIP]
+            v = bias[i, j] + kr * (g[j] - bias[i, j])
             bias[i, j] = min(clip, max(-clip, v))
+    else:
+        kb = p[K_BIAS] * dt
+        if kb > 0.0 and tx * tx + ty * ty + hz * hz < BIAS_MAX_ERR * BIAS_MAX_ERR:
+            for j in range(3):
+                e_b = R[i, 0, j] * tx + R[i, 1, j] * ty + R[i, 2, j] * hz
+                v = bias[i, j] - kb * e_b
+                bias[i, j] = min(clip, max(-clip, v))
     _dcm(q[i, 0], q[i, 1], q[i, 2], q[i, 3], R, i)
 
 
-@kernel
+@njit(cache=True)
 def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag_state,
-           mag_dist, initialised, held, held_count, R):
+           mag_dist, gprev, rest, initialised, held, held_count, R):
     for i in range(f.shape[0]):
         if use_reset and reset[i]:
             initialised[i] = False
         valid = True
-        if use_err and err[i, 0]:
-            valid = False
-        else:
-            for k in range(3):
-                held[i, 0, k] = f[i, k]
-        if use_err and err[i, 1]:
-            valid = False
-        else:
-            for k in range(3):
-                held[i, 1, k] = m[i, k]
-        if use_err and err[i, 2]:
-            valid = False
-        else:
-            for k in range(3):
-                held[i, 2, k] = g[i, k]
+        for s in range(3):
+            if use_err and err[i, s]:
+                valid = False
+            else:
+                src = f if s == 0 else (m if s == 1 else g)
+                for k in range(3):
+                    held[i, s, k] = src[i, k]
         if not initialised[i]:
             if valid:
                 _init_imu(i, held[i, 0], held[i, 1], q, bias, lp, acc_est, mag_state)
                 _dcm(q[i, 0], q[i, 1], q[i, 2], q[i, 3], R, i)
+                for k in range(3):
+                    gprev[i, k] = held[i, 2, k]
+                rest[i] = 0.0
                 mag_dist[i] = False
                 initialised[i] = True
             continue
@@ -273,67 +307,100 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
                 if err[i, s]:
                     held_count[i, s] += 1
         _step_imu(i, held[i, 0], held[i, 1], held[i, 2], p, q, bias, lp, acc_est, mag_state,
-                  mag_dist, R)
+                  mag_dist, gprev, rest, R)
 
 
-@kernel
-def _store(k, q, bias, acc_est, R, initialised, out_R, out_euler, out_q, out_bias, out_acc):
-    nan = np.nan
-    store_q = out_q.shape[0] > 0
-    for i in range(R.shape[0]):
-        ok = initialised[i]
-        if ok:
-            out_euler[k, i, 0] = math.atan2(R[i, 2, 1], R[i, 2, 2])
-            out_euler[k, i, 1] = -math.asin(min(1.0, max(-1.0, R[i, 2, 0])))
-            out_euler[k, i, 2] = math.atan2(R[i, 1, 0], R[i, 0, 0])
-        for r in range(3):
-            if not ok:
-                out_euler[k, i, r] = nan
-            for c in range(3):
-                out_R[k, i, r, c] = R[i, r, c] if ok else nan
-        if store_q:
-            for r in range(4):
-                out_q[k, i, r] = q[i, r] if ok else nan
-            for r in range(3):
-                out_bias[k, i, r] = bias[i, r] if ok else nan
-        if out_acc.shape[0] > 0:
-            for r in range(3):
-                out_acc[k, i, r] = acc_est[i, r] if ok else nan
-
-
-@kernel
+@njit(cache=True)
 def run_batch(f, m, g, errors, resets, params, q, bias, lp, acc_est, mag_state, mag_dist,
-              initialised, held, held_count, R, out_R, out_euler, out_q, out_bias, out_acc):
+              gprev, rest, initialised, held, held_count, R, out_R, out_euler, out_q,
+              out_bias, out_acc, out_mag_dist):
     """Filter N samples × n IMUs, updating the state arrays in place.
 
-    f (m/s², specific force), m (any unit), g (rad/s): float64 ``[N, n, 3]``. errors: bool
-    ``[N, n, 3]`` or ``[0, n, 3]``; resets: bool ``[N, n]`` or ``[0, n]``; params
-    ``[N_PARAMS]``. out_R ``[N, n, 3, 3]``, out_euler ``[N, n, 3]``; out_q ``[N, n, 4]`` and
-    out_bias ``[N, n, 3]`` or ``[0, n, ...]`` to skip them; out_acc ``[N, n, 3]`` the
-    body-acceleration estimate (NED, m/s²) or ``[0, n, 3]``. NaN for uninitialised IMUs.
+    f (m/s²), m (any unit), g (rad/s): float64 ``[N, n, 3]``; errors bool ``[N, n, 3]`` or
+    ``[0, n, 3]``; resets bool ``[N, n]`` or ``[0, n]``; params ``[N_PARAMS]``. Outputs
+    (NaN while an IMU is not initialised): out_R ``[N, n, 3, 3]`` body → NED, out_euler
+    ``[N, n, 3]`` rad; optional (``[0, …]`` to skip, each on its own): out_q ``[N, n, 4]``,
+    out_bias ``[N, n, 3]`` rad/s, out_acc ``[N, n, 3]`` body acceleration m/s² (NED),
+    out_mag_dist ``[N, n]`` bool (heading correction skipped on that sample).
     """
     use_err = errors.shape[0] > 0
     use_reset = resets.shape[0] > 0
     no_err = np.zeros((f.shape[1], 3), dtype=np.bool_)
     no_reset = np.zeros(f.shape[1], dtype=np.bool_)
+    nan = np.nan
     for k in range(f.shape[0]):
         e = errors[k] if use_err else no_err
         z = resets[k] if use_reset else no_reset
         _frame(f[k], m[k], g[k], e, use_err, z, use_reset, params, q, bias, lp, acc_est,
-               mag_state, mag_dist, initialised, held, held_count, R)
-        _store(k, q, bias, acc_est, R, initialised, out_R, out_euler, out_q, out_bias, out_acc)
+               mag_state, mag_dist, gprev, rest, initialised, held, held_count, R)
+        for i in range(f.shape[1]):
+            ok = initialised[i]
+            if ok:
+                out_euler[k, i, 0] = math.atan2(R[i, 2, 1], R[i, 2, 2])
+                out_euler[k, i, 1] = -math.asin(min(1.0, max(-1.0, R[i, 2, 0])))
+                out_euler[k, i, 2] = math.atan2(R[i, 1, 0], R[i, 0, 0])
+            for r in range(3):
+                if not ok:
+                    out_euler[k, i, r] = nan
+                for c in range(3):
+                    out_R[k, i, r, c] = R[i, r, c] if ok else nan
+            if out_q.shape[0] > 0:
+                for r in range(4):
+                    out_q[k, i, r] = q[i, r] if ok else nan
+            if out_bias.shape[0] > 0:
+                for r in range(3):
+                    out_bias[k, i, r] = bias[i, r] if ok else nan
+            if out_acc.shape[0] > 0:
+                for r in range(3):
+                    out_acc[k, i, r] = acc_est[i, r] if ok else nan
+            if out_mag_dist.shape[0] > 0:
+                out_mag_dist[k, i] = ok and mag_dist[i]
+
+
+@dataclass
+class ObserverGains:
+    """Observer settings (units as :class:`bpms.io.options.FilterOptions`). The defaults are
+    the ``observer``; :data:`ADAPTIVE` gives the ``adaptive`` setting's defaults (the
+    parameters chosen on the 7 BROAD trials, docs/filters.md)."""
+
+    k_incl: float = 0.5          # 1/s, inclination correction
+    k_head: float = 0.2          # 1/s, heading correction
+    k_bias: float = 0.01         # 1/s², bias integral in motion
+    tau_acc: float = 1.5         # s, gravity low-pass
+    dt: float = 0.02             # s
+    mag_norm_th: float = 0.05    # fraction of the reference field norm
+    mag_dip_th_deg: float = 5.0  # degrees of dip change
+    mag_new_time_s: float = 10.0  # s before a steady new field is accepted
+    bias_clip: float = math.radians(5.0)  # rad/s
+    rest_gyr: float = math.radians(2.0)  # rad/s
+    rest_acc: float = 0.3        # m/s²
+    rest_time: float = 1.0       # s
+    rest_tau: float = 0.0        # s, bias time constant at rest (0 = off, the observer)
+    trapezoid: bool = False      # trapezoidal rate integration with coning correction
+
+    def params(self) -> np.ndarray:
+        return np.array([self.k_incl, self.k_head, self.k_bias, self.tau_acc, self.dt,
+                         self.mag_norm_th, math.radians(self.mag_dip_th_deg),
+                         self.mag_new_time_s, self.bias_clip, self.rest_gyr,
+                         self.rest_acc, self.rest_time, self.rest_tau,
+                         1.0 if self.trapezoid else 0.0], dtype=np.float64)
+
+
+#: The ``adaptive`` setting's defaults (what differs from the observer's).
+ADAPTIVE = {"mag_norm_th": 0.03, "mag_dip_th_deg": 3.0, "rest_tau": 2.0, "trapezoid": True}
 
 
 @dataclass
 class ObserverState:
-    """The observer state of ``n`` IMUs (arrays updated in place by the kernel).
+    """The state of ``n`` IMUs (arrays updated in place by the kernel).
 
     q ``[n, 4]`` body → NED (w, x, y, z); bias ``[n, 3]`` rad/s; lp ``[n, 3]`` low-passed
     gravity in the earth frame, m/s²; acc_est ``[n, 3]`` estimated linear acceleration (earth
     frame, NED, m/s²); mag_state ``[n, 6]`` reference / candidate field norm and dip (rad),
     candidate and rejection times (s); mag_dist ``[n]`` the last sample was rejected;
-    initialised ``[n]``; held ``[n, 3 sensors, 3]`` last good inputs; held_count ``[n, 3]``;
-    R ``[n, 3, 3]`` the DCM of q.
+    gprev ``[n, 3]`` the previous gyro sample (rad/s); rest ``[n]`` time (s) the sensor has
+    been still; initialised ``[n]``; held ``[n, 3 sensors, 3]`` last good inputs;
+    held_count ``[n, 3]``; R ``[n, 3, 3]`` the DCM of q.
     """
 
     n: int = N_IMUS
@@ -343,6 +410,8 @@ class ObserverState:
     acc_est: np.ndarray = field(init=False)
     mag_state: np.ndarray = field(init=False)
     mag_dist: np.ndarray = field(init=False)
+    gprev: np.ndarray = field(init=False)
+    rest: np.ndarray = field(init=False)
     initialised: np.ndarray = field(init=False)
     held: np.ndarray = field(init=False)
     held_count: np.ndarray = field(init=False)
@@ -356,6 +425,8 @@ class ObserverState:
         self.acc_est = np.zeros((n, 3))
         self.mag_state = np.zeros((n, 6))
         self.mag_dist = np.zeros(n, dtype=np.bool_)
+        self.gprev = np.zeros((n, 3))
+        self.rest = np.zeros(n)
         self.initialised = np.zeros(n, dtype=np.bool_)
         self.held = np.zeros((n, 3, 3))
         self.held_count = np.zeros((n, 3), dtype=np.int64)
@@ -364,7 +435,7 @@ class ObserverState:
     def arrays(self) -> tuple[np.ndarray, ...]:
         """The state arrays in kernel argument order."""
         return (self.q, self.bias, self.lp, self.acc_est, self.mag_state, self.mag_dist,
-                self.initialised, self.held, self.held_count, self.R)
+                self.gprev, self.rest, self.initialised, self.held, self.held_count, self.R)
 
     def set_attitude(self, imu: int, q: np.ndarray) -> None:
         """Force IMU ``imu``'s attitude (body → NED quaternion); it must be initialised.
@@ -372,38 +443,19 @@ class ObserverState:
         q = np.asarray(q, dtype=np.float64)
         self.q[imu] = q / np.linalg.norm(q)
         self.lp[imu] = 0.0
-        self.lp[imu, 2] = 9.81
-
-
-@dataclass
-class ObserverGains:
-    """Observer settings (units as :class:`bpms.io.options.FilterOptions`)."""
-
-    k_incl: float = 0.5       # 1/s
-    k_head: float = 0.2       # 1/s
-    k_bias: float = 0.01      # 1/s²
-    tau_acc: float = 1.5      # s
-    dt: float = 0.02          # s
-    mag_norm_th: float = 0.05  # relative
-    mag_dip_th_deg: float = 5.0
-    mag_new_time_s: float = 10.0
-    bias_clip: float = math.radians(5.0)  # rad/s
-
-    def params(self) -> np.ndarray:
-        return np.array([self.k_incl, self.k_head, self.k_bias, self.tau_acc, self.dt,
-                         self.mag_norm_th, math.radians(self.mag_dip_th_deg),
-                         self.mag_new_time_s, self.bias_clip], dtype=np.float64)
+        self.lp[imu, 2] = G_MS2
 
 
 @dataclass
 class ObserverOutput:
-    """R ``[N, n, 3, 3]`` body → NED, euler ``[N, n, 3]`` rad, q ``[N, n, 4]``, bias
-    ``[N, n, 3]`` rad/s (q and bias only when asked for)."""
+    """R ``[N, n, 3, 3]`` body → NED, euler ``[N, n, 3]`` rad; when asked for: q
+    ``[N, n, 4]``, bias ``[N, n, 3]`` rad/s, acc ``[N, n, 3]`` body acceleration (NED, m/s²)."""
 
     R: np.ndarray
     euler: np.ndarray
     q: np.ndarray | None = None
     bias: np.ndarray | None = None
+    acc: np.ndarray | None = None
 
 
 class Observer:
@@ -425,16 +477,16 @@ class Observer:
                else np.ascontiguousarray(errors, dtype=np.bool_))
         rs = (np.zeros((0, self.n), np.bool_) if resets is None
               else np.ascontiguousarray(resets, dtype=np.bool_))
-        out_R = np.empty((N, self.n, 3, 3))
-        out_e = np.empty((N, self.n, 3))
         kq = N if store_q else 0
-        out_q = np.empty((kq, self.n, 4))
-        out_b = np.empty((kq, self.n, 3))
-        run_batch(f, m, g, err, rs, self.gains.params(), *self.state.arrays(),
-                  out_R, out_e, out_q, out_b, np.empty((0, self.n, 3)))
-        return ObserverOutput(out_R, out_e, out_q if store_q else None,
-                              out_b if store_q else None)
+        out = ObserverOutput(np.empty((N, self.n, 3, 3)), np.empty((N, self.n, 3)),
+                             np.empty((kq, self.n, 4)), np.empty((kq, self.n, 3)),
+                             np.empty((kq, self.n, 3)))
+        run_batch(f, m, g, err, rs, self.gains.params(), *self.state.arrays(), out.R,
+                  out.euler, out.q, out.bias, out.acc, np.empty((0, self.n), np.bool_))
+        if not store_q:
+            out.q = out.bias = out.acc = None
+        return out
 
 
-__all__ = ["N_PARAMS", "Observer", "ObserverGains", "ObserverOutput", "ObserverState",
-           "run_batch"]
+__all__ = ["ADAPTIVE", "N_PARAMS", "Observer", "ObserverGains", "ObserverOutput",
+           "ObserverState", "run_batch"]

@@ -35,10 +35,8 @@ from functools import cached_property
 
 import numpy as np
 
-from bpms.filter.body_kernels import body_context, segment_euler
 from bpms.filter.body_model import joint_positions
 from bpms.filter.joints import joint_angles
-from bpms.filter.mahony import right_multiply
 from bpms.filter.rotations import dcm_to_euler, rot_z
 from bpms.io.options import BodyOptions
 
@@ -113,22 +111,13 @@ def segment_orientations(R: np.ndarray, zero: Zero | None) -> np.ndarray:
     """``C[..., 18, 3, 3] = R @ R0^T @ Rz(ψ0)``; NaN without a zero."""
     if zero is None:
         return np.full(np.shape(R), np.nan)
-    R = np.ascontiguousarray(R, dtype=np.float64)
-    frames = R.reshape(-1, *R.shape[-3:])  # a live frame is a batch of one: the same kernel
-    out = np.empty_like(frames)
-    right_multiply(frames, np.ascontiguousarray(zero.offset), out)
-    return out.reshape(R.shape)
+    return np.asarray(R, dtype=np.float64) @ zero.offset
 
 
 def segment_angles(C: np.ndarray) -> np.ndarray:
     """``[..., 18, 3]`` rad: roll, pitch, yaw of the segment orientations ``C[..., 18, 3, 3]``
-    (NaN where C is), the compiled kernel both live frames and whole recordings use."""
-    C = np.ascontiguousarray(C, dtype=np.float64)
-    frames = C.reshape(-1, *C.shape[-3:])
-    out = np.empty((*frames.shape[:-2], 3))
-    with body_context(len(frames)):
-        segment_euler(frames, out)
-    return out.reshape(*C.shape[:-2], 3)
+    (NaN where C is)."""
+    return dcm_to_euler(C)
 
 
 def body_outputs(C: np.ndarray, body: BodyOptions | None = None, convention: str = "isb",
@@ -206,26 +195,6 @@ class PoseCalibrator:
         keep = len(self._ring)
         self._next = (self._next + n) % keep
         self._held = min(self._held + n, keep)
-
-    def plain_next_frame(self) -> bool:
-        """True when the next single frame will be turned into segment orientations with the
-        current zero and nothing else: a zero exists, and that frame is no capture (requested,
-        automatic) and cannot be the provisional one."""
-        return (self.zero is not None and not self._requested
-                and (not self.auto or (self._provisional_done
-                                       and self.frames != self.auto_frame)))
-
-    def ring_slot(self) -> tuple[np.ndarray | None, int]:
-        """(the window's ring, the row the next frame's DCMs go to), or (None, -1) when no
-        frame is kept (a one-frame window, or no frame yet)."""
-        return (self._ring, self._next) if self._ring is not None else (None, -1)
-
-    def plain_frame_done(self) -> None:
-        """A plain frame (:meth:`plain_next_frame`) was applied outside :meth:`apply`, its
-        DCMs written at :meth:`ring_slot`: count it and move the ring on."""
-        if self._ring is not None:
-            self._advance(1)
-        self.frames += 1
 
     def _window_ending_at(self, R: np.ndarray, k: int) -> np.ndarray:
         """The last ``window`` frames up to batch frame ``k``, reaching into earlier batches."""

@@ -1,6 +1,6 @@
 """Adapter over the ``vqf`` package (D. Laidig, T. Seel, "VQF", Information Fusion 2023):
-``n`` independent 9D VQF filters with batch (``VQF.updateBatch``) and per-sample
-(``VQF.update``) APIs, returning the suite's conventions.
+``n`` independent 9D VQF filters through its batch API (``VQF.updateBatch``; a live frame is
+a batch of one), returning the suite's conventions.
 
 Inputs in physical units: specific force ``f`` m/s² (reads (0, 0, −9.81) level in a Z-down
 body frame), magnetometer in any unit, gyro rad/s. VQF's earth frame is ENU (x east, y north,
@@ -89,19 +89,6 @@ class VqfFilters:
             np.ascontiguousarray(m, dtype=np.float64))
         self.last_bias = out["bias"]  # [N, 3] rad/s, sensor axes (rate = gyro − bias)
         return enu_to_ned(out["quat9D"])
-
-    def step_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """One sample of one IMU (per-sample API); body → **ENU** quaternion ``[4]`` (VQF's
-        own frame: convert many at once with :func:`enu_to_ned`)."""
-        flt = self.filters[imu]
-        flt.update(np.ascontiguousarray(g, dtype=np.float64),
-                   np.ascontiguousarray(f, dtype=np.float64),
-                   np.ascontiguousarray(m, dtype=np.float64))
-        return flt.getQuat9D()
-
-    def bias(self, imu: int) -> np.ndarray:
-        """IMU ``imu``'s present gyro-bias estimate ``[3]`` rad/s (sensor axes)."""
-        return np.asarray(self.filters[imu].getBiasEstimate()[0], dtype=np.float64)
 
 
 __all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned", "quat_mul",

@@ -1,13 +1,19 @@
 """The filters' compiled kernels, made ready before they are needed.
 
-The attitude filters run as numba kernels. The first time on a machine (or after an update)
-numba compiles them, which takes several seconds; later runs load the compiled code from
-numba's on-disk cache in a fraction of a second. :func:`ensure_kernels` runs every kernel of a
-filter once on a few synthetic frames, so that this happens at a known moment (when a
-processor is built, before any live frame is accepted) instead of inside the first frames.
-When that takes longer than :data:`NOTICE_AFTER_S`, a notice and the progress go to stderr:
-on a terminal one line updated in place (``\\r``), in a log file or pipe plain lines.
-``bpms warmup`` does it ahead of time.
+The loops that carry state from frame to frame — each attitude filter's step and the
+disturbance indicators — are numba kernels (``numba.njit(cache=True)``). The first time on a
+machine (or after an update of numba or of the kernel's file) numba compiles them, which takes
+a few seconds; later runs load the compiled code from numba's on-disk cache in a fraction of a
+second. :func:`ensure_kernels` runs the kernels one filter needs once on a few synthetic
+frames, so that this happens at a known moment (at the first frame a processor filters, or
+before a live session accepts any frame) and only for what is used. When that takes longer
+than :data:`NOTICE_AFTER_S`, a notice and the progress go to stderr: on a terminal one line
+updated in place (``\\r``), in a log file or pipe plain lines. ``bpms warmup`` does it ahead
+of time for every filter.
+
+numba keys each kernel's cache by its own source file (and numba's version): every kernel
+calls only kernels of its own module (tests/test_structure.py checks), so the cache can never
+hold machine code built from an older version of another file.
 """
 
 from __future__ import annotations
@@ -19,14 +25,11 @@ from typing import TextIO
 
 import numpy as np
 
-from bpms.io.frames import N_CHANNELS, N_IMUS, encode_frame
+from bpms.io.frames import N_IMUS
 
-#: Filters whose kernels numba compiles (``vqf`` runs in the vqf package's own code).
-COMPILED_FILTERS = ("mahony", "observer", "adaptive")
-#: Filters whose whole path has numpy twins (:mod:`bpms.filter.twins`: calibration, the
-#: Mahony filter, the state guard, the disturbance indicators, Reset Zero; vqf is its own
-#: package): short recordings run without numba.
-TWIN_FILTERS = ("mahony", "vqf")
+#: Every selectable filter (``vqf`` runs in the vqf package's own code; its warm-up only
+#: compiles the disturbance indicators' kernel).
+FILTERS = ("mahony", "observer", "adaptive", "vqf")
 #: Say something when getting the kernels ready takes longer than this, s.
 NOTICE_AFTER_S = 2.0
 
@@ -34,22 +37,9 @@ _ready: set[str] = set()
 _lock = threading.RLock()
 
 
-#: The two ways the kernels are called: whole recordings in batches, and frame by frame live.
-PATHS = ("batch", "live")
-
-
-def kernels_ready(algorithm: str, paths: tuple[str, ...] = PATHS) -> bool:
-    """True once :func:`ensure_kernels` has run for ``algorithm`` and ``paths`` here."""
-    return algorithm not in COMPILED_FILTERS or all((algorithm, p) in _ready for p in paths)
-
-
-def _frames(n: int = 4) -> np.ndarray:
-    """A still, level suit in raw counts ``[n, 18, 9]`` int16 (values only need to be valid)."""
-    raw = np.zeros((n, N_IMUS, N_CHANNELS), dtype=np.int16)
-    raw[..., 2] = 256  # accelerometer z: 1 g
-    raw[..., 3] = 150  # magnetometer x
-    raw[..., 5] = 300  # magnetometer z (dip)
-    return raw
+def kernels_ready(algorithm: str) -> bool:
+    """True once :func:`ensure_kernels` has run for ``algorithm`` in this process."""
+    return algorithm in _ready
 
 
 class Progress:
@@ -112,55 +102,59 @@ class Progress:
 
 
 def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
-                   paths: tuple[str, ...] = PATHS, stream: TextIO | None = None,
+                   stream: TextIO | None = None,
                    notice_after_s: float = NOTICE_AFTER_S) -> float:
-    """Compile (first run) or load the kernels of ``algorithms`` (default: every compiled
-    filter) for ``paths`` (``"batch"``: whole recordings, ``"live"``: frame by frame). Once per
-    process, filter and path; thread-safe. Returns the seconds it took (0 when nothing was
-    left to do)."""
+    """Compile (first run) or load the kernels of ``algorithms`` (default: every filter), once
+    per process and filter; thread-safe. Returns the seconds it took (0 when nothing was left
+    to do)."""
     if algorithms is None:
-        algorithms = COMPILED_FILTERS
+        algorithms = FILTERS
     elif isinstance(algorithms, str):
         algorithms = (algorithms,)
-    todo = [(a, p) for a in algorithms if a in COMPILED_FILTERS for p in PATHS
-            if p in paths and (a, p) not in _ready]
+    todo = [a for a in algorithms if a not in _ready]
     if not todo:  # the common case, without taking the lock
         return 0.0
     with _lock:
-        todo = [key for key in todo if key not in _ready]
+        todo = [a for a in todo if a not in _ready]
         if not todo:
             return 0.0
-        _ready.update(todo)  # the processors built and run below must not warm up again
-        from bpms.filter.processor import BodyPoseProcessor
-        from bpms.io.options import Options
-
         t0 = time.monotonic()
-        raw = _frames()
-        errors = np.zeros((len(raw), N_IMUS, 3), dtype=bool)
-        errors[1, 0, 1] = True  # one failed magnetometer: the hold path runs too
         progress = Progress(len(todo), stream, notice_after_s)
         try:
-            for algorithm, path in todo:
-                options = Options()
-                options.filter.algorithm = algorithm
-                processor = BodyPoseProcessor(options=options)
-                progress.step(f"{algorithm}, {'whole recordings' if path == 'batch' else 'live'}")
-                if path == "batch":
-                    processor.process(raw)
-                    last = processor.process(raw, errors)
-                else:
-                    for k in range(len(raw)):
-                        processor.step(raw[k])
-                        processor.step(raw[k], errors[k])
-                    processor.step_wire(encode_frame(raw[0]))  # bpms.filter.live_frame
-                    processor.reset_zero()
-                    last = processor.step(raw[0])
-                # the body's kernels (bpms.filter.body_kernels)
-                _ = (last.euler_output, last.joint_angles, last.joint_positions)
+            for algorithm in todo:
+                progress.step(algorithm)
+                _run_kernels(algorithm)
+                _ready.add(algorithm)
                 progress.advance()
-        except BaseException:
-            _ready.difference_update(todo)
-            raise
         finally:
             progress.close()
         return time.monotonic() - t0
+
+
+def _run_kernels(algorithm: str) -> None:
+    """Run ``algorithm``'s bank and the disturbance indicators on a few synthetic frames of a
+    still, level suit, with a failed magnetometer and a reset (the argument types are those of
+    every later call, so nothing compiles again)."""
+    from bpms.filter.algorithms import make_bank
+    from bpms.filter.disturbance import DisturbanceTracker
+    from bpms.filter.guard import StateGuard, guarded_process
+    from bpms.io.options import FilterOptions
+
+    n = 4
+    gravity = np.full(N_IMUS, 256.0)
+    acc = np.zeros((n, N_IMUS, 3))
+    acc[..., 2] = 256.0
+    mag = np.zeros((n, N_IMUS, 3))
+    mag[..., 0], mag[..., 2] = 30.0, 60.0
+    gyr = np.zeros((n, N_IMUS, 3))
+    errors = np.zeros((n, N_IMUS, 3), np.bool_)
+    errors[1, 0, 1] = True
+    resets = np.zeros((n, N_IMUS), np.bool_)
+    resets[2, 3] = True
+    R = None
+    if algorithm != "vqf":  # the vqf package's own code needs no compiling
+        bank = make_bank(gravity, FilterOptions(algorithm=algorithm))
+        terms = {"store_terms": True} if algorithm == "mahony" else {}
+        R = bank.process(acc, mag, gyr, errors, resets, **terms).R
+        guarded_process(bank, StateGuard(N_IMUS), acc, mag, gyr, errors, **terms)
+    DisturbanceTracker(gravity, 0.02).update(acc, mag, gyr, R, errors)

@@ -326,9 +326,9 @@ def _serve_stdin() -> int:
 
 
 def _play_file(path: str, rate_hz: float, imu: int | None, mode: str) -> int:
-    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.filter.door import process_file
 
-    result = BodyPoseProcessor().process_file(path)
+    result = process_file(path)
     scene = BodyScene(title=f"BPMS 3D body view: {os.path.basename(path)}")
     views = [SingleIMUView(imu, mode)] if imu is not None else []
     play(result, scene, imu_views=views, rate_hz=rate_hz)

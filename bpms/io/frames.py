@@ -69,6 +69,9 @@ assert _CLUSTER_DTYPE.itemsize == CLUSTER_SIZE
 assert FRAME_DTYPE.itemsize == FRAME_SIZE
 
 _ERROR_BITS = np.arange(IMUS_PER_CLUSTER * N_SENSORS, dtype=np.uint16)
+#: ``_FLAGS_OF_WORD[w]``: the 9 flags (bit ``3·slot + sensor``) of error word ``w`` (bits 9–15
+#: are zero by definition and ignored), so decoding a word is one table look-up.
+_FLAGS_OF_WORD = ((np.arange(1 << _ERROR_BITS.size)[:, None] >> _ERROR_BITS) & 1).astype(bool)
 
 
 class FrameError(ValueError):
@@ -92,9 +95,9 @@ class DecodedFrames:
 
 def error_words_to_flags(words: np.ndarray) -> np.ndarray:
     """Cluster error words ``[..., 6]`` (uint16) → bool flags ``[..., 18, 3]``."""
-    words = np.asarray(words, dtype=np.uint16)
-    bits = (words[..., None] >> _ERROR_BITS) & 1
-    return bits.astype(bool).reshape(*words.shape[:-1], N_IMUS, N_SENSORS)
+    words = np.asarray(words)
+    flags = _FLAGS_OF_WORD[words & (len(_FLAGS_OF_WORD) - 1)]
+    return flags.reshape(*words.shape[:-1], N_IMUS, N_SENSORS)
 
 
 def flags_to_error_words(flags: np.ndarray) -> np.ndarray:
@@ -164,12 +167,10 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
         if bad.size:
             raise FrameError(f"{bad.size} frame(s) lack the $#/#$ markers, first at index "
                              f"{bad[0]}")
-    # the frame as big-endian 16-bit words: [marker, 6 × (27 counts, error word), marker]
-    words = np.frombuffer(buf, dtype=">i2").reshape(n, FRAME_SIZE // 2)[:, 1:-1]
-    clusters = words.reshape(n, N_CLUSTERS, CLUSTER_SIZE // 2)
-    raw = clusters[:, :, :-1].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
-    errors = error_words_to_flags(clusters[:, :, -1].view(">u2"))
-    return DecodedFrames(raw=raw, errors=errors)
+    clusters = np.frombuffer(buf, dtype=FRAME_DTYPE)["clusters"]
+    raw = clusters["imu"].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
+    errors = _FLAGS_OF_WORD[clusters["error"] & (len(_FLAGS_OF_WORD) - 1)]
+    return DecodedFrames(raw=raw, errors=errors.reshape(n, N_IMUS, N_SENSORS))
 
 
 def decode_frame(frame: bytes | bytearray | memoryview) -> DecodedFrames:

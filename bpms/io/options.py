@@ -174,7 +174,8 @@ class FilterOptions:
         10.0, "observer: a steady new magnetic field is accepted after, s")
     vqf_tau_acc_s: float = _opt(3.0, "vqf: accelerometer low-pass time constant, s")
     vqf_tau_mag_s: float = _opt(9.0, "vqf: magnetometer correction time constant, s")
-    # adaptive (bpms/filter/adaptive_observer.py; k_bias, tau_acc, mag_new_time: observer_*)
+    # adaptive (the observer of bpms/filter/observer.py in its adaptive setting; k_bias,
+    # tau_acc, mag_new_time: observer_*)
     adaptive_k_incl: float = _opt(0.5, "adaptive: inclination correction gain, 1/s")
     adaptive_k_head: float = _opt(0.2, "adaptive: heading correction gain, 1/s")
     adaptive_mag_norm_th: float = _opt(

@@ -92,8 +92,10 @@ class RawRecording:
 
     @property
     def duration_s(self) -> float:
-        """Nominal duration at 50 Hz (frames × 0.02 s)."""
-        return len(self) * 0.02
+        """Nominal duration at 50 Hz (the stream time of the frame after the last), s."""
+        from bpms.io.timebase import stream_time
+
+        return stream_time(len(self))
 
 
 def _header_bytes(header: dict[str, Any]) -> bytes:

@@ -21,6 +21,7 @@ import time
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE
 from bpms.io.rawfile import RawRecording
+from bpms.io.timebase import frame_at, stream_time
 
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, None)  # None: as fast as possible
 
@@ -42,7 +43,7 @@ class ReplaySource:
         self._anchor = (time.monotonic(), 0)  # (monotonic time, frame index) of the pacing origin
         self._steps = 0
         self._discontinuity = True
-        self._preroll_frames = round(preroll_s / FRAME_PERIOD_S)
+        self._preroll_frames = frame_at(preroll_s)
         self._batch = batch
         self._closed = False
 
@@ -57,7 +58,7 @@ class ReplaySource:
 
     @property
     def position_s(self) -> float:
-        return self._pos * FRAME_PERIOD_S
+        return stream_time(self._pos)
 
     @property
     def playing(self) -> bool:
@@ -109,7 +110,7 @@ class ReplaySource:
     def seek(self, index: int | None = None, *, seconds: float | None = None) -> None:
         """Jump to frame ``index`` (or ``seconds`` into the file), clamped to the file."""
         if seconds is not None:
-            index = round(seconds / FRAME_PERIOD_S)
+            index = frame_at(seconds)
         with self._cond:
             self._pos = max(0, min(int(index or 0), len(self)))
             self._discontinuity = True

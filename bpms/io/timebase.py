@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from bpms.io.frames import FRAME_PERIOD_S
+
 
 def stream_times(first_index: int, n: int, dt: float) -> np.ndarray:
     """``[n]`` s: stream time of frames ``first_index .. first_index + n - 1``."""
@@ -24,3 +26,13 @@ def stream_times(first_index: int, n: int, dt: float) -> np.ndarray:
 def stream_time_of(indices: np.ndarray, dt: float) -> np.ndarray:
     """Stream time (s) of the given frame indices (negative indices count as 0)."""
     return np.maximum(np.asarray(indices, dtype=np.float64), 0.0) * float(dt)
+
+
+def stream_time(index: int, dt: float = FRAME_PERIOD_S) -> float:
+    """Stream time (s) of frame ``index`` (a negative index counts as 0)."""
+    return max(int(index), 0) * float(dt)
+
+
+def frame_at(seconds: float, dt: float = FRAME_PERIOD_S) -> int:
+    """The frame index whose stream time is nearest ``seconds``."""
+    return round(float(seconds) / float(dt))

@@ -25,18 +25,18 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bpms.io.events import FrameEvent, FrameSource, SourceStatus
+from bpms.io.events import FrameEvent, FrameSource
 from bpms.io.filtered_file.writer import FilteredWriter
-from bpms.io.frames import FRAME_PERIOD_S, decode_frames
+from bpms.io.frames import decode_frames
 from bpms.io.naming import RecordingNamer
 from bpms.io.options import Options
 from bpms.io.rawfile import RawWriter, new_header
+from bpms.io.timebase import stream_time
 from bpms.io.udp.auth import shared_key
 from bpms.io.udp.sender import UdpForwarder
 from bpms.pipeline.fanout import Fanout, Subscription
@@ -44,103 +44,25 @@ from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
     MAX_BACKLOG_FRAMES,
     PipelineHealth,
-    health_text,
     write_trailing_holes,
     write_with_holes,
 )
 from bpms.pipeline.rate import RateMeter
 from bpms.pipeline.raw_logger import RawLogger
+from bpms.pipeline.sample import PoseSample
 from bpms.pipeline.settings_queue import SettingsQueue
+from bpms.pipeline.status import LiveStatus, RecordingStatus
 from bpms.pipeline.steady import prepare_live_path
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
     from bpms.filter.processor import BodyPoseProcessor
+    from bpms.filter.result import Result
 
 log = logging.getLogger(__name__)
 _STOP = object()
 #: Processed frames queued before they are written to the filtered file (0.2 s at 50 Hz; the
 #: file is flushed once per flush interval anyway).
 FILTERED_BATCH = 10
-
-
-@dataclass(frozen=True, slots=True)
-class PoseSample:
-    """One processed frame. Angles rad, lengths m, frames as docs/filter.md, docs/body-model.md.
-
-    index: frame index in the source; host_time: s since the epoch (receive time);
-    raw ``[18, 9]`` int16 counts; errors ``[18, 3]`` bool; euler ``[18, 3]`` filter roll,
-    pitch, yaw; R ``[18, 3, 3]`` filter DCMs; C ``[18, 3, 3]`` segment orientations after Reset
-    Zero (NaN before the first); joint_angles ``[28]``; joint_positions ``[21, 3]`` (NED, lowest
-    foot on the ground); latency_s: host receive → sample ready.
-    """
-
-    index: int
-    host_time: float
-    frame: bytes
-    raw: np.ndarray
-    errors: np.ndarray
-    euler: np.ndarray
-    R: np.ndarray
-    C: np.ndarray
-    joint_angles: np.ndarray
-    joint_positions: np.ndarray
-    latency_s: float
-    #: ``[18, 3]`` the per-IMU angles to show / write / stream (Result.euler_output: segment
-    #: angles after Reset Zero when the corrected output is on, else = ``euler``)
-    euler_output: np.ndarray | None = None
-    #: ``[18]`` bool: the state guard re-initialised that IMU in this frame
-    reinitialised: np.ndarray | None = None
-    arrival: float = 0.0  # time.perf_counter() when the host took the frame in
-    #: ``[18]`` bool: magnetometer / acceleration disturbed (bpms.filter.disturbance)
-    mag_disturbed: np.ndarray | None = None
-    acc_disturbed: np.ndarray | None = None
-    #: ``[18, 6]`` the filter's estimates: gyro bias x, y, z (rad/s, sensor axes) and body
-    #: acceleration north, east, down (m/s²); NaN where the filter has none
-    estimates: np.ndarray | None = None
-
-
-@dataclass
-class RecordingStatus:
-    raw_path: Path | None = None
-    filtered_path: Path | None = None
-    raw_records: int = 0  # handed to the file
-    raw_bytes: int = 0
-    raw_received: int = 0  # frames given to the raw logger
-    raw_on_disk: int = 0  # records known to be on the disk (at the end: what a reader finds)
-    raw_lost: int = 0  # at the end: received but not on the disk
-    filtered_rows: int = 0
-    error: str | None = None  # a write error: shown (in red) until logging stops
-
-
-@dataclass
-class LiveStatus:
-    """A snapshot for status lines and the GUI (all counts since the session started)."""
-
-    source: SourceStatus
-    running: bool
-    rate_hz: float
-    frames: int
-    processed: int
-    error_bits: int
-    dropped: int  # display_skipped + not_filtered (both kinds of loss; see below)
-    processing_backlog: int  # frames waiting for the processing thread
-    recording: RecordingStatus | None
-    forwarding: list[str] = field(default_factory=list)
-    forwarded: int = 0
-    forward_errors: int = 0
-    latency_p99_ms: float = 0.0
-    events: list[str] = field(default_factory=list)  # recent notable events, newest last
-    reinit_count: int = 0  # filter re-initialisations by the state guard (all IMUs)
-    # bpms.pipeline.health: frames received (recorded raw) but never filtered (holes in the
-    # filtered file, each marked), and processed samples a slow display did not take.
-    not_filtered: int = 0
-    display_skipped: int = 0
-    holes_marked: int = 0
-
-    def health_line(self) -> str:
-        """``not filtered N  backlog B  display skipped M`` (capitals when frames are lost)."""
-        return health_text(self.not_filtered, self.processing_backlog, self.display_skipped)
-
 
 
 class LiveSession:
@@ -192,8 +114,8 @@ class LiveSession:
         self._raw_logger: RawLogger | None = None
         self._filtered: FilteredWriter | None = None
         self._filtered_flushed = 0.0
-        # processed rows not yet written: (their frame events, per-group arrays)
-        self._pending: list[tuple[list[FrameEvent], dict[str, np.ndarray]]] = []
+        # processed rows not yet written: (their frame events, their Result)
+        self._pending: list[tuple[list[FrameEvent], Result]] = []
         self._pending_frames = 0
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
@@ -393,7 +315,7 @@ class LiveSession:
             for event in events:
                 self._frames += 1
                 if forwarder is not None:
-                    forwarder.send_frame(event.frame, max(event.index, 0) * FRAME_PERIOD_S)
+                    forwarder.send_frame(event.frame, stream_time(event.index))
                 if logger is not None:
                     logger.queue.put(event)
                 self._enqueue(event)
@@ -475,23 +397,11 @@ class LiveSession:
             else:
                 proc.reset_filter()
             self.markers.publish(("filter re-initialised", head.index))
-        if len(events) == 1:  # live at 50 Hz: decoded and filtered in one call
-            result, raw, errors = proc.step_wire(events[0].frame)
-        else:
-            decoded = decode_frames(b"".join(e.frame for e in events))
-            raw, errors = decoded.raw, decoded.errors
-            result = proc.process(raw, errors)
-        angles = result.joint_angles
-        positions = result.joint_positions
+        # one frame live at 50 Hz, several when behind: the same call
+        result, raw, errors = proc.step_wire(b"".join(e.frame for e in events))
         done = time.perf_counter()
-        output, dist = result.euler_output, result.disturbance
-        estimates = result.estimates
         samples = [PoseSample(e.index, e.host_time, e.frame, raw[k], errors[k],
-                              result.euler[k], result.R[k], result.C[k], angles[k],
-                              positions[k], done - e.arrival, output[k],
-                              result.reinitialised[k], e.arrival,
-                              *((dist.mag[k], dist.acc[k]) if dist is not None
-                                else (None, None)), estimates[k])
+                              latency_s=done - e.arrival, arrival=e.arrival, result=result, k=k)
                    for k, e in enumerate(events)]
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
@@ -501,15 +411,7 @@ class LiveSession:
         self._error_bits += int(errors.sum())
         forwarder = self._forwarder
         if forwarder is not None:
-            quats = result.segment_quaternions.astype(np.float32)
-            finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
-                      & np.isfinite(positions).all(axis=(1, 2)))
-            for k, e in enumerate(events):
-                if finite[k]:
-                    forwarder.send_pose(quats[k], angles[k].astype(np.float32),
-                                        max(e.index, 0) * FRAME_PERIOD_S, positions[k],
-                                        result.convention,
-                                        None if dist is None else (dist.mag[k], dist.acc[k]))
+            self._forward_poses(forwarder, events, result)
         with self._lock:
             self._latencies.extend(s.latency_s for s in samples)
             if len(self._latencies) > 5000:
@@ -517,6 +419,20 @@ class LiveSession:
         for sample in samples:
             self._fanout.publish(sample)
         self._log_filtered(events, result)  # after the pose went out: off the latency path
+
+    @staticmethod
+    def _forward_poses(forwarder: UdpForwarder, events: list[FrameEvent], result: Result
+                       ) -> None:
+        """One pose datagram per frame whose pose is complete (docs/udp.md)."""
+        quats = result.segment_quaternions.astype(np.float32)
+        angles, positions, dist = result.joint_angles, result.joint_positions, result.disturbance
+        finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
+                  & np.isfinite(positions).all(axis=(1, 2)))
+        for k, e in enumerate(events):
+            if finite[k]:
+                forwarder.send_pose(quats[k], angles[k].astype(np.float32),
+                                    stream_time(e.index), positions[k], result.convention,
+                                    None if dist is None else (dist.mag[k], dist.acc[k]))
 
     def _note_reinit(self, result) -> None:
         """State-guard re-initialisations are events (logged, in the status): every one is
@@ -542,7 +458,7 @@ class LiveSession:
             self._holes = []
             self.health.take_holes()
             return
-        self._pending.append((events, _filtered_arrays()(result, writer.groups)))
+        self._pending.append((events, result))
         self._pending_frames += len(events)
         if self._pending_frames >= FILTERED_BATCH:
             self._write_filtered()
@@ -559,10 +475,9 @@ class LiveSession:
         events = [e for batch, _ in pending for e in batch]
         indices = np.array([e.index for e in events], dtype=np.int64)
         host_times = np.array([e.host_time for e in events])
-        if len(pending) == 1:
-            arrays = pending[0][1]
-        else:
-            arrays = {g: np.concatenate([p[1][g] for p in pending]) for g in pending[0][1]}
+        # the rows' numbers computed once for the whole batch (the same functions as per frame)
+        concat, filtered_arrays = _filtered_rows()
+        arrays = filtered_arrays(concat([r for _, r in pending]), writer.groups)
         try:
             rows, marked, self._holes = write_with_holes(
                 writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
@@ -579,12 +494,14 @@ class LiveSession:
 
 
 @functools.cache
-def _filtered_arrays() -> Callable:
-    """:func:`bpms.filter.door.filtered_arrays`, imported at the first filtered row (the
-    filter layer is loaded with the processor, not with the GUI's start-up window)."""
+def _filtered_rows() -> tuple[Callable, Callable]:
+    """(:meth:`bpms.filter.result.Result.concat`, :func:`bpms.filter.door.filtered_arrays`),
+    imported at the first filtered row (the filter layer is loaded with the processor, not
+    with the GUI's start-up window)."""
     from bpms.filter.door import filtered_arrays
+    from bpms.filter.result import Result
 
-    return filtered_arrays
+    return Result.concat, filtered_arrays
 
 
 def _options_dict(options: Options) -> dict:

@@ -50,10 +50,8 @@ def warm_up(processor) -> float:
     frame = level_frame(processor.table)
     errors = np.zeros((frame.shape[0], 3), dtype=bool)
     batch = clone.process(np.repeat(frame[None], 4, axis=0), np.repeat(errors[None], 4, 0))
-    for _ in range(3):
-        one = clone.step(frame, errors)
     wire = encode_frame(frame, errors)
-    for _ in range(3):  # frames as they come off the wire (bpms.filter.live_frame)
+    for _ in range(3):  # frames as they come off the wire
         one = clone.step_wire(wire)[0]
     for result in (batch, one):
         _ = result.joint_angles, result.joint_positions

@@ -44,7 +44,7 @@ class MvnBridge:
 
         from bpms.filter.joints import convert
         from bpms.filter.rotations import dcm_to_quaternion
-        from bpms.io.frames import FRAME_PERIOD_S
+        from bpms.io.timebase import stream_time
 
         while True:
             stopping = self._stop.is_set()
@@ -54,10 +54,9 @@ class MvnBridge:
                 if not np.isfinite(s.C).all():
                     continue
                 try:
-                    self.sender.send(max(s.index, 0), round(max(s.index, 0) * FRAME_PERIOD_S
-                                                            * 1000), dcm_to_quaternion(s.C),
-                                     s.joint_positions, convert(s.joint_angles,
-                                                                self.convention, "isb"))
+                    self.sender.send(max(s.index, 0), round(stream_time(s.index) * 1000),
+                                     dcm_to_quaternion(s.C), s.joint_positions,
+                                     convert(s.joint_angles, self.convention, "isb"))
                 except Exception as exc:  # never take the session down
                     log.warning("MVN send failed: %s", exc)
             if stopping and not batch:

@@ -1,0 +1,227 @@
+"""The outputs of N filtered frames: :class:`Result` (angles rad, lengths m; docs/units.md).
+
+The processor builds every Result (:meth:`bpms.filter.processor.BodyPoseProcessor.process`);
+the numbers derived from its arrays (segment Euler angles, joint angles, joint positions,
+quaternions, the estimates) are computed when first read, for all N frames at once, by the
+vectorised functions of :mod:`bpms.filter.pose`, :mod:`bpms.filter.joints`,
+:mod:`bpms.filter.body_model` and :mod:`bpms.filter.rotations` — the same functions for a
+live frame (N = 1) and a whole recording.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from bpms.filter.disturbance import Disturbance
+from bpms.filter.pose import Zero, body_outputs, segment_angles
+from bpms.filter.rotations import dcm_to_quaternion
+from bpms.io.frames import N_IMUS
+from bpms.io.options import BodyOptions
+
+#: Result fields that are running totals (the last part's value stands for the whole stream).
+_RUNNING_FIELDS = frozenset({"held_count", "reinit_count"})
+
+
+@dataclass
+class Result:
+    """Outputs of N frames. Angles in radians, lengths in metres, frames: docs/units.md.
+
+    t: ``[N]`` s since the stream started, on the fixed filter clock (frame index × dt);
+    R: ``[N, 18, 3, 3]`` DCM filter frame → NED; euler (= :attr:`euler_sensor`):
+    ``[N, 18, 3]`` (roll, pitch, yaw) of R, the uncorrected sensor angles;
+    C: ``[N, 18, 3, 3]`` segment orientations after Reset Zero (NaN before the first capture);
+    :attr:`euler_segment` their Euler angles; :attr:`euler_output` the per-IMU angles to show,
+    write and stream (segment angles when ``corrected``, docs/filter.md);
+    joint_angles: ``[N, 28]``; joint_positions: ``[N, 21, 3]``; NaN where an IMU involved is
+    not initialised. held_count: ``[18, 3]`` filter steps so far that used a held value.
+    reinitialised: ``[N, 18]`` bool, the state guard re-initialised that IMU at that frame
+    (its outputs are NaN in that frame only); reinit_count: ``[18]`` re-initialisations so far.
+    corrected: ``[N]`` bool, :attr:`euler_output` holds segment angles at that frame (the
+    corrected output is switched on and a Reset Zero capture exists).
+    calibration_source / options_source: which calibration and options were used (whole
+    recordings opened through :mod:`bpms.filter.door`).
+    """
+
+    t: np.ndarray
+    R: np.ndarray
+    euler: np.ndarray
+    C: np.ndarray
+    body: BodyOptions = field(repr=False, default_factory=BodyOptions)
+    held_count: np.ndarray = field(default_factory=lambda: np.zeros((N_IMUS, 3), np.int64))
+    zeros: list[Zero] = field(default_factory=list, repr=False)
+    problems: list[str] = field(default_factory=list)
+    #: ``[N, 18, 3]`` rad/s gyro-bias estimate in body (filter-frame) axes: observer,
+    #: adaptive and vqf their bias estimate, mahony minus its integral term ωI
+    gyro_bias: np.ndarray | None = field(default=None, repr=False)
+    #: ``[N, 18, 3]`` m/s² body-acceleration estimate (NED) of observer/adaptive, else None
+    body_acc: np.ndarray | None = field(default=None, repr=False)
+    #: per-frame disturbance indicators (:class:`bpms.filter.disturbance.Disturbance`)
+    disturbance: Disturbance | None = field(default=None, repr=False)
+    reinitialised: np.ndarray | None = field(default=None, repr=False)
+    reinit_count: np.ndarray = field(default_factory=lambda: np.zeros(N_IMUS, np.int64))
+    corrected: np.ndarray | None = field(default=None, repr=False)
+
+    convention: str = "isb"  # joint-angle signs, bpms.filter.joints.CONVENTIONS
+    #: Where the calibration / options came from (set by the one door, bpms.filter.door).
+    calibration_source: str = field(default="", repr=False)
+    options_source: str = field(default="", repr=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.t)
+        if self.reinitialised is None:
+            self.reinitialised = np.zeros((n, N_IMUS), dtype=np.bool_)
+        if self.corrected is None:
+            self.corrected = np.zeros(n, dtype=np.bool_)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @classmethod
+    def empty(cls, body: BodyOptions, convention: str) -> Result:
+        """A Result of no frames."""
+        z = np.zeros((0, N_IMUS, 3, 3))
+        return cls(t=np.zeros(0), R=z, euler=np.zeros((0, N_IMUS, 3)), C=z.copy(), body=body,
+                   convention=convention)
+
+    @classmethod
+    def allocate(cls, n: int, like: Result) -> Result:
+        """A Result of ``n`` frames with the fields ``like`` carries (per-frame shapes and
+        dtypes), its per-frame arrays allocated and not yet filled: :meth:`put` fills them
+        part by part, so a whole recording costs its arrays and one part at a time."""
+        values = {}
+        for f in dataclasses.fields(cls):
+            v = getattr(like, f.name)
+            if isinstance(v, np.ndarray) and f.name not in _RUNNING_FIELDS:
+                values[f.name] = np.empty((n, *v.shape[1:]), v.dtype)
+            elif isinstance(v, Disturbance):
+                values[f.name] = Disturbance(**{
+                    g.name: np.empty((n, *getattr(v, g.name).shape[1:]),
+                                     getattr(v, g.name).dtype)
+                    for g in dataclasses.fields(v)})
+            elif isinstance(v, list):
+                values[f.name] = []
+            else:
+                values[f.name] = v
+        return cls(**values)
+
+    def put(self, start: int, part: Result) -> None:
+        """Copy ``part``'s frames into frames ``start …`` of this Result (made by
+        :meth:`allocate`); running counters from ``part``, its lists appended."""
+        stop = start + len(part)
+        for f in dataclasses.fields(self):
+            mine, theirs = getattr(self, f.name), getattr(part, f.name)
+            if f.name in _RUNNING_FIELDS:
+                setattr(self, f.name, theirs)
+            elif isinstance(mine, np.ndarray):
+                mine[start:stop] = theirs
+            elif isinstance(mine, Disturbance):
+                for g in dataclasses.fields(mine):
+                    getattr(mine, g.name)[start:stop] = getattr(theirs, g.name)
+            elif isinstance(mine, list):
+                mine.extend(theirs)
+
+    def head(self, n: int) -> Result:
+        """The first ``n`` frames (views of this Result's arrays)."""
+        values = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray) and f.name not in _RUNNING_FIELDS:
+                values[f.name] = v[:n]
+            elif isinstance(v, Disturbance):
+                values[f.name] = Disturbance(**{g.name: getattr(v, g.name)[:n]
+                                                for g in dataclasses.fields(v)})
+            else:
+                values[f.name] = v
+        return Result(**values)
+
+    @staticmethod
+    def concat(parts: list[Result]) -> Result:
+        """One Result of consecutive parts of a stream: per-frame arrays (and the disturbance
+        record's) joined, running counters and single values from the last part, lists of
+        every part (zeros, problems)."""
+        if len(parts) == 1:
+            return parts[0]
+        last = parts[-1]
+        values = {}
+        for f in dataclasses.fields(Result):
+            items = [getattr(p, f.name) for p in parts]
+            if f.name in _RUNNING_FIELDS or not isinstance(items[0], np.ndarray | list
+                                                             | Disturbance):
+                values[f.name] = getattr(last, f.name)
+            elif any(v is None for v in items):
+                values[f.name] = None
+            elif isinstance(items[0], list):
+                values[f.name] = [x for v in items for x in v]
+            elif isinstance(items[0], Disturbance):
+                values[f.name] = dataclasses.replace(items[0], **{
+                    g.name: np.concatenate([getattr(v, g.name) for v in items])
+                    for g in dataclasses.fields(items[0])})
+            else:
+                values[f.name] = np.concatenate(items)
+        return Result(**values)
+
+    @property
+    def euler_sensor(self) -> np.ndarray:
+        """``[N, 18, 3]`` rad: roll, pitch, yaw of each IMU's filter DCM ``R`` (sensor frame
+        → NED), uncorrected by Reset Zero. The same array as :attr:`euler`."""
+        return self.euler
+
+    @cached_property
+    def euler_segment(self) -> np.ndarray:
+        """``[N, 18, 3]`` rad: roll, pitch, yaw of the segment orientations ``C`` (relative to
+        the calibration pose, heading as ``pose.heading_reference``); NaN before Reset Zero."""
+        return segment_angles(self.C)
+
+    @cached_property
+    def euler_output(self) -> np.ndarray:
+        """``[N, 18, 3]`` rad: the per-IMU angles the table, plots, filtered file and streams
+        give: :attr:`euler_segment` at frames where ``corrected``, else :attr:`euler_sensor`."""
+        return np.where(self.corrected[:, None, None], self.euler_segment, self.euler)
+
+    @cached_property
+    def estimates(self) -> np.ndarray:
+        """``[N, 18, 6]``: the filter's gyro-bias estimate x, y, z (rad/s, body axes) then its
+        body-acceleration estimate north, east, down (m/s²); NaN for what the filter does not
+        estimate."""
+        out = np.full((len(self), N_IMUS, 6), np.nan)
+        if self.gyro_bias is not None:
+            out[..., :3] = self.gyro_bias
+        if self.body_acc is not None:
+            out[..., 3:] = self.body_acc
+        return out
+
+    @cached_property
+    def _body(self) -> tuple[np.ndarray, np.ndarray]:
+        return body_outputs(self.C, self.body, self.convention)
+
+    @property
+    def joint_angles(self) -> np.ndarray:
+        """``[N, 28]`` rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`."""
+        return self._body[0]
+
+    @property
+    def joint_positions(self) -> np.ndarray:
+        """``[N, 21, 3]`` m, order :data:`bpms.filter.body_model.POINT_NAMES`."""
+        return self._body[1]
+
+    @cached_property
+    def quaternions(self) -> np.ndarray:
+        """``[N, 18, 4]`` (w, x, y, z) of the filter DCMs ``R``."""
+        return _quaternions(self.R)
+
+    @cached_property
+    def segment_quaternions(self) -> np.ndarray:
+        """``[N, 18, 4]`` (w, x, y, z) of the segment orientations ``C``."""
+        return _quaternions(self.C)
+
+
+def _quaternions(R: np.ndarray) -> np.ndarray:
+    ok = np.isfinite(R).all(axis=(-1, -2))
+    out = np.full((*R.shape[:-2], 4), np.nan)
+    if ok.any():
+        out[ok] = dcm_to_quaternion(R[ok])
+    return out
