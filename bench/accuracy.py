@@ -148,9 +148,9 @@ class HingeFigures:
 
 
 def hinge_figures(algorithm: str, seed: int = 0) -> HingeFigures:
-    """The constraint as a stage after the bank (flags from :mod:`bpms.filter.flags`) on the
+    """The constraint as a stage after the bank (flags from :mod:`bpms.filter.disturbance`) on the
     script with and without the default magnet (right forearm, IMU 5; elbow 4 → 5)."""
-    from bpms.filter.flags import FlagTracker
+    from bpms.filter.disturbance import DisturbanceTracker
     from bpms.filter.hinge import HingeConstraint
     from bpms.io.options import Options
 
@@ -162,7 +162,7 @@ def hinge_figures(algorithm: str, seed: int = 0) -> HingeFigures:
         proc = BodyPoseProcessor(rec.calibration, options)
         res = proc.process(rec.raw, rec.errors)
         acc, mag, gyr = proc.calibrate(rec.raw)
-        flags = FlagTracker(proc.sensor_calibration.gravity, options.filter.dt).update(
+        flags = DisturbanceTracker(proc.sensor_calibration.gravity, options.filter.dt).update(
             acc, mag, gyr, rec.errors)
         R2, _ = HingeConstraint(options.filter.dt).apply(res.R, res.C, gyr, flags.mag,
                                                         flags.mag_heading_deg)
@@ -209,10 +209,12 @@ def six_d_drift(minutes: float = 10.0, seed: int = 0, bias_dps: float = 0.2
     on ``minutes`` of the looped script with a seeded gyro bias of ±``bias_dps`` per axis."""
     from vqf import VQF
 
-    from bpms.filter.adaptive_observer import AdaptiveObserver
+    from bpms.filter.algorithms import adaptive_gains
+    from bpms.filter.observer import Observer
     from bpms.filter.rotations import quaternion_to_dcm
     from bpms.filter.vqf_filter import enu_to_ned
     from bpms.firmware.sim.sensors import SensorModel
+    from bpms.io.options import FilterOptions
 
     rec = simulate(seed=seed, script=looped(minutes),
                    model=SensorModel(gyro_bias_axis_dps=bias_dps))
@@ -221,7 +223,7 @@ def six_d_drift(minutes: float = 10.0, seed: int = 0, bias_dps: float = 0.2
     f = -acc * 9.81 / proc.sensor_calibration.gravity[None, :, None]
     field = np.zeros_like(f)
     field[0] = (1.0, 0.0, 0.0)  # the 6D mode: a field that carries no heading
-    R = {"adaptive 6D": AdaptiveObserver(18).process(f, field, gyr).R}
+    R = {"adaptive 6D": Observer(18, adaptive_gains(FilterOptions())).process(f, field, gyr).R}
     q = np.stack([VQF(0.02).updateBatch(np.ascontiguousarray(gyr[:, i]),
                                         np.ascontiguousarray(f[:, i]),
                                         np.ascontiguousarray(field[:, i]))["quat6D"]

@@ -363,7 +363,7 @@ def run_6d(name: str, trial: Trial) -> np.ndarray:
         return out["quat6D"]
     field = np.zeros_like(trial.mag)
     field[0] = (1.0, 0.0, 0.0)
-    obs = AdaptiveObserver(1, adaptive_gains(FilterOptions(dt=1.0 / trial.rate)))
+    obs = Observer(1, adaptive_gains(FilterOptions(dt=1.0 / trial.rate)))
     return _ned_to_enu(obs.process(trial.acc[:, None], field[:, None], trial.gyr[:, None],
                                    store_q=True).q[:, 0])
 

@@ -9,10 +9,10 @@ units of the earth's field = 100, directions north, east, west, down and between
 per seed without any magnet). Truth per frame and IMU, from the simulator's own field and
 accelerations (nothing from the code under test):
 
-- *mag*: ``|m_true − m_earth| / |m_earth|`` > ``FlagSettings.mag_th`` (0.10), with ``m_true``
+- *mag*: ``|m_true − m_earth| / |m_earth|`` > ``DisturbanceSettings.mag_th`` (0.10), with ``m_true``
   the simulated field at the IMU (earth's plus the magnets'), both in world axes;
-- *acc*: the true linear acceleration's magnitude, RMS over ``FlagSettings.tau_acc_s``
-  (0.25 s, exponential, causal), > ``FlagSettings.acc_th_g`` (0.2 g).
+- *acc*: the true linear acceleration's magnitude, RMS over ``DisturbanceSettings.tau_acc_s``
+  (0.25 s, exponential, causal), > ``DisturbanceSettings.acc_th_g`` (0.2 g).
 
 Scored: every frame from 5 s on (the field reference is learnt in the still start) × every IMU.
 The thresholds were fixed before :data:`MEASURE` was first run; the detector's design was
@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.flags import Flags, FlagSettings, FlagTracker
+from bpms.filter.disturbance import Disturbance, DisturbanceSettings, DisturbanceTracker
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.motion import Move, Step, default_script, generate_motion
 from bpms.firmware.sim.session import Recording, magnet_near, simulate
@@ -122,11 +122,11 @@ def recording(seed: int, magnet: Magnet | None, steps: list[Step] | None = None)
     return simulate(seed=seed, script=steps, mag_disturbance=True, disturbances=[dist])
 
 
-def sim_truth(rec: Recording, settings: FlagSettings | None = None
+def sim_truth(rec: Recording, settings: DisturbanceSettings | None = None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(mag truth, acc truth ``[N, 18]`` bool, field deviation (fraction), RMS linear
     acceleration (g)) of a simulated recording, by the rule of the module docstring."""
-    s = settings or FlagSettings()
+    s = settings or DisturbanceSettings()
     world = np.einsum("nkij,nkj->nki", rec.truth.R, rec.truth.sensors.mag)
     dip = np.deg2rad(rec.model.dip_deg)
     earth = 100.0 * np.array([np.cos(dip), 0.0, np.sin(dip)])
@@ -142,11 +142,11 @@ def sim_truth(rec: Recording, settings: FlagSettings | None = None
     return dev > s.mag_th, lin > s.acc_th_g, dev, lin
 
 
-def sim_flags(rec: Recording, settings: FlagSettings | None = None) -> Flags:
+def sim_flags(rec: Recording, settings: DisturbanceSettings | None = None) -> Disturbance:
     """The detector on a recording's calibrated sensors (as the processor calibrates them)."""
     proc = BodyPoseProcessor(rec.calibration)
     acc, mag, gyr = proc.calibrate(rec.raw)
-    tracker = FlagTracker(proc.sensor_calibration.gravity, 0.02, settings)
+    tracker = DisturbanceTracker(proc.sensor_calibration.gravity, 0.02, settings)
     return tracker.update(acc, mag, gyr, rec.errors)
 
 
@@ -303,7 +303,7 @@ def score_broad(data: Path) -> list[tuple[str, Score, Score, float]]:
     for tr in trials:
         truth, sel = broad_truth(tr, ref)
         # the suite's accelerometer convention: the gravity direction, 9.81 units per g
-        flags = FlagTracker(np.array([G]), 1.0 / tr.rate).update(
+        flags = DisturbanceTracker(np.array([G]), 1.0 / tr.rate).update(
             -tr.acc[:, None], tr.mag[:, None], tr.gyr[:, None])
         ours, vqf = Score(), Score()
         ours.add(flags.mag, truth[:, None], sel[:, None])
@@ -337,7 +337,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", help="BROAD folder (default ../shared/data/broad)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
-    s = FlagSettings()
+    s = DisturbanceSettings()
     print(f"Thresholds: mag {100 * s.mag_th:.0f} % of the earth's field (+ {1000 * s.skew_s:g}"
           f" ms × rate), acc {s.acc_th_g:g} g RMS over {s.tau_acc_s:g} s")
     if args.set == "measure":

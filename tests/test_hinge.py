@@ -1,7 +1,7 @@
 """The hinge-joint heading constraint (bpms.filter.hinge, issue 30.3) on the simulated suit.
 
 Truth is the simulator's: its sensor attitudes and the magnet it placed. The constraint runs as
-a stage after the filter bank, fed by the disturbance flags (bpms.filter.flags).
+a stage after the filter bank, fed by the disturbance flags (bpms.filter.disturbance).
 """
 
 from __future__ import annotations

@@ -22,13 +22,16 @@ hinge joints from orientation estimates of inertial sensors", ICORR 2017). Per h
    parts of ``R_p j_p`` and ``R_d j_d``, weight ``w = |h_p| |h_d|`` (a vertical axis says
    nothing about heading), averaged: ``δ̂ ← δ̂ + w k (δ − δ̂)``, ``k = 1 − exp(−dt/τ)``
    (``tau_s``, 1 s).
-3. **Who is wrong.** A segment is *suspect* (``s = 1``) while its magnetometer is flagged
-   (:mod:`bpms.filter.flags`), fading as ``exp(−t/recover_s)`` after (5 s: the filters' heading
-   needs about that long to come back). While neither segment of a hinge is suspect, ``δ̂``
-   is the hinge's clean value ``δ̂₀`` and nothing is turned. Otherwise the change
-   ``e = δ̂ − δ̂₀`` is shared by sigma: the distal segment turns by ``e s_d / (s_p + s_d)``,
-   the proximal one by ``−e s_p / (s_p + s_d)``. With every segment suspect (no field at
-   all, the 6D mode) each hinge splits its whole offset in halves.
+3. **Who is wrong.** Each segment has a heading uncertainty ``σ``: while its magnetometer
+   is flagged (:mod:`bpms.filter.disturbance`), the field's heading deviation
+   (``mag_heading_deg``: a filter that turns with the field is off by about that much) or,
+   for a filter that coasts on its gyro while the flag is up, ``drift_dps`` per second;
+   after the flag it fades as ``exp(−t/recover_s)`` (5 s: the filters' heading needs about
+   that long to come back). While both ``σ`` are under ``clean_deg``, ``δ̂`` is the hinge's
+   clean value ``δ̂₀`` and nothing is turned. Otherwise the change ``e = δ̂ − δ̂₀`` is shared:
+   the distal segment turns by ``e σ_d² / (σ_p² + σ_d² + floor²)``, the proximal one by
+   ``−e σ_p² / (…)`` (``floor_deg``, 2°: the constraint's own error). With every segment
+   uncertain alike (no field at all, the 6D mode) each hinge splits its offset in halves.
 
 The correction is a turn about the world vertical, applied to the sensor's attitude and the
 segment orientation alike (``R' = Rz(ψ) R``, ``C' = Rz(ψ) C``): inclination is untouched and
@@ -144,10 +147,10 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn):
     """N frames: R ``[N, n, 3, 3]`` sensor → NED, C ``[N, n, 3, 3]`` segment orientations
     (Reset Zero; only their first finite frame is used, for the starting axis), gyr
     ``[N, n, 3]`` rad/s sensor axes, mag_flag ``[N, n]`` bool and mag_heading ``[N, n]`` rad
-    (:class:`bpms.filter.flags.Flags` ``mag``, ``mag_heading_deg``), hinges ``[h, 2]`` (proximal,
-    distal), p (:meth:`HingeSettings.params`), state hs ``[h, N_HINGE_STATE]`` / sigma
-    ``[n]`` updated in place. Writes turn ``[N, n]`` rad: the rotation about the world vertical (NED
-    z) to apply to each segment (0 elsewhere)."""
+    (:class:`bpms.filter.disturbance.Disturbance` ``mag``, ``mag_heading_deg``), hinges
+    ``[h, 2]`` (proximal, distal), p (:meth:`HingeSettings.params`), state hs
+    ``[h, N_HINGE_STATE]`` / sigma ``[n]`` updated in place. Writes turn ``[N, n]`` rad: the
+    rotation about the world vertical (NED z) to apply to each segment (0 elsewhere)."""
     tau, recover, dt, prior, min_rate = p[0], p[1], p[2], p[3], p[4]
     follows, drift, floor, clean = p[5], p[6], p[7], p[8]
     k = 1.0 - math.exp(-dt / tau)

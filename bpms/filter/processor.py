@@ -222,6 +222,8 @@ class BodyPoseProcessor:
             errors = np.asarray(errors, dtype=np.bool_)
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
             errors = failed_inputs(acc, mag, gyr, errors)
+        # the disturbance flags come from the sensors alone, before the filters use them
+        disturbance = self.disturbance.update(acc, mag, gyr, errors)
         terms = {"store_terms": True} if isinstance(self.bank, MahonyBank) else {}
         out, reinitialised = guarded_process(self.bank, self.guard, acc, mag, gyr, errors,
                                              **terms)
@@ -239,7 +241,7 @@ class BodyPoseProcessor:
         return Result(t=t, R=out.R, euler=out.euler, C=C, body=self.options.body,
                       held_count=self.bank.held_count, zeros=self.pose.captures[before:],
                       gyro_bias=bias, body_acc=out.body_acc,
-                      disturbance=self.disturbance.update(acc, mag, gyr, out.R, errors),
+                      disturbance=disturbance,
                       reinitialised=reinitialised, reinit_count=self.guard.count.copy(),
                       corrected=corrected, convention=self.options.joints.convention)
 
