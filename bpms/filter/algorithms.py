@@ -179,19 +179,22 @@ class ObserverBank(_PhysicalBank):
         return self.state.held_count.copy()
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-                errors: np.ndarray | None = None,
-                resets: np.ndarray | None = None) -> BankOutput:
-        """Filter N frames in one kernel call (errors ``[N, n, 3]``, resets ``[N, n]``)."""
+                errors: np.ndarray | None = None, resets: np.ndarray | None = None,
+                mag_trust: np.ndarray | None = None) -> BankOutput:
+        """Filter N frames in one kernel call (errors ``[N, n, 3]``, resets ``[N, n]``,
+        mag_trust ``[N, n]`` the heading trust 0–1, :mod:`bpms.filter.observer`)."""
         f, m, g = self.physical(acc, mag, gyr)
         n = f.shape[0]
         err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
                else np.ascontiguousarray(errors, dtype=np.bool_))
+        trust = (np.ones((0, self.n)) if mag_trust is None
+                 else np.ascontiguousarray(mag_trust, dtype=np.float64))
         rs = self._resets(n, resets)
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
         body_acc = np.empty((n, self.n, 3))
-        observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
+        observer_batch(f, m, g, err, rs, trust, self.params, *self.state.arrays(), out_R, out_e,
                        np.empty((0, self.n, 4)), bias, body_acc, np.empty((0, self.n), np.bool_))
         return BankOutput(out_R, out_e, gyro_bias=bias, body_acc=body_acc)
 

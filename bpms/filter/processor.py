@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.algorithms import make_bank
+from bpms.filter.algorithms import ObserverBank, make_bank
 from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.disturbance import DisturbanceTracker
@@ -68,6 +68,12 @@ from bpms.io.timebase import stream_times
 
 #: Seconds the filters settle after the stream starts before the automatic Reset Zero window.
 SETTLE_S = 0.5
+#: The observer's and the adaptive observer's heading gain (and the heading's share of their
+#: bias update) while an IMU's magnetometer is flagged, as a fraction of their own: a short
+#: disturbance costs a tenth of the heading error it would, a steady new field is still
+#: followed, ten times slower (docs/filters.md). The original Mahony filter is left as it was;
+#: VQF has its own magnetic rejection.
+MAG_TRUST_FLAGGED = 0.1
 
 
 def _default_path() -> Path:
@@ -224,7 +230,12 @@ class BodyPoseProcessor:
             errors = failed_inputs(acc, mag, gyr, errors)
         # the disturbance flags come from the sensors alone, before the filters use them
         disturbance = self.disturbance.update(acc, mag, gyr, errors)
-        terms = {"store_terms": True} if isinstance(self.bank, MahonyBank) else {}
+        if isinstance(self.bank, MahonyBank):
+            terms = {"store_terms": True}
+        elif isinstance(self.bank, ObserverBank):  # the heading trusts a flagged field less
+            terms = {"mag_trust": np.where(disturbance.mag, MAG_TRUST_FLAGGED, 1.0)}
+        else:
+            terms = {}
         out, reinitialised = guarded_process(self.bank, self.guard, acc, mag, gyr, errors,
                                              **terms)
         before = len(self.pose.captures)
@@ -260,4 +271,4 @@ class BodyPoseProcessor:
         return self.process(decoded.raw, decoded.errors), decoded.raw, decoded.errors
 
 
-__all__ = ["SETTLE_S", "BodyPoseProcessor", "Result"]
+__all__ = ["MAG_TRUST_FLAGGED", "SETTLE_S", "BodyPoseProcessor", "Result"]

@@ -187,7 +187,8 @@ class FilterOptions:
     adaptive_rest_time_s: float = _opt(1.0, "adaptive: still for this long before the gyro "
                                        "bias follows the rate, s")
     adaptive_rest_tau_s: float = _opt(
-        2.0, "adaptive: gyro-bias time constant at rest, s (0 = off)")
+        10.0, "adaptive: the gyro bias at rest is the mean of the still samples over at most "
+        "this many seconds of stillness, s (0 = off)")
 
 
 @dataclass
