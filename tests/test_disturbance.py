@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bpms.filter.bank import MahonyBank
 from bpms.filter.disturbance import DisturbanceSettings, DisturbanceTracker
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.rotations import heading_error, inclination_error
@@ -115,15 +116,25 @@ def test_magnet_beside_the_right_forearm_once_missed_now_caught():
     assert fa.sum() > 200 and np.median(dev[fa, RIGHT_FOREARM]) > 0.12
     norm = np.linalg.norm(rec.truth.sensors.mag[fa, RIGHT_FOREARM], axis=-1)  # true field
     assert np.median(np.abs(norm / 100.0 - 1.0)) < np.median(dev[fa, RIGHT_FOREARM]) / 3
-    result = BodyPoseProcessor(rec.calibration).process(rec.raw, rec.errors)
-    heading = np.degrees(heading_error(result.R, rec.truth.R))
-    assert np.abs(heading[fa, RIGHT_FOREARM]).max() > 15.0
+    proc = BodyPoseProcessor(rec.calibration)
+    result = proc.process(rec.raw, rec.errors)
+    acc, mag, gyr = proc.calibrate(rec.raw)
+    mahony = MahonyBank(proc.sensor_calibration.gravity).process(acc, mag, gyr).R  # the filter
+    heading = np.abs(np.degrees(heading_error(mahony, rec.truth.R)))[fa, RIGHT_FOREARM]
+    assert heading.max() > 15.0
+    # the processor's output, the hinge constraint after the filter: less than half of it
+    out = np.abs(np.degrees(heading_error(result.R, rec.truth.R)))[fa, RIGHT_FOREARM]
+    assert np.sqrt(np.mean(out**2)) < 0.5 * np.sqrt(np.mean(heading**2))
     flags = result.disturbance
     assert (flags.mag[:, RIGHT_FOREARM] & fa).sum() > 0.9 * fa.sum()
     assert not flags.mag[:, ~truth.any(axis=0)].any()  # the IMUs it never reaches: quiet
-    assert (flags.mag & truth).sum() > 0.98 * flags.mag.sum()  # the rest: at the threshold
+    assert (flags.mag & truth).sum() > 0.85 * flags.mag.sum()  # the rest: near the thresholds
     up = flags.mag[:, RIGHT_FOREARM]
-    assert np.all(flags.mag_dev[up, RIGHT_FOREARM] > DisturbanceSettings().mag_th)
+    # up: the field off by 10 % of the earth's, or its horizontal part turned by 5 % of it
+    settings = DisturbanceSettings()
+    turn = np.degrees(np.arcsin(settings.mag_turn_th / np.cos(np.radians(rec.model.dip_deg))))
+    assert np.all((flags.mag_dev[up, RIGHT_FOREARM] > settings.mag_th)
+                  | (np.abs(flags.mag_heading_deg[up, RIGHT_FOREARM]) > turn))
     assert np.abs(flags.mag_heading_deg[up, RIGHT_FOREARM]).max() > 15.0
     assert flags.mag_up_s[up, RIGHT_FOREARM].max() > 3.0
 
@@ -198,6 +209,6 @@ def test_broad_flags_against_the_optical_truth():
     score = bench.Score()
     score.add(out["33"].mag, truth[:, None], sel[:, None])
     assert score.precision > 0.9 and score.recall > 0.9, score
-    assert out["07"].mag[trials["07"].movement].mean() < 0.02
+    assert out["07"].mag[trials["07"].movement].mean() < 0.05
     assert out["02"].mag.sum() == 0 and out["02"].acc.mean() < 0.005
     assert out["16"].acc[trials["16"].movement].mean() > 0.5

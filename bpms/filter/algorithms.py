@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bpms.filter.bank import BankOutput, MahonyBank
+from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, MahonyBank
 from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
 from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
@@ -114,11 +114,20 @@ class _PhysicalBank:
         self._pending_reset = np.zeros(self.n, dtype=np.bool_)
         self._acc_factor = (-G_MS2 / self.gravity)[:, None]
 
+    @property
+    def relative(self) -> bool:
+        """The 6D mode (``FilterOptions.heading = "relative"``): heading relative to the
+        start, the magnetometer not read."""
+        return self.options.heading == "relative"
+
     def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Suite units → (specific force m/s², mag ≈ unit, gyro rad/s), float64 contiguous."""
         f = np.ascontiguousarray(np.asarray(acc, dtype=np.float64) * self._acc_factor)
-        m = np.ascontiguousarray(np.asarray(mag, dtype=np.float64) / MAG_UNIT)
+        if self.relative:  # 6D: the magnetometer is not read
+            m = np.ascontiguousarray(np.broadcast_to(HEADING_FREE_FIELD, f.shape))
+        else:
+            m = np.ascontiguousarray(np.asarray(mag, dtype=np.float64) / MAG_UNIT)
         g = np.ascontiguousarray(gyr, dtype=np.float64)
         return f, m, g
 
@@ -187,8 +196,11 @@ class ObserverBank(_PhysicalBank):
         n = f.shape[0]
         err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
                else np.ascontiguousarray(errors, dtype=np.bool_))
-        trust = (np.ones((0, self.n)) if mag_trust is None
-                 else np.ascontiguousarray(mag_trust, dtype=np.float64))
+        if self.relative:  # 6D: no heading correction at all
+            trust = np.zeros((n, self.n))
+        else:
+            trust = (np.ones((0, self.n)) if mag_trust is None
+                     else np.ascontiguousarray(mag_trust, dtype=np.float64))
         rs = self._resets(n, resets)
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
@@ -282,7 +294,8 @@ class VqfBank(_PhysicalBank):
                     first = start
                 if err is not None:
                     self._held_count[i] += err[first:b, i].sum(axis=0)
-                q[start:b, i] = self.vqf.process_imu(i, f[start:b], m[start:b], g[start:b])
+                q[start:b, i] = self.vqf.process_imu(i, f[start:b], m[start:b], g[start:b],
+                                                     six_d=self.relative)
                 bias[start:b, i] = self.vqf.last_bias
         out = _outputs(q)
         out.gyro_bias = bias

@@ -41,6 +41,12 @@ def checked_gravity(gravity: np.ndarray) -> np.ndarray:
     return g
 
 
+#: The field a bank is handed in the 6D mode (``FilterOptions.heading = "relative"``): the
+#: earth's norm along the sensor's forward axis, in units of the earth's field. It aligns the
+#: heading of the sensor's forward axis at 0 and, with no heading correction, says nothing after.
+HEADING_FREE_FIELD = np.array([1.0, 0.0, 0.0])
+
+
 def params_from_options(options: FilterOptions) -> np.ndarray:
     """``[kp_rollpitch, ki_rollpitch, kp_yaw, ki_yaw, dt]`` as the kernels take them."""
     return np.array([options.kp_rollpitch, options.ki_rollpitch, options.kp_yaw,
@@ -60,6 +66,8 @@ class MahonyBank:
         self.gravity = checked_gravity(gravity)
         self.n = len(self.gravity)
         self.params = params_from_options(options or FilterOptions())
+        #: the 6D mode: no yaw correction, the heading-free field (:data:`HEADING_FREE_FIELD`)
+        self.relative = (options or FilterOptions()).heading == "relative"
         self.state = MahonyState(self.n)
         self._pending_reset = np.zeros(self.n, dtype=np.bool_)
         self._none = (np.zeros((0, self.n, 3), np.bool_), np.zeros((0, self.n), np.bool_),
@@ -76,6 +84,7 @@ class MahonyBank:
 
     def set_options(self, options: FilterOptions) -> None:
         self.params[:] = params_from_options(options)
+        self.relative = options.heading == "relative"
 
     def reset(self, imu: int | None = None) -> None:
         """Re-initialise IMU ``imu`` (all when None) at its next valid frame."""
@@ -104,6 +113,9 @@ class MahonyBank:
         at frame k; params: ``[N, 5]`` per-frame gains (default: :attr:`params` for all).
         """
         acc = np.ascontiguousarray(acc, dtype=np.float64)
+        if self.relative:  # 6D: the magnetometer is not read (units: ±100 = the earth's)
+            mag = np.ascontiguousarray(np.broadcast_to(100.0 * HEADING_FREE_FIELD,
+                                                       np.shape(acc)))
         mag = np.ascontiguousarray(mag, dtype=np.float64)
         gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         n = acc.shape[0]
@@ -121,6 +133,9 @@ class MahonyBank:
                else np.ascontiguousarray(np.atleast_2d(params), dtype=np.float64))
         if prm.shape[1] != N_PARAMS or prm.shape[0] not in (1, n):
             raise ValueError(f"params must be [1, {N_PARAMS}] or [N, {N_PARAMS}]")
+        if self.relative:  # 6D: no yaw correction (kp_yaw, ki_yaw)
+            prm = prm.copy()
+            prm[:, 2:4] = 0.0
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
         out_wi = np.empty((n, self.n, 3)) if store_terms else no_terms
@@ -131,4 +146,4 @@ class MahonyBank:
                           out_wp if store_terms else None)
 
 
-__all__ = ["N_IMUS", "BankOutput", "MahonyBank", "params_from_options"]
+__all__ = ["HEADING_FREE_FIELD", "N_IMUS", "BankOutput", "MahonyBank", "params_from_options"]

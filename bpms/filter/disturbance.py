@@ -42,8 +42,8 @@ from bpms.filter.bank import checked_gravity
 
 #: Indices into the detector's parameters (:meth:`DisturbanceSettings.params`).
 (P_MAG_TH, P_ACC_TH, P_TAU_M, P_TAU_A, P_TAU_G, P_TAU_H, P_SKEW, P_ACC_GATE, P_REST_GYR,
- P_REST_ACC, P_REST_TIME, P_LEARN_S, P_BIAS_TAU, P_RECOVER_S, P_DT) = range(15)
-N_FLAG_PARAMS = 15
+ P_REST_ACC, P_REST_TIME, P_LEARN_S, P_BIAS_TAU, P_RECOVER_S, P_DT, P_HEAD_TH) = range(16)
+N_FLAG_PARAMS = 16
 #: Per-IMU state columns of the detector.
 (F_G0, F_G1, F_G2, F_H0, F_H1, F_H2, F_B0, F_B1, F_B2, F_W0, F_W1, F_W2, F_INIT, F_REST_T,
  F_LEARN_T, F_REF_NORM, F_REF_DIP, F_READY, F_NORM_LP, F_DIP_LP, F_ACC_MEAN, F_ACC_MS,
@@ -65,6 +65,7 @@ class DisturbanceSettings:
     and ``acc_th`` are the truth's thresholds, the rest follow from the sensors and the body."""
 
     mag_th: float = 0.10        # |m − m̂| / N_ref: fraction of the earth's field
+    mag_turn_th: float = 0.05   # the horizontal field turned by this fraction of the earth's
     acc_th_g: float = 0.20      # g, RMS linear acceleration
     tau_mag_s: float = 0.1      # s, low-pass of the field's deviation (noise ≈ 1 % per sample)
     tau_acc_s: float = 0.25     # s, RMS window of the linear acceleration
@@ -83,7 +84,8 @@ class DisturbanceSettings:
         return np.array([self.mag_th, self.acc_th_g, self.tau_mag_s, self.tau_acc_s,
                          self.tau_gravity_s, self.tau_heading_s, self.skew_s, self.acc_gate_g,
                          self.rest_gyr, self.rest_acc_g, self.rest_time_s, self.rest_learn_s,
-                         self.bias_tau_s, self.recover_s, dt])
+                         self.bias_tau_s, self.recover_s, dt,
+                         self.mag_turn_th])
 
 
 @numba.njit(cache=True)
@@ -248,7 +250,10 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
                 s[F_HEAD_LP] += km * (head - s[F_HEAD_LP])
                 s[F_NORM_LP] += km * (mn / rn - s[F_NORM_LP])
                 s[F_DIP_LP] += km * (dip - s[F_DIP_LP])
-                mflag = s[F_DEV_LP] > mag_th + skew * rate
+                # the horizontal field turned: by more than mag_turn_th of the earth's field
+                turn_th = math.asin(min(1.0, p[P_HEAD_TH] / max(ch, 0.1)))
+                mflag = (s[F_DEV_LP] > mag_th + skew * rate
+                         or abs(s[F_HEAD_LP]) > turn_th + skew * rate)
                 if mflag:
                     # norm and dip back for long: the gyro's ĥ is no longer to be trusted
                     back = (abs(s[F_NORM_LP] - 1.0) < 0.5 * mag_th

@@ -23,10 +23,11 @@ hinge joints from orientation estimates of inertial sensors", ICORR 2017). Per h
    nothing about heading), averaged: ``δ̂ ← δ̂ + w k (δ − δ̂)``, ``k = 1 − exp(−dt/τ)``
    (``tau_s``, 1 s).
 3. **Who is wrong.** Each segment has a heading uncertainty ``σ``: while its magnetometer
-   is flagged (:mod:`bpms.filter.disturbance`), the field's heading deviation
-   (``mag_heading_deg``: a filter that turns with the field is off by about that much) or,
-   for a filter that coasts on its gyro while the flag is up, ``drift_dps`` per second;
-   after the flag it fades as ``exp(−t/recover_s)`` (5 s: the filters' heading needs about
+   is flagged (:mod:`bpms.filter.disturbance`) it grows by ``(drift + follow_rate·|Δψ|)·dt``
+   up to ``|Δψ|``, the field's heading deviation (``mag_heading_deg``): a filter whose
+   heading follows the field with gain ``follow_rate`` (1/s) turns towards it, one that
+   coasts on its gyro only drifts (``drift_dps``); after the flag it fades as
+   ``exp(−t/recover_s)`` (5 s: the filters' heading needs about
    that long to come back). While both ``σ`` are under ``clean_deg``, ``δ̂`` is the hinge's
    clean value ``δ̂₀`` and nothing is turned. Otherwise the change ``e = δ̂ − δ̂₀`` is shared:
    the distal segment turns by ``e σ_d² / (σ_p² + σ_d² + floor²)``, the proximal one by
@@ -64,20 +65,21 @@ HINGES = np.array([(j.proximal, j.distal) for j in HINGE_JOINTS], dtype=np.int64
 class HingeSettings:
     """Settings of the constraint (physical units).
 
-    tau_s: s, averaging of the relative heading. The heading uncertainty σ of a segment: while
-    its magnetometer is flagged, the field's heading deviation (``follows``: the filter turns
-    with a disturbed field, as the original Mahony and VQF do) or ``drift_dps`` per second
-    (the filter coasts on its gyro while the flag is up); after the flag, σ fades with
-    ``recover_s`` (the filters' heading returns over about that long). floor_deg: the
-    constraint's own error (Reset Zero's axes before the joint has moved are a few degrees
-    off): what it measures is shared as ``σ_d² / (σ_p² + σ_d² + floor²)``. clean_deg: both
-    segments below this σ: the hinge's present offset is its clean value. prior: rad², the
-    weight of Reset Zero's axis against the joint's own motion (≈ 1 s of flexing at
-    1.4 rad/s); min_rate: rad/s, slower joint motion does not teach the axis."""
+    tau_s: s, averaging of the relative heading. The heading uncertainty σ of a segment grows
+    while its magnetometer is flagged, by ``drift_dps`` (°/s, the gyro's residual drift) plus
+    ``follow_rate`` (1/s) × the field's heading deviation, up to that deviation: the filter's
+    heading gain towards a disturbed field (the original Mahony's ``kp_yaw``; for the observer
+    and the adaptive observer their ``k_head`` times the trust they keep in a flagged field);
+    after the flag, σ fades with ``recover_s``. floor_deg: the constraint's own error (Reset
+    Zero's axes before the joint has moved are a few degrees off): what it measures is shared
+    as ``σ_d² / (σ_p² + σ_d² + floor²)``. clean_deg: both segments below this σ: the hinge's
+    present offset is its clean value. prior: rad², the weight of Reset Zero's axis against
+    the joint's own motion (≈ 1 s of flexing at 1.4 rad/s); min_rate: rad/s, slower joint
+    motion does not teach the axis."""
 
     tau_s: float = 1.0
     recover_s: float = 5.0
-    follows: bool = True
+    follow_rate: float = 1.2
     drift_dps: float = 0.05
     floor_deg: float = 2.0
     clean_deg: float = 0.5
@@ -86,7 +88,7 @@ class HingeSettings:
 
     def params(self, dt: float) -> np.ndarray:
         return np.array([self.tau_s, self.recover_s, dt, self.prior, self.min_rate,
-                         1.0 if self.follows else 0.0, math.radians(self.drift_dps),
+                         self.follow_rate, math.radians(self.drift_dps),
                          math.radians(self.floor_deg), math.radians(self.clean_deg)])
 
 
@@ -152,7 +154,7 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn):
     ``[h, N_HINGE_STATE]`` / sigma ``[n]`` updated in place. Writes turn ``[N, n]`` rad: the
     rotation about the world vertical (NED z) to apply to each segment (0 elsewhere)."""
     tau, recover, dt, prior, min_rate = p[0], p[1], p[2], p[3], p[4]
-    follows, drift, floor, clean = p[5], p[6], p[7], p[8]
+    follow, drift, floor, clean = p[5], p[6], p[7], p[8]
     k = 1.0 - math.exp(-dt / tau)
     decay = math.exp(-dt / recover) if recover > 0.0 else 0.0
     for t in range(R.shape[0]):
@@ -160,7 +162,8 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn):
             turn[t, i] = 0.0
             if mag_flag[t, i]:
                 dev = abs(mag_heading[t, i]) if math.isfinite(mag_heading[t, i]) else 0.0
-                sigma[i] = dev if follows > 0.0 else sigma[i] + drift * dt
+                # towards the field's deviation as the filter follows it, plus the drift
+                sigma[i] = min(sigma[i] + follow * dev * dt, max(sigma[i], dev)) + drift * dt
             else:
                 sigma[i] *= decay
         for j in range(hinges.shape[0]):
@@ -239,6 +242,11 @@ class HingeConstraint:
         self.settings = settings or HingeSettings()
         self.params = self.settings.params(dt)
         self.state = HingeState()
+
+    def set_follow_rate(self, rate: float) -> None:
+        """The filter's heading gain towards a flagged field, 1/s (:class:`HingeSettings`)."""
+        self.settings.follow_rate = float(rate)
+        self.params[5] = float(rate)
 
     def reset(self) -> None:
         self.state.reset()

@@ -82,13 +82,15 @@ class VqfFilters:
             for f in self.filters:
                 f.setTauMag(self.tau_mag)
 
-    def process_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """Filter ``[N, 3]`` samples of one IMU (batch API); body → NED quaternions ``[N, 4]``."""
+    def process_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray,
+                    six_d: bool = False) -> np.ndarray:
+        """Filter ``[N, 3]`` samples of one IMU (batch API); body → NED quaternions ``[N, 4]``
+        (``six_d``: VQF's magnetometer-free estimate, heading relative to the start)."""
         out = self.filters[imu].updateBatch(
             np.ascontiguousarray(g, dtype=np.float64), np.ascontiguousarray(f, dtype=np.float64),
             np.ascontiguousarray(m, dtype=np.float64))
         self.last_bias = out["bias"]  # [N, 3] rad/s, sensor axes (rate = gyro − bias)
-        return enu_to_ned(out["quat9D"])
+        return enu_to_ned(out["quat6D" if six_d else "quat9D"])
 
 
 __all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned", "quat_mul",
