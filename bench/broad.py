@@ -36,6 +36,7 @@ beside VQF's own 6D output ``quat6D``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import sys
 import time
@@ -44,11 +45,12 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.algorithms import ALGORITHMS, adaptive_gains, observer_gains
+from bpms.filter.algorithms import ALGORITHMS, G_MS2, ObserverBank, make_bank
 from bpms.filter.bank import MahonyBank
-from bpms.filter.observer import Observer
+from bpms.filter.disturbance import DisturbanceTracker
+from bpms.filter.processor import MAG_TRUST_FLAGGED
 from bpms.filter.rotations import dcm_to_quaternion
-from bpms.filter.vqf_filter import Q_ENU_TO_NED, VqfFilters, quat_mul
+from bpms.filter.vqf_filter import Q_ENU_TO_NED, quat_mul
 from bpms.io.options import FilterOptions
 
 REPO = Path(__file__).resolve().parents[1]
@@ -131,34 +133,37 @@ def _ned_to_enu(q_ned: np.ndarray) -> np.ndarray:
     return quat_mul(np.broadcast_to(Q_ENU_TO_NED, q_ned.shape), q_ned)
 
 
-def run_filter(name: str, trial: Trial, settings: dict[str, float] | None = None) -> np.ndarray:
+def run_filter(name: str, trial: Trial, settings: dict[str, float] | None = None,
+               heading: str = "magnetic") -> np.ndarray:
     """Body → ENU quaternions ``[N, 4]`` of filter ``name`` on ``trial`` (factory settings,
-    or these FilterOptions values)."""
+    or these FilterOptions values), through its filter bank as the suite runs it: for the
+    observer and the adaptive observer the disturbance flags (:mod:`bpms.filter.disturbance`)
+    lower the heading trust to ``MAG_TRUST_FLAGGED`` while they are up. ``heading``:
+    ``"relative"`` is the 6D mode."""
     dt = 1.0 / trial.rate
-    options = FilterOptions(dt=dt, **(settings or {}))
+    options = FilterOptions(dt=dt, heading=heading, **(settings or {}))
     if name == MAHONY_TUNED:  # the published Mahony gains in the suite's units (not a default)
         options = FilterOptions(dt=dt, kp_rollpitch=0.74 / MAHONY_GRAVITY,
                                 ki_rollpitch=0.0012 / MAHONY_GRAVITY, kp_yaw=0.74,
-                                ki_yaw=0.0012)
+                                ki_yaw=0.0012, heading=heading)
     if name in ("mahony", MAHONY_TUNED):
         bank = MahonyBank(np.array([MAHONY_GRAVITY]), options)
         out = bank.process((-trial.acc * MAHONY_GRAVITY / 9.81)[:, None],
                            (trial.mag * 2.0)[:, None], trial.gyr[:, None])
-        q_ned = dcm_to_quaternion(out.R[:, 0])
-    elif name == "observer":
-        obs = Observer(1, observer_gains(options))
-        q_ned = obs.process(trial.acc[:, None], (trial.mag / 50.0)[:, None], trial.gyr[:, None],
-                            store_q=True).q[:, 0]
-    elif name == "adaptive":
-        obs = Observer(1, adaptive_gains(options))
-        q_ned = obs.process(trial.acc[:, None], (trial.mag / 50.0)[:, None],
-                            trial.gyr[:, None], store_q=True).q[:, 0]
-    elif name == "vqf":
-        vqf = VqfFilters(1, dt, options.vqf_tau_acc_s, options.vqf_tau_mag_s)
-        q_ned = vqf.process_imu(0, trial.acc, trial.mag / 50.0, trial.gyr)
-    else:
+        return _ned_to_enu(dcm_to_quaternion(out.R[:, 0]))
+    if name not in ALGORITHMS:
         raise ValueError(name)
-    return _ned_to_enu(q_ned)
+    # the suite's units: the gravity direction in counts of 1 g (here 9.81 per g), the
+    # field ×2 (µT → about ±100), rad/s
+    gravity = np.array([G_MS2])
+    acc, mag, gyr = (-trial.acc)[:, None], (trial.mag * 2.0)[:, None], trial.gyr[:, None]
+    bank = make_bank(gravity, dataclasses.replace(options, algorithm=name))
+    terms = {}
+    if isinstance(bank, ObserverBank):
+        flags = DisturbanceTracker(gravity, dt).update(acc, mag, gyr)
+        terms["mag_trust"] = np.where(flags.mag, MAG_TRUST_FLAGGED, 1.0)
+    out = bank.process(acc, mag, gyr, **terms)
+    return _ned_to_enu(dcm_to_quaternion(out.R[:, 0]))
 
 
 def errors(q_imu: np.ndarray, q_opt: np.ndarray, movement: np.ndarray) -> tuple[float, ...]:
@@ -352,20 +357,9 @@ def relative_heading_rmse(q_imu: np.ndarray, q_opt: np.ndarray, rate: float,
 
 
 def run_6d(name: str, trial: Trial) -> np.ndarray:
-    """Body → ENU quaternions of the 6D mode (no magnetometer): ``adaptive`` with a field that
-    carries no heading (the sensor's forward axis on the aligning sample, nothing after: the
-    observer then never corrects heading), or VQF's ``quat6D``."""
-    if name == "vqf":
-        from vqf import VQF
-
-        out = VQF(1.0 / trial.rate).updateBatch(*(np.ascontiguousarray(v) for v in (
-            trial.gyr, trial.acc, trial.mag / 50.0)))
-        return out["quat6D"]
-    field = np.zeros_like(trial.mag)
-    field[0] = (1.0, 0.0, 0.0)
-    obs = Observer(1, adaptive_gains(FilterOptions(dt=1.0 / trial.rate)))
-    return _ned_to_enu(obs.process(trial.acc[:, None], field[:, None], trial.gyr[:, None],
-                                   store_q=True).q[:, 0])
+    """Body → ENU quaternions of filter ``name`` in the 6D mode (no magnetometer; for VQF its
+    own ``quat6D``)."""
+    return run_filter(name, trial, heading="relative")
 
 
 def print_6d(trials: list[Trial]) -> None:
