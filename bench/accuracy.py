@@ -131,7 +131,7 @@ def relative_error_deg(R: np.ndarray, R_true: np.ndarray, p: int, d: int) -> np.
     return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
-def _rms(x: np.ndarray) -> float:
+def _rms_all(x: np.ndarray) -> float:
     return float(np.sqrt(np.nanmean(np.square(x))))
 
 
@@ -172,9 +172,9 @@ def hinge_figures(algorithm: str, seed: int = 0, heading: str = "magnetic") -> H
                               relative_error_deg(R[k], rec.truth.R[k], 4, 5), win[k]))
     m, c = out["magnet"], out["clean"]
     pair = lambda f: tuple(f(*m[j]) for j in range(2))  # noqa: E731
-    return HingeFigures(pair(lambda h, e, w: _rms(h[w])), pair(lambda h, e, w: _rms(h[~w])),
-                        pair(lambda h, e, w: _rms(e[w])), pair(lambda h, e, w: _rms(e[~w])),
-                        tuple(_rms(c[j][0]) for j in range(2)))
+    return HingeFigures(pair(lambda h, e, w: _rms_all(h[w])), pair(lambda h, e, w: _rms_all(h[~w])),
+                        pair(lambda h, e, w: _rms_all(e[w])), pair(lambda h, e, w: _rms_all(e[~w])),
+                        tuple(_rms_all(c[j][0]) for j in range(2)))
 
 
 def print_hinge(seed: int) -> None:
@@ -233,7 +233,7 @@ def print_6d(minutes: float, seed: int) -> None:
     print("| filter | RMS over IMUs at the end | largest IMU at the end | largest anywhere |")
     print("|---|---|---|---|")
     for name, h in d.items():
-        print(f"| {name} 6D | {_rms(h[-1]):.2f}° | {np.abs(h[-1]).max():.2f}° | "
+        print(f"| {name} 6D | {_rms_all(h[-1]):.2f}° | {np.abs(h[-1]).max():.2f}° | "
               f"{np.abs(h).max():.2f}° |")
 
 
