@@ -15,6 +15,11 @@ plot: mean and slowest), 3D redraw rate (Hz per view), display-tick time p50/p99
 (fan-out drops and gaps in the plotted time axis). Targets (issue 18.6): plots ≥ 20 Hz, 3D ≥
 15 Hz, no sample lost, app CPU ≤ 1.15 × bare CPU.
 
+The CPU ratio only means something when the bare reference keeps its own rates: software GL
+on a small machine may not redraw 3 views at 15 Hz, and a reference that skips redraws costs
+less. So both phases run twice, with the 3D views and without them (table and plots only);
+the verdict uses the configurations whose reference kept its rates and says when one did not.
+
     QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1920x1080x24" \\
         .venv/bin/python bench/gui.py [--seconds 30] [--refresh 30]
 """
@@ -317,33 +322,51 @@ def main() -> int:
     env = {**os.environ, "QT_QPA_PLATFORM": os.environ.get("QT_QPA_PLATFORM", "xcb"),
            "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT),
                                                        os.environ.get("PYTHONPATH")]))}
-    results = {}
-    for name in ("bare", "app"):
-        cmd = [sys.executable, __file__, "--phase", name, "--seconds", str(ARGS.seconds),
-               "--warmup", str(ARGS.warmup), "--refresh", str(ARGS.refresh),
-               "--plots", str(N_PLOTS), "--views3d", str(N_VIEWS)]
-        done = subprocess.run(cmd, env=env, capture_output=True, text=True,
-                              timeout=ARGS.seconds + ARGS.warmup + 180)
-        lines = [ln for ln in done.stdout.splitlines() if ln.startswith("RESULT ")]
-        if done.returncode != 0 or not lines:
-            print(f"{name} phase failed (status {done.returncode}):\n{done.stderr[-2000:]}")
-            return 1
-        results[name] = json.loads(lines[-1][7:])
-    app, bare = results["app"], results["bare"]
-    print(f"GUI benchmark: table + {N_PLOTS} plots × {N_CURVES} curves + {N_VIEWS} 3D views, "
+    verdicts = []
+    for views in dict.fromkeys((N_VIEWS, 0)):
+        results = {}
+        for name in ("bare", "app"):
+            cmd = [sys.executable, __file__, "--phase", name, "--seconds", str(ARGS.seconds),
+                   "--warmup", str(ARGS.warmup), "--refresh", str(ARGS.refresh),
+                   "--plots", str(N_PLOTS), "--views3d", str(views)]
+            done = subprocess.run(cmd, env=env, capture_output=True, text=True,
+                                  timeout=ARGS.seconds + ARGS.warmup + 180)
+            lines = [ln for ln in done.stdout.splitlines() if ln.startswith("RESULT ")]
+            if done.returncode != 0 or not lines:
+                print(f"{name} phase failed (status {done.returncode}):\n{done.stderr[-2000:]}")
+                return 1
+            results[name] = json.loads(lines[-1][7:])
+        verdicts.append(report(results["app"], results["bare"], views))
+    fair = [ratio for ratio, reference_kept_up in verdicts if reference_kept_up]
+    print("\nCPU ratio main window / bare where the reference kept its rates: "
+          + (", ".join(f"{r:.2f}" for r in fair) if fair else "none (no fair comparison)"))
+    return 0
+
+
+def _rates_met(result: dict, views: int) -> bool:
+    return (min(result["plot_hz"], default=0) >= 20
+            and (views == 0 or min(result["view_hz"], default=0) >= 15))
+
+
+def report(app: dict, bare: dict, views: int) -> tuple[float, bool]:
+    """Print one configuration's table; (CPU ratio, whether the bare reference kept its
+    rates)."""
+    print(f"\nGUI benchmark: table + {N_PLOTS} plots × {N_CURVES} curves + {views} 3D views, "
           f"{ARGS.seconds:g} s at 50 frames/s, display timer {ARGS.refresh:g} Hz, "
           f"platform {app['platform']}, window {SIZE[0]}×{SIZE[1]}")
     print(f"{'':22}{'main window':>22}{'bare widgets':>22}")
+
+    def hz(result: dict, key: str) -> str:
+        values = result[key]
+        return f"{np.mean(values):.1f}/{min(values):.1f}" if values else "–"
+
     rows = [
         ("process CPU, % core", f"{100 * app['cpu']:.0f}", f"{100 * bare['cpu']:.0f}"),
-        ("plots Hz mean/min", f"{np.mean(app['plot_hz']):.1f}/{min(app['plot_hz'], default=0):.1f}",
-         f"{np.mean(bare['plot_hz']):.1f}/{min(bare['plot_hz'], default=0):.1f}"),
-        ("plot paints Hz mean/min",
-         f"{np.mean(app['plot_paint_hz']):.1f}/{min(app['plot_paint_hz'], default=0):.1f}",
-         f"{np.mean(bare['plot_paint_hz']):.1f}/{min(bare['plot_paint_hz'], default=0):.1f}"),
-        ("3D Hz mean/min", f"{np.mean(app['view_hz']):.1f}/{min(app['view_hz'], default=0):.1f}",
-         f"{np.mean(bare['view_hz']):.1f}/{min(bare['view_hz'], default=0):.1f}"),
-        ("3D GL paints Hz", f"{np.mean(app['paint_hz']):.1f}", "–"),
+        ("plots Hz mean/min", hz(app, "plot_hz"), hz(bare, "plot_hz")),
+        ("plot paints Hz mean/min", hz(app, "plot_paint_hz"), hz(bare, "plot_paint_hz")),
+        ("3D Hz mean/min", hz(app, "view_hz"), hz(bare, "view_hz")),
+        ("3D GL paints Hz", f"{np.mean(app['paint_hz']):.1f}" if app["paint_hz"] else "–",
+         "–"),
         ("CPU ms per update", f"{per_update(app):.0f}", f"{per_update(bare):.0f}"),
         ("tick ms p50/p99", "{:.1f}/{:.1f}".format(*app["ticks"]),
          "{:.1f}/{:.1f}".format(*bare["ticks"])),
@@ -353,12 +376,15 @@ def main() -> int:
     for label, a, b in rows:
         print(f"{label:22}{a:>22}{b:>22}")
     ratio = app["cpu"] / bare["cpu"] if bare["cpu"] else float("inf")
-    ok = (min(app["plot_hz"], default=0) >= 20 and min(app["view_hz"], default=99) >= 15
-          and app["dropped"] == 0 and app["gaps"] == 0 and ratio <= 1.15)
+    kept_up = _rates_met(bare, views)
+    ok = _rates_met(app, views) and app["dropped"] == 0 and app["gaps"] == 0 and ratio <= 1.15
     print(f"CPU per update, main window / bare: {per_update(app) / per_update(bare):.2f}")
-    print(f"CPU ratio main window / bare: {ratio:.2f} (target ≤ 1.15); plots ≥ 20 Hz, "
-          f"3D ≥ 15 Hz, no sample lost: {'all met' if ok else 'NOT all met'}")
-    return 0
+    print(f"CPU ratio main window / bare: {ratio:.2f} (target ≤ 1.15); plots ≥ 20 Hz"
+          f"{', 3D ≥ 15 Hz' if views else ''}, no sample lost: "
+          f"{'all met' if ok else 'NOT all met'}"
+          + ("" if kept_up else "; the bare reference missed its own rates: this ratio "
+                                "compares against less work"))
+    return ratio, kept_up
 
 
 def _args() -> argparse.Namespace:

@@ -1,13 +1,13 @@
 """Benchmark: start-up time of ``bpms`` beside ``python -c "import numpy"``, in the same run.
 
 Run: .venv/bin/python bench/startup.py [--repeats N] [--seconds S]
-Prints the median wall time of each command over N runs (fresh processes, warm disk cache,
-numba kernels already compiled), its ratio to the numpy reference, whether the start-up window
-imports numba or OpenGL, and a ``-X importtime`` summary of ``bpms filter``. A short recording
-is filtered by the kernels' numpy twins without importing numba (bpms/filter/kernels.py); the
-same command with the compiled kernels forced (``BPMS_TWIN_FRAMES=0``) is printed beside it.
-Aims (issue 18.3): ``bpms --help`` ≤ 2× and a short ``bpms filter`` ≤ 4× ``import numpy``; the
-start-up window imports neither numba nor OpenGL.
+Prints the median wall time of each command over N runs (fresh processes taking turns, warm
+disk cache, numba kernels already compiled), its ratio to the numpy reference, the same
+``bpms filter`` of the tree before issue 24 (bench/reference.py), whether the start-up window
+imports numba or OpenGL, and a ``-X importtime`` summary of ``bpms filter``.
+Aims: ``bpms --help`` ≤ 2× (issue 18.3) and ``bpms filter`` of the 5-s recording ≤ 8×
+``import numpy`` (issue 24; numba's import alone is about 3.5×); the start-up window imports
+neither numba nor OpenGL.
 """
 
 from __future__ import annotations
@@ -57,6 +57,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the short recording")
     ap.add_argument("--top", type=int, default=15, help="rows of the importtime summary")
+    ap.add_argument("--reference", default="auto",
+                    help="auto (also time the tree before issue 24) or none")
     ap.add_argument("--python", default=None, metavar="PATH",
                     help="time the bpms installed for this interpreter (e.g. a virtualenv made "
                          "from the wheel) instead of this source tree")
@@ -84,19 +86,29 @@ def main() -> None:
              None),
             ("bpms --help", [py, "-m", "bpms", "--help"], 2.0),
             ("bpms filter --help", [py, "-m", "bpms", "filter", "--help"], None),
-            (f"bpms filter ({args.seconds:g} s recording)", filt, 4.0),
-            (f"bpms filter ({args.seconds:g} s), compiled kernels", filt, None),
+            (f"bpms filter ({args.seconds:g} s recording)", filt, 8.0),
         ]
+        ref_env = None
+        if not args.python and args.reference != "none":
+            sys.path.insert(0, str(ROOT / "bench"))
+            from reference import python_in, reference_tree
+
+            try:
+                tree = reference_tree()
+                ref_env = {**python_in(tree), "QT_QPA_PLATFORM": "offscreen"}
+                subprocess.run([py, "-m", "bpms", "warmup"], env=ref_env, cwd=ROOT, check=True,
+                               stderr=subprocess.DEVNULL)
+                cases.append((f"bpms filter ({args.seconds:g} s), before issue 24", filt, None))
+            except (RuntimeError, subprocess.CalledProcessError) as exc:
+                print(f"reference not measured: {exc}")
         if not subprocess.run([py, "-c", "import PyQt6"], env=env, capture_output=True).returncode:
             cases.append(("import the start-up window (Qt)",
                           [py, "-c", "import bpms.gui.startup"], None))
         # Interleaved rounds, so that a burst of load elsewhere hits every case alike.
         times: dict[str, list[float]] = {name: [] for name, _, _ in cases}
-        # the same command with the numba kernels forced (no numpy twins), for comparison
-        compiled_env = {**env, "BPMS_TWIN_FRAMES": "0"}
         for _ in range(args.repeats):
             for name, cmd, _ in cases:
-                times[name].append(wall(cmd, compiled_env if "compiled" in name else env, 1))
+                times[name].append(wall(cmd, ref_env if "before issue 24" in name else env, 1))
         ref = statistics.median(times[cases[0][0]])
         print(f"median of {args.repeats} fresh processes each, this machine, same run")
         print(f"{'command':<52} {'s':>7} {'× numpy':>8}  aim")

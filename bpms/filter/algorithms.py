@@ -28,11 +28,11 @@ from typing import Protocol
 
 import numpy as np
 
-from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, MahonyBank
+from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, FilterBank, MahonyBank
 from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
-from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
-from bpms.filter.vqf_filter import VqfFilters
+from bpms.filter.rotations import dcm_to_euler
+from bpms.filter.vqf_filter import VqfFilters, ned_dcm_of_enu
 from bpms.io.options import FilterOptions
 
 ALGORITHMS = ("mahony", "observer", "vqf", "adaptive")
@@ -51,15 +51,16 @@ class AttitudeBank(Protocol):
 
     def reset(self, imu: int | None = None) -> None: ...
 
+    def snapshot(self) -> object: ...
+
+    def restore(self, snap: object) -> None: ...
+
     def set_gains(self, **gains: float) -> None: ...
 
     def set_options(self, options: FilterOptions) -> None:
         """Run with ``options`` (every filter's settings) from the next frame on; the
         processor's single way to change settings (it keeps ``options`` itself)."""
         ...
-
-    @property
-    def initialised(self) -> np.ndarray: ...
 
     @property
     def held_count(self) -> np.ndarray: ...
@@ -104,14 +105,12 @@ def adaptive_gains(options: FilterOptions) -> ObserverGains:
         trapezoid=ADAPTIVE["trapezoid"])
 
 
-class _PhysicalBank:
-    """Common parts of the non-Mahony banks: options, unit conversion, pending resets."""
+class _PhysicalBank(FilterBank):
+    """Common parts of the non-Mahony banks: their options and the unit conversion."""
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None) -> None:
-        self.gravity = np.ascontiguousarray(gravity, dtype=np.float64)
-        self.n = len(self.gravity)
+        super().__init__(gravity)
         self.options = dataclasses.replace(options or FilterOptions())
-        self._pending_reset = np.zeros(self.n, dtype=np.bool_)
         self._acc_factor = (-G_MS2 / self.gravity)[:, None]
 
     @property
@@ -145,23 +144,6 @@ class _PhysicalBank:
     def _apply_options(self) -> None:  # pragma: no cover - overridden
         pass
 
-    def reset(self, imu: int | None = None) -> None:
-        """Re-initialise IMU ``imu`` (all when None) at its next valid frame."""
-        if imu is None:
-            self._pending_reset[:] = True
-        else:
-            self._pending_reset[imu] = True
-
-    def _resets(self, n: int, resets: np.ndarray | None) -> np.ndarray:
-        if resets is None and not self._pending_reset.any():
-            return np.zeros((0, self.n), np.bool_)
-        rs = (np.zeros((n, self.n), np.bool_) if resets is None
-              else np.array(resets, dtype=np.bool_))
-        if n:
-            rs[0] |= self._pending_reset
-            self._pending_reset[:] = False
-        return rs
-
 
 class ObserverBank(_PhysicalBank):
     """The quaternion observer (:mod:`bpms.filter.observer`) for ``n`` IMUs, with the
@@ -178,14 +160,6 @@ class ObserverBank(_PhysicalBank):
 
     def _apply_options(self) -> None:
         self.params = self.gains_from(self.options).params()
-
-    @property
-    def initialised(self) -> np.ndarray:
-        return self.state.initialised.copy()
-
-    @property
-    def held_count(self) -> np.ndarray:
-        return self.state.held_count.copy()
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None, resets: np.ndarray | None = None,
@@ -238,27 +212,36 @@ class VqfBank(_PhysicalBank):
             self.vqf.set_time_constants(o.vqf_tau_acc_s, o.vqf_tau_mag_s)
 
     @property
-    def initialised(self) -> np.ndarray:
-        return self._init.copy()
-
-    @property
     def held_count(self) -> np.ndarray:
         return self._held_count.copy()
 
+    def snapshot(self) -> tuple:
+        """A copy of every VQF filter's state and the hold bookkeeping."""
+        return ([{k: np.copy(v) for k, v in f.state.items()} for f in self.vqf.filters],
+                self._pending_reset.copy(), self._init.copy(), self._held.copy(),
+                self._held_count.copy())
+
+    def restore(self, snap: tuple) -> None:
+        states, pending, init, held, held_count = snap
+        for flt, state in zip(self.vqf.filters, states, strict=True):
+            flt.state = state
+        self._pending_reset[:], self._init[:] = pending, init
+        self._held[:], self._held_count[:] = held, held_count
+
     def _fill(self, i: int, data: tuple[np.ndarray, ...], err: np.ndarray | None
               ) -> tuple[list[np.ndarray], np.ndarray]:
-        """Forward-fill failed samples of IMU ``i`` with the last good value; valid mask."""
+        """IMU ``i``'s inputs (``data``: its ``[N, 3]`` accel, mag, gyro) with failed samples
+        forward-filled by the last good value; the valid mask ``[N]``."""
         n = data[0].shape[0]
         filled = []
         valid = np.ones(n, dtype=np.bool_)
-        for s, arr in enumerate(data):
-            x = arr[:, i]
+        for s, x in enumerate(data):
             if err is not None and err[:, i, s].any():
                 good = ~err[:, i, s]
                 valid &= good
                 idx = np.maximum.accumulate(np.where(good, np.arange(n), -1))
                 x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self._held[i, s])
-            filled.append(np.ascontiguousarray(x))
+            filled.append(x)
             if n:
                 self._held[i, s] = x[-1]
         return filled, valid
@@ -267,14 +250,16 @@ class VqfBank(_PhysicalBank):
                 errors: np.ndarray | None = None,
                 resets: np.ndarray | None = None) -> BankOutput:
         """Filter N frames (VQF's batch API per IMU and per run between resets)."""
-        data = self.physical(acc, mag, gyr)
-        n = data[0].shape[0]
+        n = len(acc)
+        # each IMU's samples contiguous: [n, N, 3] per sensor
+        per_imu = [np.ascontiguousarray(np.swapaxes(x, 0, 1))
+                   for x in self.physical(acc, mag, gyr)]
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
         rs = self._resets(n, resets)
-        q = np.full((n, self.n, 4), np.nan)
+        q = np.full((4, n, self.n), np.nan)  # body → ENU (VQF's own frame), by component
         bias = np.full((n, self.n, 3), np.nan)
         for i in range(self.n):
-            (f, m, g), valid = self._fill(i, data, err)
+            (f, m, g), valid = self._fill(i, tuple(x[i] for x in per_imu), err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
             for a, b in pairwise(cuts):
                 if b <= a:
@@ -294,21 +279,11 @@ class VqfBank(_PhysicalBank):
                     first = start
                 if err is not None:
                     self._held_count[i] += err[first:b, i].sum(axis=0)
-                q[start:b, i] = self.vqf.process_imu(i, f[start:b], m[start:b], g[start:b],
-                                                     six_d=self.relative)
-                bias[start:b, i] = self.vqf.last_bias
-        out = _outputs(q)
-        out.gyro_bias = bias
-        return out
-
-
-def _outputs(q: np.ndarray) -> BankOutput:
-    """Quaternions ``[N, n, 4]`` (NaN rows allowed) → DCM and Euler."""
-    R = np.full((*q.shape[:-1], 3, 3), np.nan)
-    ok = np.isfinite(q).all(axis=-1)
-    if ok.any():
-        R[ok] = quaternion_to_dcm(q[ok])
-    return BankOutput(R, dcm_to_euler(R))
+                quat, bias[start:b, i] = self.vqf.process_imu(
+                    i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
+                q[:, start:b, i] = quat.T
+        R = ned_dcm_of_enu(*q)
+        return BankOutput(R, dcm_to_euler(R), gyro_bias=bias)
 
 
 __all__ = ["ALGORITHMS", "AdaptiveBank", "AttitudeBank", "ObserverBank", "VqfBank",

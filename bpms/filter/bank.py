@@ -53,7 +53,55 @@ def params_from_options(options: FilterOptions) -> np.ndarray:
                      options.ki_yaw, options.dt], dtype=np.float64)
 
 
-class MahonyBank:
+class FilterBank:
+    """What every bank of ``n`` attitude filters shares: ``gravity[n]`` (accelerometer counts
+    per g, checked), the IMUs waiting to re-initialise (:meth:`reset`), and the count of steps
+    that used a held sensor value (``state.held_count`` of the bank's state arrays)."""
+
+    def __init__(self, gravity: np.ndarray) -> None:
+        self.gravity = checked_gravity(gravity)
+        self.n = len(self.gravity)
+        self._pending_reset = np.zeros(self.n, dtype=np.bool_)
+        self._no_resets = np.zeros((0, self.n), np.bool_)
+
+    def reset(self, imu: int | None = None) -> None:
+        """Re-initialise IMU ``imu`` (all when None) at its next valid frame."""
+        if imu is None:
+            self._pending_reset[:] = True
+        else:
+            self._pending_reset[imu] = True
+
+    def _resets(self, n: int, resets: np.ndarray | None) -> np.ndarray:
+        """The kernels' ``resets`` of the next ``n`` frames: ``resets[N, n]`` with the pending
+        resets taken at the first frame, or ``[0, n]`` when there are none."""
+        if resets is None and not self._pending_reset.any():
+            return self._no_resets
+        rs = (np.zeros((n, self.n), np.bool_) if resets is None
+              else np.array(resets, dtype=np.bool_))
+        if n:
+            rs[0] |= self._pending_reset
+            self._pending_reset[:] = False
+        return rs
+
+    @property
+    def held_count(self) -> np.ndarray:
+        """``[n, 3]`` filter steps that used a held (last good) accel, mag, gyro value."""
+        return self.state.held_count.copy()
+
+    def snapshot(self) -> tuple:
+        """A copy of the filter state, for :meth:`restore` (the state guard rewinds a batch
+        to re-run it up to a frame where a state stopped being a rotation)."""
+        return [a.copy() for a in self.state.arrays()], self._pending_reset.copy()
+
+    def restore(self, snap: tuple) -> None:
+        """Back to the state :meth:`snapshot` copied."""
+        arrays, pending = snap
+        for target, saved in zip(self.state.arrays(), arrays, strict=True):
+            target[...] = saved
+        self._pending_reset[:] = pending
+
+
+class MahonyBank(FilterBank):
     """18 (or ``n``) Mahony filters sharing gains and dt.
 
     ``gravity``: ``[n]`` accelerometer counts per g (the calibration's Gravity). Gains are read
@@ -63,15 +111,13 @@ class MahonyBank:
     """
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
-        self.gravity = checked_gravity(gravity)
-        self.n = len(self.gravity)
+        super().__init__(gravity)
         self.params = params_from_options(options or FilterOptions())
         #: the 6D mode: no yaw correction, the heading-free field (:data:`HEADING_FREE_FIELD`)
         self.relative = (options or FilterOptions()).heading == "relative"
         self.state = MahonyState(self.n)
-        self._pending_reset = np.zeros(self.n, dtype=np.bool_)
-        self._none = (np.zeros((0, self.n, 3), np.bool_), np.zeros((0, self.n), np.bool_),
-                      np.empty((0, self.n, 3)))  # "no errors", "no resets", "no ωI, ωP"
+        self._no_errors = np.zeros((0, self.n, 3), np.bool_)
+        self._no_terms = np.empty((0, self.n, 3))  # ωI, ωP not stored
 
     # -- settings -----------------------------------------------------------------------
     def set_gains(self, kp_rollpitch: float | None = None, ki_rollpitch: float | None = None,
@@ -85,23 +131,6 @@ class MahonyBank:
     def set_options(self, options: FilterOptions) -> None:
         self.params[:] = params_from_options(options)
         self.relative = options.heading == "relative"
-
-    def reset(self, imu: int | None = None) -> None:
-        """Re-initialise IMU ``imu`` (all when None) at its next valid frame."""
-        if imu is None:
-            self._pending_reset[:] = True
-        else:
-            self._pending_reset[imu] = True
-
-    @property
-    def initialised(self) -> np.ndarray:
-        """``[n]`` bool: IMUs whose filter runs."""
-        return self.state.initialised.copy()
-
-    @property
-    def held_count(self) -> np.ndarray:
-        """``[n, 3]`` filter steps that used a held (last good) accel, mag, gyro value."""
-        return self.state.held_count.copy()
 
     # -- running ------------------------------------------------------------------------
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
@@ -119,16 +148,9 @@ class MahonyBank:
         mag = np.ascontiguousarray(mag, dtype=np.float64)
         gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         n = acc.shape[0]
-        no_errors, no_resets, no_terms = self._none
-        err = no_errors if errors is None else np.ascontiguousarray(errors, dtype=np.bool_)
-        if resets is None and not self._pending_reset.any():
-            rs = no_resets
-        else:
-            rs = (np.zeros((n, self.n), np.bool_) if resets is None
-                  else np.array(resets, dtype=np.bool_))
-            if n:
-                rs[0] |= self._pending_reset
-                self._pending_reset[:] = False
+        err = (self._no_errors if errors is None
+               else np.ascontiguousarray(errors, dtype=np.bool_))
+        rs = self._resets(n, resets)
         prm = (self.params[None] if params is None
                else np.ascontiguousarray(np.atleast_2d(params), dtype=np.float64))
         if prm.shape[1] != N_PARAMS or prm.shape[0] not in (1, n):
@@ -138,12 +160,13 @@ class MahonyBank:
             prm[:, 2:4] = 0.0
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
-        out_wi = np.empty((n, self.n, 3)) if store_terms else no_terms
-        out_wp = np.empty((n, self.n, 3)) if store_terms else no_terms
+        out_wi = np.empty((n, self.n, 3)) if store_terms else self._no_terms
+        out_wp = np.empty((n, self.n, 3)) if store_terms else self._no_terms
         run_batch(acc, mag, gyr, err, rs, prm, self.gravity, *self.state.arrays(),
                   out_R, out_e, out_wi, out_wp)
         return BankOutput(out_R, out_e, out_wi if store_terms else None,
                           out_wp if store_terms else None)
 
 
-__all__ = ["HEADING_FREE_FIELD", "N_IMUS", "BankOutput", "MahonyBank", "params_from_options"]
+__all__ = ["HEADING_FREE_FIELD", "N_IMUS", "BankOutput", "FilterBank", "MahonyBank",
+           "params_from_options"]

@@ -21,7 +21,7 @@ DCM ``R`` of an IMU whose filter has produced an orientation since its last (re)
   ``reinitialised[N, n]`` array returned beside the outputs).
 
 A batch is filtered in one call as before; only when an event happens the bank is rewound to
-the start of the batch (:func:`snapshot` / :func:`restore`), re-run up to the bad frame,
+the start of the batch (its ``snapshot()`` / ``restore()``), re-run up to the bad frame,
 re-initialised and continued, so a batch and the same frames one by one give the same
 numbers. After an event the rest is filtered in chunks of 1, 2, 4... frames, so a stretch
 of absurd input costs one pass, not one pass per frame.
@@ -150,43 +150,6 @@ def renorm_allowance(bank: Any) -> float:
     return 0.0
 
 
-# -- rewinding a bank -------------------------------------------------------------------------
-def snapshot(bank: Any) -> Any | None:
-    """A copy of ``bank``'s filter state (None for a bank kind this module does not know)."""
-    pending = getattr(bank, "_pending_reset", None)
-    if pending is None:
-        return None
-    state = getattr(bank, "state", None)
-    if state is not None and hasattr(state, "arrays"):
-        params = getattr(bank, "params", None)
-        return ("arrays", [a.copy() for a in state.arrays()], pending.copy(),
-                None if not isinstance(params, np.ndarray) else params.copy())
-    vqf = getattr(bank, "vqf", None)
-    if vqf is not None and hasattr(vqf, "filters"):
-        return ("vqf", [{k: np.copy(v) for k, v in f.state.items()} for f in vqf.filters],
-                pending.copy(),
-                bank._init.copy(), bank._held.copy(), bank._held_count.copy())
-    return None
-
-
-def restore(bank: Any, snap: Any) -> None:
-    """Put ``bank`` back to :func:`snapshot`'s state."""
-    kind = snap[0]
-    if kind == "arrays":
-        for target, saved in zip(bank.state.arrays(), snap[1], strict=True):
-            target[...] = saved
-        bank._pending_reset[:] = snap[2]
-        if snap[3] is not None:
-            bank.params[:] = snap[3]
-    else:
-        for flt, state in zip(bank.vqf.filters, snap[1], strict=True):
-            flt.state = state
-        bank._pending_reset[:] = snap[2]
-        bank._init[:] = snap[3]
-        bank._held[:] = snap[4]
-        bank._held_count[:] = snap[5]
-
-
 # -- the guarded batch ------------------------------------------------------------------------
 def _mark(out: BankOutput, rows: np.ndarray, imus: np.ndarray) -> None:
     out.R[rows, imus] = np.nan
@@ -233,22 +196,16 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
                     ) -> tuple[BankOutput, np.ndarray]:
     """``bank.process`` of N frames (``[N, n, 3]`` inputs) with the state check: (outputs,
     ``reinitialised[N, n]`` bool). ``bank_options`` go to ``bank.process``, arrays among
-    them per frame (``[N, ...]``). See the module docstring."""
+    them per frame (``[N, ...]``). See the module docstring; a live frame is N = 1 (nothing
+    to rewind)."""
     n_frames = len(acc)
     c4 = renorm_allowance(bank)
-    if n_frames == 1:  # a live frame: nothing to rewind
-        out = bank.process(acc, mag, gyr, errors, **bank_options)
-        bad, guard.expected[:] = check_rotations(out.R, gyr, c4, guard.expected)
-        if bad.any():
-            _mark(out, np.array([0]), bad[0])
-            _reinit(bank, guard, bad[0])
-        return out, bad
     flags = np.zeros((n_frames, guard.n), dtype=np.bool_)
     parts: list[BankOutput] = []
     pos, chunk = 0, max(n_frames, 1)
     while pos < n_frames:
         end = min(n_frames, pos + chunk)
-        snap = snapshot(bank) if end - pos > 1 else None
+        snap = bank.snapshot() if end - pos > 1 else None
         sl = slice(pos, end)
         out = bank.process(acc[sl], mag[sl], gyr[sl],
                            None if errors is None else errors[sl], **_frames(bank_options, sl))
@@ -259,21 +216,8 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
             pos, chunk = end, chunk * 2
             continue
         k = int(np.argmax(bad.any(axis=1)))
-        if snap is None and end - pos > 1:
-            # a bank that cannot rewind: NaN from each IMU's first bad frame to the batch end
-            first = np.where(bad.any(axis=0), np.argmax(bad, axis=0), end - pos)
-            rows = np.arange(end - pos)[:, None] >= first[None]
-            out.R[rows] = np.nan
-            out.euler[rows] = np.nan
-            guard.accept(out.R)
-            imus = bad.any(axis=0)
-            flags[pos + first[imus], np.flatnonzero(imus)] = True
-            _reinit(bank, guard, imus)
-            parts.append(out)
-            pos = end
-            continue
         if k < end - pos - 1:  # rewind and filter up to the bad frame only
-            restore(bank, snap)
+            bank.restore(snap)
             sl = slice(pos, pos + k + 1)
             out = bank.process(acc[sl], mag[sl], gyr[sl],
                                None if errors is None else errors[sl],
@@ -291,4 +235,4 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
 
 
 __all__ = ["MAHONY_RENORM_K", "SO3_TOLERANCE", "StateGuard", "check_rotations", "failed_inputs",
-           "guarded_process", "renorm_allowance", "restore", "snapshot", "so3_error"]
+           "guarded_process", "renorm_allowance", "so3_error"]

@@ -286,10 +286,3 @@ class MahonyState:
         """The state arrays in kernel argument order."""
         return (self.R, self.w_i, self.w_p, self.euler, self.trig, self.initialised, self.held,
                 self.seen, self.held_count)
-
-    def copy(self) -> MahonyState:
-        other = MahonyState(self.n)
-        for name in ("R", "w_i", "w_p", "euler", "trig", "initialised", "held", "seen",
-                     "held_count"):
-            setattr(other, name, getattr(self, name).copy())
-        return other

@@ -84,15 +84,25 @@ def dcm_to_quaternion(R: np.ndarray) -> np.ndarray:
 
 
 def quaternion_to_dcm(q: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``[..., 4]`` (w, x, y, z) → ``[..., 3, 3]``."""
+    """Quaternions ``[..., 4]`` (w, x, y, z; normalised here) → ``[..., 3, 3]``; NaN rows give
+    NaN matrices."""
     q = np.asarray(q, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = q * (np.sqrt(2.0) / np.sqrt((q * q).sum(axis=-1)))[..., None]  # √2·unit: 2x² etc.
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty((*q.shape[:-1], 3, 3))
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    out[..., 0, 0] = 1.0 - (yy + zz)
+    out[..., 0, 1] = xy - wz
+    out[..., 0, 2] = xz + wy
+    out[..., 1, 0] = xy + wz
+    out[..., 1, 1] = 1.0 - (xx + zz)
+    out[..., 1, 2] = yz - wx
+    out[..., 2, 0] = xz - wy
+    out[..., 2, 1] = yz + wx
+    out[..., 2, 2] = 1.0 - (xx + yy)
+    return out
 
 
 def rotation_vector(R: np.ndarray) -> np.ndarray:

@@ -48,6 +48,18 @@ def enu_to_ned(q_enu: np.ndarray) -> np.ndarray:
     return quat_mul(np.broadcast_to(Q_ENU_TO_NED, q_enu.shape), q_enu)
 
 
+def ned_dcm_of_enu(w: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Unit body → ENU quaternions, as their components ``[...]`` each (NaN allowed) → body →
+    NED DCMs ``[..., 3, 3]``: ``ENU_TO_NED @ R(q)``, i.e. the rows y, x, −z of ``R(q)``,
+    written out in one pass (VQF's quaternions are unit: no normalisation)."""
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    rows = (xy + wz, 0.5 - (xx + zz), yz - wx,          # ENU y row
+            0.5 - (yy + zz), xy - wz, xz + wy,          # ENU x row
+            wy - xz, -(yz + wx), (xx + yy) - 0.5)       # minus the ENU z row
+    return 2.0 * np.stack(rows, axis=-1).reshape(*w.shape, 3, 3)
+
+
 class VqfFilters:
     """``n`` VQF filters sharing dt and time constants.
 
@@ -62,7 +74,6 @@ class VqfFilters:
         self.tau_acc = float(tau_acc)
         self.tau_mag = float(tau_mag)
         self.filters = [self._new() for _ in range(n)]
-        self.last_bias = np.zeros((0, 3))
 
     def _new(self):
         return self._cls(self.dt, tauAcc=self.tau_acc, tauMag=self.tau_mag)
@@ -83,15 +94,16 @@ class VqfFilters:
                 f.setTauMag(self.tau_mag)
 
     def process_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray,
-                    six_d: bool = False) -> np.ndarray:
-        """Filter ``[N, 3]`` samples of one IMU (batch API); body → NED quaternions ``[N, 4]``
-        (``six_d``: VQF's magnetometer-free estimate, heading relative to the start)."""
+                    six_d: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Filter ``[N, 3]`` samples of one IMU (batch API): (body → **ENU** quaternions
+        ``[N, 4]``, VQF's own frame — :func:`ned_dcm_of_enu` gives their NED DCMs; gyro-bias
+        estimate ``[N, 3]`` rad/s in sensor axes, rate = gyro − bias). ``six_d``: VQF's
+        magnetometer-free estimate (heading relative to the start) instead of the 9D one."""
         out = self.filters[imu].updateBatch(
             np.ascontiguousarray(g, dtype=np.float64), np.ascontiguousarray(f, dtype=np.float64),
             np.ascontiguousarray(m, dtype=np.float64))
-        self.last_bias = out["bias"]  # [N, 3] rad/s, sensor axes (rate = gyro − bias)
-        return enu_to_ned(out["quat6D" if six_d else "quat9D"])
+        return out["quat6D" if six_d else "quat9D"], out["bias"]
 
 
-__all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned", "quat_mul",
-           "require_vqf"]
+__all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned",
+           "ned_dcm_of_enu", "quat_mul", "require_vqf"]
