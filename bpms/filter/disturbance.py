@@ -55,6 +55,9 @@ N_FLAG_STATE = 31
 N_VALUES = 8
 #: Averaging time (s) of ``acc_dev_g``, the mean ||a| − 1 g| kept from the older indicators.
 ACC_MEAN_TAU_S = 1.0
+#: rad/s (≈ 1700 °/s): a gyro reading beyond is no body's motion but a fault (the suit's
+#: ITG-3200 ends at ±2000 °/s); the detector holds and aligns anew after it.
+RATE_MAX = 30.0
 
 
 @dataclass
@@ -141,7 +144,14 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
                 gx, gy, gz = s[F_W0], s[F_W1], s[F_W2]
             else:
                 gx, gy, gz = gyr[t, i, 0], gyr[t, i, 1], gyr[t, i, 2]
-            if s[F_INIT] == 0.0:
+            if gx * gx + gy * gy + gz * gz > RATE_MAX * RATE_MAX:
+                # no limb turns this fast: a pinned or broken gyro reading, which would turn
+                # ĝ and ĥ anywhere. Hold, and align anew from the next sane sample.
+                s[F_INIT] = 0.0
+                _hold(s, t, i, acc_th, flags, values)
+                continue
+            snap = s[F_INIT] == 0.0  # (re-)aligned: ĝ from the accelerometer, ĥ from the field
+            if snap:
                 if not valid[t, i, 0]:
                     _hold(s, t, i, acc_th, flags, values)
                     continue
@@ -195,6 +205,13 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
             # 3. rest: the gyro bias; the first still period: the field's norm and dip
             s[F_REST_T] = s[F_REST_T] + dt if still else 0.0
             rested = still and s[F_REST_T] >= p[P_REST_TIME]
+            if rested and math.sqrt(s[F_ACC_MS]) > gate and an > 0.0:
+                # still for a second, yet ĝ far from the accelerometer (a sensor fault turned
+                # it): what a still accelerometer reads is gravity; the field's direction anew
+                g0, g1, g2 = a0 / an, a1 / an, a2 / an
+                s[F_G0], s[F_G1], s[F_G2] = g0, g1, g2
+                s[F_ACC_MS] = 0.0
+                snap = True
             if rested and valid[t, i, 2]:
                 s[F_B0] += kb * (gx - s[F_B0])
                 s[F_B1] += kb * (gy - s[F_B1])
@@ -233,6 +250,9 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
                     s[F_READY] = 1.0
                 elif not still and s[F_LEARN_T] > 0.0:
                     s[F_LEARN_T] = p[P_LEARN_S]  # the first still period is over: frozen
+            if snap and mok and s[F_READY] > 0.0 and xn > 0.0:
+                h0, h1, h2 = x0, x1, x2
+                s[F_DEV_LP], s[F_HEAD_LP], s[F_OK_T] = 0.0, 0.0, 0.0
             if mok and s[F_READY] > 0.0:
                 # 4. the field against the one expected
                 rn, rd = s[F_REF_NORM], s[F_REF_DIP]
@@ -329,6 +349,13 @@ class DisturbanceTracker:
         self.state[:] = 0.0
         self.mag_count[:] = 0
         self.acc_count[:] = 0
+
+    def realign(self, imus: np.ndarray) -> None:
+        """Align ``imus`` (``[n]`` bool) anew at their next valid frame: ĝ from the
+        accelerometer, ĥ from the field (what was learnt at rest is kept). The processor does
+        it where the state guard re-initialises a filter: the reading that broke the filter's
+        state turned these directions too."""
+        self.state[np.asarray(imus, dtype=np.bool_), F_INIT] = 0.0
 
     @property
     def ready(self) -> np.ndarray:

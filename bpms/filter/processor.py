@@ -255,6 +255,8 @@ class BodyPoseProcessor:
             terms = {}
         out, reinitialised = guarded_process(self.bank, self.guard, acc, mag, gyr, errors,
                                              **terms)
+        if reinitialised.any():  # what broke a filter's state turned the flags' directions too
+            self.disturbance.realign(reinitialised.any(axis=0))
         before = len(self.pose.captures)
         C = self.pose.apply(out.R, zero_at)
         R, euler, C = self._hinge(out.R, out.euler, C, gyr, disturbance)
