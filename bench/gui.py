@@ -109,6 +109,7 @@ def run_app(app, recording: Path, folder: Path, refresh: float) -> dict:
     for cells in plot_cells():
         window.table.select_cells(cells)
         window.plot_selection()
+    window.tile_plots()  # all 8 in view (new plots beyond the room side by side are tabbed)
     window.resize(*SIZE)
     window.show()
     model = window.model

@@ -1,4 +1,21 @@
-"""Cost of hostile input (run on demand): ``python bench/hostile_input.py``.
+"""Hostile input, figures and cost (run on demand): ``python bench/hostile_input.py``.
+
+The figures table (issue 26), each figure beside a reference measured in the same run:
+
+- link faults: a TCP suit that closes right after a frame (20 runs) and a pseudo-terminal whose
+  suit end closes after the last frame (5 runs, where there are ptys): faults tried, runs the
+  host survived (link *gone*, no exception, frames in order), frames lost; reference: frames
+  the suits sent;
+- bad inputs: the hostile-input corpus (tools/hostile_corpus.py) through every command that
+  reads a recording or a configuration: inputs tried, tracebacks, wrong outputs (those that
+  issue 25's one reader per format will fix are counted apart); reference: the intact control
+  recording through the same commands;
+- datagrams: the UDP attacks of tools/hostile_peers.py (one datagram during a pause, a replayed
+  signed run, a spoofer on the real session, floods, fuzz) against a real receiver, with and
+  without a shared key: datagrams forged, forged frames accepted; reference: the real sender's
+  frames delivered.
+
+``--quick`` skips the cost section. Then the cost of hostile input:
 
 - Legacy pickle reader on crafted files (every few bytes a record start whose string never
   ends) of 12 KB … 800 KB, beside an intact legacy file of the same size (reference): the
@@ -23,6 +40,7 @@ from bpms.io.legacy_raw import read_legacy_raw
 from bpms.io.rawfile import RawFileError
 from bpms.io.udp.sequence import SequenceTracker
 
+ROOT = Path(__file__).resolve().parents[1]
 FRAME = b"$#" + bytes(336) + b"#$"
 
 
@@ -52,7 +70,8 @@ def legacy() -> None:
 
 def udp() -> None:
     n = 20_000
-    for label, step in (("in order (reference)", 1), ("jump of 40,000", 40_000)):
+    for label, step in (("in order (reference)", 1), ("gaps of 2,999 (plausible)", 3000),
+                        ("jumps of 40,000 (held)", 40_000)):
         t = SequenceTracker()
         seq = 0
         start = time.perf_counter()
@@ -63,9 +82,88 @@ def udp() -> None:
         print(f"UDP sequence tracking, {label:22}: {per * 1e6:6.2f} µs per datagram")
 
 
+def _tool(name: str):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tools" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def link_faults() -> tuple[str, str]:
+    from bpms.firmware.sim.server import pty_available
+
+    peers = _tool("hostile_peers")
+    tried = survived = lost = sent = 0
+    runs = [("tcp", 8)] * 20 + ([("pty", 10 + k) for k in range(5)] if pty_available() else [])
+    for kind, n in runs:
+        tried += 1
+        sent += n
+        try:
+            got, state = (peers.closing_tcp_run(n) if kind == "tcp"
+                          else peers.closing_pty_run(n))
+        except Exception as exc:  # a fault the host did not survive
+            print(f"  {kind}: {type(exc).__name__}: {exc}")
+            lost += n
+            continue
+        ok = state.value == "gone" and got == list(range(len(got)))
+        survived += ok
+        lost += n - len(got)
+    return (f"{tried} / {survived} / {lost}", f"{sent} frames sent")
+
+
+def bad_inputs() -> tuple[str, str]:
+    corpus_tool = _tool("hostile_corpus")
+    with tempfile.TemporaryDirectory() as tmp:
+        corpus = corpus_tool.Corpus(tmp)
+        totals = corpus_tool.run_all(corpus)
+        control = [corpus.check(cmd, case) for cmd, case in corpus_tool.pairs()
+                   if case.name == "intact"]
+    ok = sum(v.ok for v in control)
+    for line in totals.failures:
+        if "[issue 25]" not in line:
+            print("  " + line)
+    return (f"{totals.tried} / {totals.tracebacks} / {totals.wrong} "
+            f"({totals.known} of them issue 25's)", f"control {ok}/{len(control)} correct")
+
+
+def datagrams() -> list[tuple[str, str, str]]:
+    peers = _tool("hostile_peers")
+    results = peers.udp_attacks()
+    for r in results:
+        print(f"  {r.name}: forged {r.forged}, accepted {r.accepted}; real frames "
+              f"{r.real_delivered}/{r.real_sent}; {r.detected}")
+    rows = []
+    for keyed, label in ((True, "with a key"), (False, "without a key")):
+        mine = [r for r in results if ("(key)" in r.name) == keyed]
+        rows.append((f"datagrams forged / accepted, {label}",
+                     f"{sum(r.forged for r in mine)} / {sum(r.accepted for r in mine)}",
+                     f"real frames delivered {sum(r.real_delivered for r in mine)}/"
+                     f"{sum(r.real_sent for r in mine)}"))
+    return rows
+
+
+def figures() -> None:
+    rows = [("link faults tried / survived / frames lost", *link_faults()),
+            ("bad inputs tried / tracebacks / wrong outputs", *bad_inputs()),
+            *datagrams()]
+    width = max(len(r[0]) for r in rows)
+    print(f"{'figure':<{width}}  value  (reference)")
+    for name, value, reference in rows:
+        print(f"{name:<{width}}  {value}  ({reference})")
+
+
 if __name__ == "__main__":
+    import argparse
     import logging
 
-    logging.basicConfig(level=logging.ERROR)
-    legacy()
-    udp()
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="the figures table only")
+    args = parser.parse_args()
+    logging.getLogger().setLevel(logging.CRITICAL)  # the corpus's warnings are expected
+    figures()
+    if not args.quick:
+        legacy()
+        udp()

@@ -94,18 +94,6 @@ def test_two_windows_are_independent_and_identical_for_the_same_input(run):
     assert second["start"]["camera"] == first["start"]["camera"] != first["z"]["camera"]
 
 
-def test_the_original_keys_pan_zoom_recentre_and_trail(run):
-    _out, results = run
-    for extra in results["extra"]:
-        left = extra["Left"]
-        assert left["after"][:3] != left["before"][:3]  # arrows pan: the centre moves
-        assert left["after"][3] == left["before"][3]
-        assert extra["="]["after"][3] < extra["="]["before"][3]  # narrower field of view
-        assert extra["0"]["after"][3] == 60.0  # default field of view
-        assert extra["p"]["after"][:3] != extra["p"]["before"][:3]  # on the pelvis
-        assert extra["t"]["trail"] == "wrist_r"
-
-
 DOCKED = Path(__file__).parent / "gl" / "run_docked_views.py"
 
 
@@ -133,3 +121,94 @@ def test_several_docked_3d_views_render_the_solid_avatar(docked):
     floating = results["floating"]
     assert floating["floating"] and floating["valid"]
     assert floating["right"] > 200 and floating["left"] > 200, floating
+
+
+def _inside(extent: dict, margin: int = 1) -> bool:
+    """The figure's pixels keep off the image's border (the whole body is in the frame)."""
+    (w, h), rows, cols = extent["size"], extent["rows"], extent["cols"]
+    return rows is not None and rows[0] >= margin and rows[1] <= h - 1 - margin \
+        and cols[0] >= margin and cols[1] <= w - 1 - margin
+
+
+def _camera(state: dict) -> np.ndarray:
+    """The camera position as pyqtgraph places it (centre + distance × direction)."""
+    el, az = np.radians(state["elevation"]), np.radians(state["azimuth"])
+    direction = [np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
+    return np.array(state["center"]) + state["distance"] * np.array(direction)
+
+
+def _same(before: dict, after: dict, *names: str) -> bool:
+    return all(np.allclose(before[n], after[n]) for n in names)
+
+
+def _check_press(p: dict) -> None:
+    """The documented effect (the help table's action) of one press."""
+    b, a, press, cmd = p["before"], p["after"], p["press"], p["command"]
+    moved = np.array(a["center"]) - np.array(b["center"])
+    if p["inputs"] == "left drag":
+        assert (b["azimuth"], b["elevation"]) != (a["azimuth"], a["elevation"])
+        assert _same(b, a, "center", "distance")
+    elif press in ("middle", "ctrl-left"):
+        assert np.linalg.norm(moved) > 0.01 and _same(b, a, "distance", "azimuth")
+    elif p["inputs"] == "wheel":
+        assert a["distance"] < b["distance"] and a["fov"] == b["fov"]  # wheel forward: nearer
+    elif p["inputs"] == "Ctrl + wheel":
+        assert a["fov"] != b["fov"] and a["distance"] == b["distance"]
+    elif cmd == "pan_step":
+        assert abs(np.linalg.norm(moved) - 0.1) < 1e-3  # 0.1 m
+        view = _camera(b) - np.array(b["center"])
+        assert abs(moved @ view) < 1e-3  # in the view plane
+        assert _same(b, a, "distance", "azimuth", "elevation")
+        if press in ("Key_Up", "Key_Down"):
+            assert (moved[2] > 0) == (press == "Key_Up")
+        else:  # left / right: horizontal, towards the camera's left / right
+            right = np.cross(-view, [0.0, 0.0, 1.0])
+            assert abs(moved[2]) < 1e-6 and (moved @ right > 0) == (press == "Key_Right")
+    elif cmd == "orbit_step":
+        turn = {"Key_Left+shift": (5, 0), "Key_Right+shift": (-5, 0), "Key_Up+shift": (0, 5),
+                "Key_Down+shift": (0, -5)}[press]
+        assert (a["azimuth"] - b["azimuth"], a["elevation"] - b["elevation"]) == turn
+        assert _same(b, a, "center", "distance")
+    elif cmd == "reset_zero":
+        assert a["resets"] == b["resets"] + 1
+    elif cmd == "toggle_alignment":
+        assert b["aligned"] and not a["aligned"] and a["pelvis"] != b["pelvis"]
+    elif cmd == "recentre":
+        assert np.allclose(a["center"], a["pelvis"], atol=1e-6)
+    elif cmd == "field_of_view":
+        want = {"Key_Equal": b["fov"] / 1.2, "Key_Plus": b["fov"] / 1.2,
+                "Key_Minus": b["fov"] * 1.2, "Key_0": 60.0}[press]
+        assert abs(a["fov"] - want) < 1e-6 and a["fov"] != b["fov"]
+    elif cmd == "axis_view":
+        assert [a["elevation"], a["azimuth"]] == {"Key_X": [0, 0], "Key_Y": [0, 90],
+                                                  "Key_Z": [90, 0]}[press]
+        assert _inside(p["extent"])
+    elif cmd == "toggle_axes":
+        assert a["axes"] and p["pixels"]["axis_blue"] > 100
+    elif cmd == "cycle_trail":
+        assert b["trail"] is None and a["trail"] == "wrist_r"
+    elif cmd == "reset_view":
+        assert (a["elevation"], a["azimuth"], a["fov"]) == (15.0, 35.0, 60.0) != \
+            (b["elevation"], b["azimuth"], b["fov"])
+        assert _inside(p["extent"])
+    else:
+        raise AssertionError(f"no check for {p['inputs']!r} ({cmd})")
+
+
+def test_every_key_and_mouse_input_of_the_help_table_does_what_it_says(run):
+    from bpms.gui.view3d_keys import VIEW3D_BINDINGS
+
+    keys = run[1]["bindings"]
+    pressed = {p["binding"] for p in keys["presses"]}
+    assert pressed == set(range(len(VIEW3D_BINDINGS)))  # every row of F1's table
+    for p in keys["presses"]:
+        _check_press(p)
+
+
+def test_the_whole_body_is_framed_on_opening_and_on_r_whatever_the_view_shape(run):
+    for shot in run[1]["bindings"]["framing"]:
+        assert _inside(shot), shot
+        (w, h), rows, cols = shot["size"], shot["rows"], shot["cols"]
+        # framed, not lost in the distance: the figure (with room left for the arms' reach
+        # on either side) fills a good part of the tighter dimension
+        assert max((rows[1] - rows[0]) / h, (cols[1] - cols[0]) / w) > 0.3, shot

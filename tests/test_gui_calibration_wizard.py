@@ -4,7 +4,8 @@ the poses asked for (frames produced in-process, faster than real time)."""
 from __future__ import annotations
 
 import numpy as np
-from PyQt6.QtWidgets import QWizard
+from PyQt6.QtGui import QFontMetrics
+from PyQt6.QtWidgets import QStyle, QWizard
 
 from bpms.firmware.sim.calibration_poses import (
     CalibrationSuit,
@@ -54,25 +55,34 @@ def test_wizard_walks_through_all_three_steps(qtbot, tmp_path):
     wizard.next()
     assert wizard.currentId() == PAGE_ACCEL
     accel = wizard.accel_page
+    assert "nan" not in accel.live.text() + accel.prompt.text()
+    assert "IMU 2 Right Shank" in accel.prompt.text()
     while not accel.proc.done:
         step = accel.proc.index
         qtbot.waitUntil(lambda: accel.proc.at_extreme and accel.proc.still, timeout=10_000)
         accel.capture.click()
         qtbot.waitUntil(lambda s=step: accel.proc.index != s, timeout=10_000)
+        assert "nan" not in accel.live.text()  # the next pose: nothing measured yet
     assert accel.isComplete() and accel.steps.count() == 12
     assert "counts" in accel.steps.item(0).text()
     wizard.next()
     assert wizard.currentId() == PAGE_MAG
     mag = wizard.mag_page
+    _readable_headers(mag.table)
     mag.start.click()
     qtbot.waitUntil(mag.isComplete, timeout=20_000)
     assert mag.table.item(0, 4).text().endswith("%")
+    assert mag.table.item(1, 0).text() == "7 Neck"
     wizard.next()
     assert wizard.currentId() == PAGE_SUMMARY
     summary = wizard.summary_page
     rows = summary.table.rowCount()  # changed values only (a value may come out the same)
     assert 2 * 12 <= rows <= 2 * 16
-    assert {summary.table.item(r, 0).text() for r in range(rows)} == {"2", "7"}
+    assert {summary.table.item(r, 0).text() for r in range(rows)} == {"2 Right Shank",
+                                                                      "7 Neck"}
+    assert all("nan" not in summary.table.item(r, c).text() for r in range(rows)
+               for c in range(5))
+    _readable_headers(summary.table)
     assert "sphere residual" in summary.quality.text()
     wizard.button(QWizard.WizardButton.FinishButton).click()
     assert wizard.saved is not None
@@ -85,6 +95,50 @@ def test_wizard_walks_through_all_three_steps(qtbot, tmp_path):
         assert np.abs(new.values[imu, 13:16] - truth.values[imu, 13:16]).max() < 2.0
     modern = load_modern(modern_path(out))
     assert set(modern.ellipsoids) == set(IMUS)
+
+
+def _readable_headers(table) -> None:
+    """Every header line fits its column with the style's margins (in bold when the header
+    highlights the sections of selected cells)."""
+    header = table.horizontalHeader()
+    font = header.font()
+    font.setBold(header.highlightSections())
+    metrics = QFontMetrics(font)
+    margin = header.style().pixelMetric(QStyle.PixelMetric.PM_HeaderMargin)
+    for c in range(table.columnCount()):
+        text = table.horizontalHeaderItem(c).text()
+        width = max(metrics.horizontalAdvance(line) for line in text.split("\n"))
+        assert width + 2 * margin <= header.sectionSize(c), (text, header.sectionSize(c))
+
+
+def test_low_sphere_coverage_needs_a_sweep_again_or_a_confirmation(qtbot, tmp_path):
+    source = ScriptedCalibrationSource(CalibrationSuit(changed_table(), seed=2), speed=0,
+                                       burst=100)
+    wizard = CalibrationWizard(Options(), source=source, output=tmp_path / "C.cfg", poll_ms=5)
+    qtbot.addWidget(wizard)
+    for name in ("gyro", "accel"):
+        wizard.setup.sensor_boxes[name].setChecked(False)
+    for i, box in enumerate(wizard.setup.imu_boxes):
+        box.setChecked(i == 4)
+    wizard.show()
+    wizard.next()
+    mag = wizard.mag_page
+    next_button = wizard.button(QWizard.WizardButton.NextButton)
+    mag.start.click()
+    qtbot.waitUntil(lambda: mag.proc.frames > 100, timeout=10_000)
+    mag.stop.click()  # stopped after 2 s of a 120 s sweep: a fraction of the sphere seen
+    coverage = mag.proc.coverage()[4]
+    assert coverage < mag.proc.min_coverage
+    assert not mag.isComplete() and not next_button.isEnabled()
+    assert mag.accept_low.isVisible()
+    assert f"{100 * coverage:.0f} %" in mag.accept_low.text() and "80 %" in mag.accept_low.text()
+    assert "4 Right Arm" in mag.accept_low.text()
+    mag.accept_low.setChecked(True)  # the confirmation
+    assert mag.isComplete() and next_button.isEnabled()
+    mag.start.click()  # "Sweep again": a new sweep, the confirmation gone
+    assert mag.proc.state == "sweeping" and mag.proc.frames == 0
+    assert not mag.accept_low.isChecked() and not mag.accept_low.isVisible()
+    assert not mag.isComplete()
 
 
 def test_wizard_skips_unchosen_sensors(qtbot, tmp_path):

@@ -76,13 +76,16 @@ def test_docks_layouts_saved_and_restored_between_launches(qtbot, tmp_path, reco
     window.docks["events"].close()
     window.save_layout("mine")
     assert store.names() == ["mine"]
-    # another layout replaces it...
+    mine = [d.widget() for d in window.dynamic_docks if isinstance(d.widget(), PlotWindow)]
+    # another layout moves the panels and keeps the plots (issue 27.2)...
     window.apply_default_layout(CALIBRATION)
     assert not window.docks["filter"].isFloating() and window.docks["events"].isVisible()
-    assert not any(isinstance(d.widget(), PlotWindow) for d in window.dynamic_docks)
-    # ...and loading "mine" brings back the plots with their curves and the dock states
+    kept = [d.widget() for d in window.dynamic_docks if isinstance(d.widget(), PlotWindow)]
+    assert {id(p) for p in kept} == {id(p) for p in mine}
+    # ...and loading "mine" brings back the dock states, with the same plots
     assert window.load_layout("mine")
     plots = [d.widget() for d in window.dynamic_docks if isinstance(d.widget(), PlotWindow)]
+    assert {id(p) for p in plots} == {id(p) for p in mine}
     # (the playback layout's joint-angle plot was part of "mine" too)
     assert sorted(len(p.curves) for p in plots) == [1, 2, 28]
     labels = sorted(c.name() for p in plots if p.kind == "cells" for c in p.curves)

@@ -100,7 +100,8 @@ def test_simulated_suit_session(qtbot, tmp_path):
     joints = window.open_joint_plot()
     assert len(joints.curves) == 28
     # gains at run time reach the filter bank (applied between two frames)
-    window.gains_panel.boxes["kp_yaw"].setValue(0.5)
+    window.gains_panel.edits["kp_yaw"].setText("0.5")
+    window.gains_panel.edits["kp_yaw"].editingFinished.emit()
     bank = window.runner.session.processor.bank
     qtbot.waitUntil(lambda: bank.params[2] == 0.5, timeout=5000)
     # UDP server: the live stream goes to the configured target

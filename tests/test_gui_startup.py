@@ -237,6 +237,9 @@ def test_when_go_finds_no_suit_the_same_dialog_offers_the_simulated_suit(qtbot, 
     qtbot.waitUntil(lambda: not startup.busy and startup.last_dialog is not None, timeout=10000)
     box = startup.last_dialog
     assert "paired" in box.text() and startup.main_window is None
+    # each piece of advice once: what went wrong, then what to check
+    for word in ("paired", "battery", "baud", "no suit"):
+        assert (box.text() + box.informativeText()).lower().count(word) == 1, word
     with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
         startup.use_sim_button.click()
     window = blocker.args[0]
@@ -286,3 +289,23 @@ def test_every_options_editor_lies_inside_its_tab_at_640_by_560(qtbot):
             rect = editor.rect().translated(top_left)
             assert viewport.rect().contains(rect), (section, key, rect, viewport.rect())
             assert editor.width() >= 80, (section, key)  # room to type
+
+
+def test_the_options_help_text_uses_the_forms_width(qtbot):
+    from PyQt6.QtWidgets import QLabel
+
+    dialog = OptionsDialog(Options())
+    qtbot.addWidget(dialog)
+    dialog.resize(640, 560)
+    dialog.show()
+    qtbot.waitExposed(dialog)
+    QApplication.processEvents()
+    scroll = next(iter(dialog.scrolls.values()))
+    width = scroll.viewport().width()
+    labels = [w for w in scroll.widget().findChildren(QLabel) if w.wordWrap()]
+    longest = max(labels, key=lambda w: len(w.text()))
+    assert longest.width() > 0.85 * width  # not a ~200 px column
+    for label in labels:  # each help text above its field, as wide as the field
+        editor = label.buddy()
+        assert editor.mapTo(scroll.widget(), editor.rect().topLeft()).y() > \
+            label.mapTo(scroll.widget(), label.rect().topLeft()).y()

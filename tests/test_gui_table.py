@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 from PyQt6.QtCore import Qt
+from PyQt6.QtGui import QFont, QFontMetrics
 from PyQt6.QtTest import QTest
+from PyQt6.QtWidgets import QStyle
 
 from bpms.filter.calibration import SensorCalibration
 from bpms.gui.columns import COLUMNS
-from bpms.gui.data_table import DataTable, ImuTableModel
+from bpms.gui.data_table import DISTURBANCE_COLUMN, DataTable, ImuTableModel
 from bpms.io.calib_file import load_factory_calibration
 from bpms.pipeline.session import PoseSample
 
@@ -48,10 +50,58 @@ def test_table_shows_raw_calibrated_euler_and_flags_with_units(qtbot):
     model.set_angle_unit("rad")
     assert model.data(model.index(2, 0)) == f"{sample.euler[2, 0]:.3f}"
     assert model.headerData(2, Qt.Orientation.Horizontal) == "yaw (sensor) [rad]"
-    # every header fits its column (none clipped)
-    metrics = table.horizontalHeader().fontMetrics()
-    for c, text in enumerate(header):
-        assert metrics.horizontalAdvance(text) < table.columnWidth(c)
+    _nothing_clipped(table)
+
+
+def _nothing_clipped(table: DataTable) -> None:
+    """Every header, in bold (as drawn when a cell of its column is selected), and every cell
+    fits its column with the style's margins."""
+    model = table.table_model()
+    header = table.horizontalHeader()
+    bold = QFont(header.font())
+    bold.setBold(True)
+    head_margin = table.style().pixelMetric(QStyle.PixelMetric.PM_HeaderMargin)
+    cell_margin = table.style().pixelMetric(QStyle.PixelMetric.PM_FocusFrameHMargin) + 1
+    for c in range(len(COLUMNS)):
+        text = model.headerData(c, Qt.Orientation.Horizontal)
+        assert QFontMetrics(bold).horizontalAdvance(text) + 2 * head_margin \
+            <= table.columnWidth(c), text
+        for r in range(18):
+            cell = model.data(model.index(r, c))
+            assert table.fontMetrics().horizontalAdvance(cell) + 2 * cell_margin \
+                <= table.columnWidth(c), (text, cell)
+
+
+def _extreme(index: int) -> PoseSample:
+    """Counts at their limits, every error flag and both disturbance flags up."""
+    base = _sample()
+    raw = np.full((18, 9), -32768, np.int16)
+    raw[::2] = 32767
+    flags = np.ones(18, bool)
+    return PoseSample(index, 0.0, b"", raw, np.ones((18, 3), bool), base.euler, base.R, base.C,
+                      base.joint_angles, base.joint_positions, mag_disturbed=flags,
+                      acc_disturbed=flags, estimates=np.full((18, 6), -156.906))
+
+
+def test_no_header_or_cell_is_clipped_at_the_default_widths(qtbot):
+    """Extreme values: every error flag, both disturbance flags up for 40 min, angles past
+    ±180° (the continuous readout), counts at their limits, 16 g."""
+    calibration = SensorCalibration.from_table(load_factory_calibration())
+    for unit in ("deg", "rad"):
+        model = ImuTableModel(calibration, unit)
+        table = DataTable(model)
+        qtbot.addWidget(table)
+        base = _sample()
+        model.update(_extreme(base.index), euler=np.full((18, 3), np.radians(-999.99)))
+        later = _extreme(base.index + 40 * 60 * 50)
+        model.update(later, euler=np.full((18, 3), np.radians(-999.99)))
+        assert model.data(model.index(0, DISTURBANCE_COLUMN)) == "mag 40 min, acc 40 min"
+        assert model.data(model.index(0, 3)) == "accel mag gyro"
+        _nothing_clipped(table)
+        for role in (True, False):  # the sensor angles' headers too
+            model.set_show_output(role)
+            model.update(later)
+            _nothing_clipped(table)
 
 
 def test_error_flags_are_red_held_two_seconds_and_colour_the_row(qtbot):

@@ -22,6 +22,7 @@ from bpms.gui.modes import ModeConfig, SessionRunner
 from bpms.gui.plot_data import TickBlock, cell_curve
 from bpms.io.options import Options
 from bpms.io.udp.sender import UdpForwarder
+from bpms.pipeline.sample import PoseSample
 from bpms.pipeline.session import RecordingStatus
 
 _H = Qt.Orientation.Horizontal
@@ -59,6 +60,13 @@ def _texts(window: MainWindow) -> list[str]:
     return [text for _, _, text in window.event_log.entries]
 
 
+def _same_rotations(a: np.ndarray, b: np.ndarray) -> bool:
+    from bpms.filter.rotations import euler_to_dcm
+
+    return np.allclose(euler_to_dcm(*np.moveaxis(a, -1, 0)),
+                       euler_to_dcm(*np.moveaxis(b, -1, 0)), atol=1e-9)
+
+
 def test_output_angles_by_default_sensor_angles_on_switch_and_v_toggles(qtbot, tmp_path):
     window = _window(qtbot, tmp_path, ModeConfig(mode="sim", recording_dir=str(tmp_path)))
     last = [None]
@@ -76,8 +84,9 @@ def test_output_angles_by_default_sensor_angles_on_switch_and_v_toggles(qtbot, t
     window.model.attach(None)  # hold still: the test compares the last sample shown
     s = last[0]
     assert not np.allclose(s.euler_output, s.euler)  # Reset Zero turned them
-    assert np.array_equal(model.euler, s.euler_output)
-    assert model.data(model.index(5, 0)) == f"{np.degrees(s.euler_output[5, 0]):.2f}"
+    # the same rotations (the table shows their continuous readout: docs/main-window.md)
+    assert _same_rotations(model.euler, s.euler_output)
+    assert model.data(model.index(5, 0)) == f"{np.degrees(model.euler[5, 0]):.2f}"
     # the plots' block (each tick's, and what a new plot starts with)
     calibration = model.calibration
     assert np.array_equal(TickBlock.from_samples([s], calibration, model.show_output).euler[0],
@@ -85,7 +94,7 @@ def test_output_angles_by_default_sensor_angles_on_switch_and_v_toggles(qtbot, t
     # View ▸ Sensor angles (uncorrected): the filter's angles, said in the headers
     window.actions_by_name["sensor_angles"].trigger()
     window._on_samples([s])
-    assert np.array_equal(model.euler, s.euler)
+    assert np.array_equal(model.euler, s.euler)  # the readout starts again: as given
     assert model.headerData(0, _H) == "roll (sensor) [deg]"
     assert model.data(model.index(5, 0)) == f"{np.degrees(s.euler[5, 0]):.2f}"
     assert np.array_equal(TickBlock.from_samples([s], calibration, model.show_output).euler[0],
@@ -241,15 +250,25 @@ def test_disturbance_flags_reach_the_table_and_the_status(qtbot, tmp_path, recor
     mag[[2, 7]] = True
     acc[[7, 11]] = True
     window._on_samples([s.replace(mag_disturbed=mag, acc_disturbed=acc)])
+    acc[11] = False
+    # 99 frames (1.98 s) later: the flags still up say since when (their kind first)
+    later = PoseSample(s.index + 99, s.host_time, s.frame, s.raw, s.errors, s.euler, s.R, s.C,
+                       s.joint_angles, s.joint_positions, euler_output=s.euler_output,
+                       mag_disturbed=mag, acc_disturbed=acc, estimates=s.estimates)
+    window._on_samples([later])
     texts = [model.data(model.index(i, DISTURBANCE_COLUMN)) for i in range(18)]
-    assert texts[2] == "mag" and texts[7] == "mag acc" and texts[11] == "acc"
-    assert sum(bool(t) for t in texts) == 3
+    assert texts[2] == "mag 2.0 s" and texts[7] == "mag 2.0 s, acc 2.0 s" and texts[11] == ""
+    assert sum(bool(t) for t in texts) == 2
+    tip = model.data(model.index(7, DISTURBANCE_COLUMN), Qt.ItemDataRole.ToolTipRole)
+    assert "mag: up for 2.0 s" in tip and "acc: up for 2.0 s" in tip
+    assert window.table.columnWidth(DISTURBANCE_COLUMN) >= window.table.fontMetrics() \
+        .horizontalAdvance("mag 59 min, acc 59 min")
     colour = model.data(model.index(2, DISTURBANCE_COLUMN), Qt.ItemDataRole.ForegroundRole)
     assert colour.name() == "#c77c00"
     window._texts_at = -1e9
     window._on_status(window.runner.session.status())
     label = window.health_panel.labels["disturbance"]
-    assert label.text() == "mag 2 IMUs, acc 2 IMUs" and "#f0a000" in label.styleSheet()
+    assert label.text() == "mag 2 IMUs, acc 1 IMU" and "#f0a000" in label.styleSheet()
     # not plottable, not draggable
     window.table.select_cells([(2, DISTURBANCE_COLUMN), (2, 0)])
     assert window.table.selected_cells() == [(2, 0)]

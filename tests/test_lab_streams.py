@@ -69,7 +69,7 @@ def test_replay_sends_raw_frames_and_poses(recording):
     # POSE once the segment orientations exist (the provisional Reset Zero at the first frame)
     assert kinds.count(2) >= FRAMES - 5
     last = [g for g in grams if g[5] == 2][-1]
-    assert last[4] == 2  # POSE is format version 2: with joint positions
+    assert last[4] == 3  # format version 3 (the POSE extension blocks exist since version 2)
     pose = decode_datagram(last)
     pts = pose.pose.positions
     assert pts.shape == (21, 3) and pose.pose.convention == "isb"
@@ -89,7 +89,8 @@ def test_pose_version_2_readers_skip_unknown_extension_blocks():
     np.testing.assert_allclose(pose.positions, positions)
     assert pose.convention == "original"
     # a version-1 POSE is still read as before
-    assert decode_datagram(encode_header(2, 1, 0, 0.0, 0.0) + base).pose.positions is None
+    assert decode_datagram(encode_header(2, 1, 0, 0.0, 0.0, version=1)
+                           + base).pose.positions is None
 
 
 # -- MVN: a decoder from the public "MVN real-time network streaming protocol" ---------------

@@ -1,17 +1,27 @@
 """Save the documentation screenshots into docs/screenshots/ (run under Xvfb, xcb platform).
 
     tools/screenshots.sh            # = xvfb-run ... .venv/bin/python tools/screenshots.py
+    tools/screenshots.sh playback   # only the steps whose name starts so
 
-Plays a simulated recording (file mode) and grabs: the start-up window (startup.png); the main
-window in the "live monitoring" layout (main-window.png); the avatar in a 3D view
-(3d-view.png, 3d-view-imu-axes.png); the main window in the "playback analysis" layout with
-plots (main-window-with-plots.png). A window that cannot be made is reported in one line and
-the others are still saved. Saved layouts of the user running it are not used.
+At the two screen sizes the app is checked at — 1366 × 768 and 1920 × 1080, the window filling
+the screen less a 40-px task bar — in the default layout with one plot and one 3D view:
+
+- ``streaming-<size>.png``: the simulated suit live, logging (REC in the status bar);
+- ``playback-<size>.png``: a simulated recording played back (the playback-analysis
+  layout, the joint angles in front at the bottom, the user's plot a tab behind them);
+- ``udp-client-<size>.png``: the UDP client receiving what a UDP server on this machine
+  sends;
+
+and ``wizard-magnetometer.png`` / ``wizard-summary.png`` (the calibration wizard on the
+simulated suit, its default size), ``startup.png``, ``3d-view.png`` and
+``3d-view-imu-axes.png``. A window that cannot be made is reported in one line and the others
+are still saved. Saved layouts of the user running it are not used.
 """
 
 from __future__ import annotations
 
 import os
+import socket
 import sys
 import tempfile
 import time
@@ -23,8 +33,10 @@ sys.path.insert(0, str(ROOT))
 os.environ.setdefault("QT_QPA_PLATFORM", "xcb")
 os.environ["BPMS_CONFIG_DIR"] = tempfile.mkdtemp(prefix="bpms-shots-config-")
 
-from PyQt6.QtCore import Qt  # noqa: E402
 from PyQt6.QtWidgets import QApplication, QWidget  # noqa: E402
+
+#: (name, width, height): the screens, less a 40-px task bar (the window's client area).
+SIZES = (("1366x768", 1366, 728), ("1920x1080", 1920, 1040))
 
 
 def pump(app: QApplication, seconds: float) -> None:
@@ -48,42 +60,166 @@ def save_widget(widget: QWidget, name: str) -> None:
     print(f"saved {OUT / name}")
 
 
-def save_3d(window: QWidget, name: str) -> None:
-    view = getattr(window, "gl_view", None)
-    image = view.grabFramebuffer() if view is not None else window.grab()
-    image.save(str(OUT / name))
-    print(f"saved {OUT / name}")
-
-
 def make_recording(folder: Path) -> Path:
     from bpms.firmware.sim.session import simulate
-    from bpms.io.rawfile import new_header, write_raw
 
-    rec = simulate(duration_s=40.0, seed=2)
-    path = folder / "Raw_sim_001.bpmsraw"
-    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(notes="simulated"))
-    return path
+    return simulate(duration_s=40.0, seed=2).save_raw(folder / "Raw_sim_001.bpmsraw")
 
 
-def standalone_3d(app: QApplication, recording: Path, folder: Path) -> None:
-    """The 3D window on its own session (used when the main window cannot be made)."""
-    from bpms.gui.model import SessionModel
-    from bpms.gui.view3d import open_3d_window
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def main_window(config, size: tuple[int, int]):
+    from bpms.gui.main_window import MainWindow
+    from bpms.gui.modes import SessionRunner
+    from bpms.io.options import Options
+
+    runner = SessionRunner(config, Options())
+    runner.prepare()
+    window = MainWindow(runner, restore_last=False)
+    window.move(0, 0)
+    window.resize(*size)
+    window.show()
+    return window
+
+
+def one_plot(app: QApplication, window) -> None:
+    """The right forearm's roll, pitch and yaw in a plot (they move in the script)."""
+    window.table.select_cells([(5, c) for c in (0, 1, 2)])
+    window.plot_selection()
+    pump(app, 0.3)
+
+
+def streaming(app: QApplication, folder: Path, label: str, size: tuple[int, int]) -> None:
+    from bpms.gui.modes import ModeConfig
+
+    window = main_window(ModeConfig(mode="sim", recording_dir=str(folder)), size)
+    try:
+        window.set_data(True)
+        one_plot(app, window)
+        window.file_panel.toggle_logging()
+        # 14 s into the script: both arms raised sideways
+        wait_for(app, lambda: window.model.latest is not None
+                 and window.model.latest.index >= 700, 40)
+        pump(app, 0.5)
+        save_widget(window, f"streaming-{label}.png")
+        if label == SIZES[-1][0]:
+            views = window.view3d_windows
+            if views and views[0].gl_view is not None:
+                for name in ("3d-view.png", "3d-view-imu-axes.png"):
+                    views[0].snapshot(520, 640).save(str(OUT / name))
+                    print(f"saved {OUT / name}")
+                    views[0].gl_view.toggle_axes()
+            else:
+                print("3D view not available (no OpenGL?); 3d-view*.png not saved")
+    finally:
+        window.shutdown()
+        window.close()
+
+
+def playback(app: QApplication, folder: Path, recording: Path, label: str,
+             size: tuple[int, int]) -> None:
+    from bpms.gui.modes import ModeConfig
+
+    window = main_window(ModeConfig(mode="file", path=str(recording),
+                                    recording_dir=str(folder)), size)
+    try:
+        window.set_data(True)
+        wait_for(app, lambda: window.model.latest is not None, 20)
+        one_plot(app, window)
+        # 27 s in: the second squat (knees, hips and ankles in the joint angles below)
+        wait_for(app, lambda: window.model.latest.index >= 1350, 60)
+        joints = next((p for p in window.plot_windows if p.kind == "joints"), None)
+        if joints is not None:
+            window.dock_of(joints).raise_()  # the joint angles in front of the user's plot
+        pump(app, 0.5)
+        save_widget(window, f"playback-{label}.png")
+    finally:
+        window.shutdown()
+        window.close()
+
+
+def udp_client(app: QApplication, folder: Path, recording: Path, label: str,
+               size: tuple[int, int]) -> None:
+    """A UDP server on this machine (a recording replayed and forwarded) and the client."""
+    from bpms.gui.modes import ModeConfig
     from bpms.io.rawfile import read_raw
     from bpms.io.replay import ReplaySource
     from bpms.pipeline.session import LiveSession
 
-    session = LiveSession(ReplaySource(read_raw(recording), speed=1.0), recording_dir=folder)
-    model = SessionModel()
-    model.attach(session)
-    session.start()
-    window = open_3d_window(model)
-    wait_for(app, lambda: model.latest is not None and model.latest.index >= 745, 40)
-    save_3d(window, "3d-view.png")
-    window.view.toggle_axes()
-    pump(app, 0.2)
-    save_3d(window, "3d-view-imu-axes.png")
-    model.stop()
+    port = free_port()
+    sender = LiveSession(ReplaySource(read_raw(recording), speed=1.0), recording_dir=folder)
+    window = main_window(ModeConfig(mode="udp", listen=f"127.0.0.1:{port}",
+                                    recording_dir=str(folder)), size)
+    try:
+        sender.start_forwarding([f"127.0.0.1:{port}"])
+        sender.start()
+        window.set_data(True)
+        wait_for(app, lambda: window.model.latest is not None, 20)
+        one_plot(app, window)
+        wait_for(app, lambda: window.model.latest.index >= 700, 40)
+        pump(app, 0.5)
+        save_widget(window, f"udp-client-{label}.png")
+    finally:
+        sender.stop()
+        window.shutdown()
+        window.close()
+
+
+def wizard(app: QApplication, folder: Path) -> None:
+    """The calibration wizard on the simulated suit: the magnetometer sweep under way, then
+    the summary."""
+    from bpms.firmware.sim.calibration_poses import (
+        CalibrationSuit,
+        ScriptedCalibrationSource,
+        changed_table,
+    )
+    from bpms.gui.calibration_wizard import PAGE_MAG, PAGE_SUMMARY, CalibrationWizard
+    from bpms.io.options import Options
+
+    source = ScriptedCalibrationSource(CalibrationSuit(changed_table(), seed=2), speed=0,
+                                       burst=20)
+    wizard = CalibrationWizard(Options(), source=source, output=folder / "Calib.cfg",
+                               poll_ms=20)
+    try:
+        for i, box in enumerate(wizard.setup.imu_boxes):
+            box.setChecked(i in (2, 4, 5, 7))
+        for name in ("gyro", "accel"):
+            wizard.setup.sensor_boxes[name].setChecked(False)
+        wizard.setup.sweep_s.setValue(60.0)
+        wizard.move(0, 0)
+        wizard.show()
+        wizard.next()
+        if wizard.currentId() != PAGE_MAG:
+            print("wizard: the magnetometer page did not open; wizard-*.png not saved")
+            return
+        mag = wizard.mag_page
+        mag.start.click()
+        wait_for(app, lambda: mag.proc.progress > 0.4, 30)
+        pump(app, 0.3)
+        save_widget(wizard, "wizard-magnetometer.png")
+        wait_for(app, mag.isComplete, 60)
+        wizard.next()
+        if wizard.currentId() == PAGE_SUMMARY:
+            pump(app, 0.3)
+            save_widget(wizard, "wizard-summary.png")
+    finally:
+        wizard.reject()
+
+
+def startup(app: QApplication, folder: Path, recording: Path) -> None:
+    from bpms.gui.startup import StartupWindow
+
+    window = StartupWindow(recording_dir=str(folder))
+    window.show()
+    window.select_mode("file")
+    window.file_edit.setText(str(recording))
+    window.move(20, 20)
+    pump(app, 0.5)
+    save_widget(window, "startup.png")
     window.close()
 
 
@@ -92,68 +228,23 @@ def main() -> int:
     OUT.mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix="bpms-shots-"))
     recording = make_recording(folder)
-    try:
-        from bpms.gui.startup import StartupWindow
-    except Exception as exc:
-        print(f"start-up window not available ({exc}); 3D view only")
-        standalone_3d(app, recording, folder)
-        return 0
-
-    startup = StartupWindow(recording_dir=str(folder))
-    startup.show()
-    startup.select_mode("file")
-    startup.file_edit.setText(str(recording))
-    startup.move(20, 20)
-    pump(app, 0.5)
-    save_widget(startup, "startup.png")
-    opened: list = []
-    startup.mainWindowOpened.connect(opened.append)
-    startup.go_button.click()
-    if not wait_for(app, lambda: bool(opened), 30):
-        print("GO did not open the main window; 3D view only")
-        standalone_3d(app, recording, folder)
-        return 0
-    window = opened[0]
-    startup.hide()
-    from bpms.gui.layouts import LIVE, PLAYBACK
-
-    window.move(0, 0)
-    window.resize(1560, 940)
-    window.apply_default_layout(LIVE)
-    window.set_data(True)  # play
-    wait_for(app, lambda: window.model.latest is not None, 20)
-    # 14.9 s into the simulated script: both arms raised sideways.
-    wait_for(app, lambda: window.model.latest.index >= 745, 40)
-    window.set_data(False)
-    window.table.select_cells([(6, c) for c in (0, 1, 2)])
-    pump(app, 0.8)
-    save_widget(window, "main-window.png")
-    views = window.view3d_windows
-    if views and views[0].gl_view is not None:
-        view = views[0].gl_view
-        for name in ("3d-view.png", "3d-view-imu-axes.png"):
-            views[0].snapshot(520, 640).save(str(OUT / name))
-            print(f"saved {OUT / name}")
-            view.toggle_axes()
-    else:
-        print("3D view not available (no OpenGL?); 3d-view*.png not saved")
-    window.apply_default_layout(PLAYBACK)
-    window.table.select_cells([(6, c) for c in (0, 1, 2)])  # hip roll, pitch, yaw
-    window.plot_selection()
-    window.table.select_cells([(4, 0), (5, 0), (10, 0), (11, 0)])  # arms and forearms, roll
-    window.plot_selection()
-    pump(app, 0.3)
-    bottom = [d for d in window.dynamic_docks
-              if window.dockWidgetArea(d) == Qt.DockWidgetArea.BottomDockWidgetArea]
-    window.resizeDocks(bottom, [430] * len(bottom), Qt.Orientation.Vertical)
-    bottom[0].raise_()  # the joint angles in front of the event log
-    window.set_data(True)
-    wait_for(app, lambda: window.model.latest.index > 1200, 40)
-    window.set_data(False)
-    pump(app, 0.8)
-    save_widget(window, "main-window-with-plots.png")
-    window.shutdown()
-    window.close()
+    steps = [("start-up window", lambda: startup(app, folder, recording))]
+    for label, width, height in SIZES:
+        size = (width, height)
+        steps += [(f"streaming {label}", lambda s=size, n=label: streaming(app, folder, n, s)),
+                  (f"playback {label}",
+                   lambda s=size, n=label: playback(app, folder, recording, n, s)),
+                  (f"UDP client {label}",
+                   lambda s=size, n=label: udp_client(app, folder, recording, n, s))]
+    steps.append(("wizard", lambda: wizard(app, folder)))
+    only = sys.argv[1:]
+    for what, step in steps:
+        if only and not any(what.startswith(o) for o in only):
+            continue
+        try:
+            step()
+        except Exception as exc:  # one window failing must not cost the others
+            print(f"{what}: not saved ({type(exc).__name__}: {exc})")
     return 0
 
 

@@ -47,6 +47,7 @@ class Outcome:
     rows: list[tuple[str, float, float]] = field(default_factory=list)
     written: list[str] = field(default_factory=list)
     error: str | None = None
+    problems: list[str] = field(default_factory=list)  # warnings (file, header, options)
 
 
 def find_recordings(folder: str | Path) -> list[Job]:
@@ -83,6 +84,7 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
     writers: list = []
     try:
         opened = open_for_processing(job.path, None, options)
+        outcome.problems = [str(p) for p in opened.problems]
         if len(opened) == 0:
             raise ValueError("the recording holds no frames")
         target = Path(out_dir) / job.subject

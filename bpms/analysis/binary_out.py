@@ -69,8 +69,12 @@ class ExportMeta:
 
 
 def utc_iso(posix: float) -> str:
-    """``2026-11-30T08:12:41.250Z`` (milliseconds, UTC)."""
-    t = dt.datetime.fromtimestamp(posix, tz=dt.UTC)
+    """``2026-11-30T08:12:41.250Z`` (milliseconds, UTC); ``unknown`` for a time no clock
+    gives (a damaged record's time, NaN)."""
+    try:
+        t = dt.datetime.fromtimestamp(posix, tz=dt.UTC)
+    except (OverflowError, OSError, ValueError):
+        return "unknown"
     return t.strftime("%Y-%m-%dT%H:%M:%S.") + f"{t.microsecond // 1000:03d}Z"
 
 

@@ -78,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
                  else f"{outcome.frames} frames, {outcome.seconds:.1f} s")
         print(f"[{done}/{total}] {outcome.job.subject}/{outcome.job.trial}: {state}",
               flush=True)
+        for problem in outcome.problems:
+            print(f"bpms batch: warning: {problem}", file=sys.stderr, flush=True)
 
     outcomes = run_batch(jobs, out, outputs, workers, args.options, progress)
     elapsed = time.perf_counter() - t0

@@ -40,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from bpms.analysis.binary_out import SUFFIX, MissingPackageError, check_available
     from bpms.analysis.source import stderr_progress
     from bpms.analysis.stream_export import export_recording
+    from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
 
     t0 = time.perf_counter()
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         summary = export_recording(raw, outputs, args.calibration, args.options,
                                    stderr_progress)
-    except RawFileError as exc:
+    except (RawFileError, FilteredFileError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
         raise CliError(f"cannot write: {exc.strerror or exc}") from None

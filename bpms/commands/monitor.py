@@ -14,7 +14,9 @@ the stream, closes the port and exits 0.
 from __future__ import annotations
 
 import argparse
+import math
 import signal
+import threading
 import time
 from typing import TYPE_CHECKING
 
@@ -124,36 +126,75 @@ def status_line(elapsed: float, rate: float, frames: int, error_bits: int,
     return line
 
 
+class _Reader(threading.Thread):
+    """Reads the source and counts, so that a read blocked in a probe or a reconnection
+    (up to ``--timeout`` s each) never holds back the status line."""
+
+    def __init__(self, source: SuitFrameSource) -> None:
+        super().__init__(name="bpms-monitor-reader", daemon=True)
+        self.source = source
+        self.lock = threading.Lock()
+        self.frames = self.error_bits = 0
+        self.failure: BaseException | None = None
+        self._stop = threading.Event()
+
+    def run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                got = [e.frame for e in self.source.read(0.05)]
+                bits = count_error_bits(got)
+                with self.lock:
+                    self.frames += len(got)
+                    self.error_bits += bits
+        except BaseException as exc:  # shown by the main thread, which then stops
+            self.failure = exc
+
+    def counts(self) -> tuple[int, int]:
+        with self.lock:
+            return self.frames, self.error_bits
+
+    def stop(self) -> None:
+        self._stop.set()
+
+
 def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
+    """One line per second from the main thread, whatever the reader waits for."""
+    reader = _Reader(source)
+    reader.start()
     t0 = time.monotonic()
     next_line = t0 + 1.0
-    frames = error_bits = 0
-    window_frames = 0
+    shown = 0
     window_t0 = t0
-    while True:
-        got = [e.frame for e in source.read(0.05)]
-        frames += len(got)
-        window_frames += len(got)
-        error_bits += count_error_bits(got)
-        now = time.monotonic()
-        if now >= next_line:
-            rate = window_frames / (now - window_t0)
-            print(status_line(now - t0, rate, frames, error_bits, source.status()), flush=True)
-            window_frames, window_t0 = 0, now
-            next_line += 1.0
-            if next_line < now:  # fell behind (suspended): no burst of lines
-                next_line = now + 1.0
-        if seconds is not None and now - t0 >= seconds:
-            return
+    try:
+        while reader.failure is None:
+            end = t0 + seconds if seconds is not None else math.inf
+            time.sleep(max(0.0, min(next_line, end) - time.monotonic()))
+            now = time.monotonic()
+            if now >= next_line:
+                frames, error_bits = reader.counts()
+                rate = (frames - shown) / (now - window_t0)
+                print(status_line(now - t0, rate, frames, error_bits, source.status()),
+                      flush=True)
+                shown, window_t0 = frames, now
+                next_line += 1.0
+                if next_line < now:  # fell behind (suspended): no burst of lines
+                    next_line = now + 1.0
+            if now >= end:
+                return
+        raise reader.failure
+    finally:
+        reader.stop()
 
 
 def udp_status_line(elapsed: float, rate: float, frames: int, status: SourceStatus) -> str:
-    """One status line of a UDP stream: counters, then the state and "another sender"."""
+    """One status line of a UDP stream: counters, then the state and the warnings (another
+    sender on this port or on this session, a sender that took over)."""
     c = status.counters
     line = (f"t {elapsed:6.1f} s  rate {rate:5.1f} Hz  frames {frames:7d}  lost {c['lost']}  "
             f"duplicated {c['duplicated']}  reordered {c['reordered']}  "
             f"malformed {c['malformed']}  foreign {c['foreign']}  "
-            f"unauthenticated {c['unauthenticated']}  {status.state}")
+            f"unauthenticated {c['unauthenticated']}  replayed {c['replayed']}  "
+            f"implausible {c['implausible']}  conflicts {c['conflicts']}  {status.state}")
     if status.warning:
         line += f"  WARNING: {status.warning}"
     return line
@@ -167,8 +208,9 @@ def _monitor_udp(args: argparse.Namespace) -> int:
         from bpms.io.defaults import default_options
         from bpms.io.udp.auth import shared_key
 
-        source = UdpFrameSource(args.listen,
-                                key=shared_key(default_options(announce=False).udp.key_file))
+        udp = default_options(announce=False).udp
+        source = UdpFrameSource(args.listen, key=shared_key(udp.key_file),
+                                takeover_after_s=udp.takeover_after_s)
     except (UdpConfigError, OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
     signal.signal(signal.SIGTERM, _sigterm)

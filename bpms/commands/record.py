@@ -80,6 +80,8 @@ def status_line(status: LiveStatus, elapsed: float) -> str:
         line += f"  ({src.reason})"
     if rec is not None and rec.error:
         line += f"  WRITE ERROR, not recording: {rec.error}"
+    if rec is not None and rec.filtered_stopped:
+        line += f"  FILTERED FILE STOPPED: {rec.filtered_stopped}"
     if src.simulated:
         line += "  SIMULATED"
     return line

@@ -66,6 +66,8 @@ def _processor(path: str, options_path: str | None):
     if not opened.has_raw:
         raise CliError(f"{path}: a filtered file; give a raw recording")
     print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
+    for problem in opened.problems:
+        print(f"bpms replay: warning: {problem}", file=sys.stderr)
     return opened.processor, opened.processor.options
 
 
@@ -112,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     if args.lsl and args.lsl_wait > 0:
         print(f"waiting up to {args.lsl_wait:g} s for LSL consumers", flush=True)
         _wait_for_lsl(bridges, args.lsl_wait)
-    print(f"replaying {len(recording)} frames ({len(recording) * FRAME_PERIOD_S:.1f} s) "
+    print(f"replaying {len(recording)} frames ({recording.duration_s:.1f} s) "
           f"to {', '.join(targets)} at {'full speed' if not args.speed else f'{args.speed}×'}",
           flush=True)
     session.start()
@@ -127,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
             if now - last >= 1.0 or done:
                 print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
                       f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
-                      f"send errors {status.forward_errors}", flush=True)
+                      f"send errors {status.forward_errors}  "
+                      f"no listener {status.forward_refused}", flush=True)
                 last = now
             if done:
                 if not args.loop:

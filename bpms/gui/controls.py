@@ -14,22 +14,24 @@ from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
-    QDoubleSpinBox,
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
     QLabel,
     QLineEdit,
     QPushButton,
+    QSizePolicy,
     QSlider,
+    QStyle,
+    QToolButton,
     QVBoxLayout,
     QWidget,
 )
 
 from bpms.gui.modes import SessionRunner
-from bpms.gui.safety import BackgroundTask, debounce, guard_wheel
+from bpms.gui.safety import BackgroundTask, debounce, guard_wheel, set_enabled_keeping_focus
 from bpms.io.frames import FRAME_PERIOD_S
-from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, option_range
+from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, check_option, option_range
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp.addresses import UdpConfigError
 
@@ -100,7 +102,7 @@ class StatusPanel(QGroupBox):
     def set_streaming(self, on: bool) -> None:
         self.streaming = on
         self.data_button.setText("Stop Data" if on else "Start Data")
-        self.reset_button.setEnabled(on)
+        set_enabled_keeping_focus(on, self.data_button, self.reset_button)
 
     def show_status(self, st: LiveStatus, health_state: str | None = None) -> None:
         """``health_state``: the GUI's view of the link (:mod:`bpms.gui.health`), shown instead
@@ -130,15 +132,24 @@ class StatusPanel(QGroupBox):
 
 class GainsPanel(QGroupBox):
     """The attitude filter (all 18 IMUs) and the selected filter's own settings, editable at
-    run time (applied from the next frame on). Each box's range is the option's valid range
-    (``bpms.io.options.VALID_RANGES``)."""
+    run time (applied from the next frame on). Only the chosen filter's settings are shown,
+    each with its valid range beside it (``bpms.io.options.VALID_RANGES``).
+
+    A value is applied when Enter is pressed or the field is left. One outside its range (or
+    not a number) is refused: the field goes back to the value in force and the message, with
+    the range, is shown under the fields and sent as ``logged(text, "warning")``; an accepted
+    change is sent as ``gainsChanged({name: value})`` and ``logged("filter gain …: old →
+    new", "info")`` (the main window writes both to the event log).
+    """
 
     gainsChanged = pyqtSignal(dict)
     filterChanged = pyqtSignal(str)
+    logged = pyqtSignal(str, str)
 
     def __init__(self, options: FilterOptions, parent: QWidget | None = None) -> None:
         super().__init__("Filter gains", parent)
         form = QFormLayout(self)
+        form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapLongRows)
         fields = {f.name: f for f in dataclasses.fields(FilterOptions)}
         self.filter_combo = QComboBox()
         self.filter_combo.addItems(list(fields["algorithm"].metadata["choices"]))
@@ -150,34 +161,100 @@ class GainsPanel(QGroupBox):
         self.filter_combo.currentTextChanged.connect(self.show_settings_of)
         guard_wheel(self.filter_combo)
         form.addRow("filter", self.filter_combo)
-        self.boxes: dict[str, QDoubleSpinBox] = {}
+        self.values: dict[str, float] = {}
+        self.edits: dict[str, QLineEdit] = {}
+        self.rows: dict[str, QWidget] = {}
         self.labels: dict[str, QLabel] = {}
-        for algorithm, names in ALGORITHM_SETTINGS.items():
-            for name in names:
-                rng = option_range("filter", name)
-                box = QDoubleSpinBox()
-                box.setDecimals(6)
-                box.setRange(rng.lo if rng and rng.lo is not None else 0.0,
-                             rng.hi if rng and rng.hi is not None else 1e6)
-                box.setSingleStep(0.00001 if name.startswith("ki") else 0.001
-                                  if algorithm == "mahony" else 0.01)
-                box.setValue(getattr(options, name))
-                box.setToolTip(f"{fields[name].metadata.get('help', '')}; valid "
-                               f"{rng.describe() if rng else 'any'}")
-                box.setKeyboardTracking(False)
-                box.valueChanged.connect(lambda v, n=name: self.gainsChanged.emit({n: v}))
-                guard_wheel(box)
-                self.boxes[name] = box
-                self.labels[name] = QLabel(name.removeprefix(f"{algorithm}_"))
-                form.addRow(self.labels[name], box)
+        names = dict.fromkeys(n for names in ALGORITHM_SETTINGS.values() for n in names)
+        for name in names:  # one field per setting, also when two filters share it
+            rng = option_range("filter", name)
+            edit = QLineEdit(f"{getattr(options, name):g}")
+            edit.setToolTip(f"{fields[name].metadata.get('help', '')}; valid "
+                            f"{rng.describe() if rng else 'any'}")
+            edit.editingFinished.connect(lambda n=name: self.apply(n))
+            row = QWidget()
+            line = QHBoxLayout(row)
+            line.setContentsMargins(0, 0, 0, 0)
+            line.addWidget(edit, 1)
+            hint = QLabel(rng.describe() if rng else "")
+            hint.setStyleSheet("color: #666")
+            line.addWidget(hint)
+            self.values[name] = float(getattr(options, name))
+            self.edits[name], self.rows[name] = edit, row
+            self.labels[name] = QLabel(_short_name(name))
+            form.addRow(self.labels[name], row)
+        self.message = QLabel("")
+        self.message.setWordWrap(True)
+        self.message.setStyleSheet("color: #b00")
+        form.addRow(self.message)
+        self._refused = ""
         self.show_settings_of(options.algorithm)
 
     def show_settings_of(self, algorithm: str) -> None:
         """Show only ``algorithm``'s own settings."""
         mine = set(ALGORITHM_SETTINGS.get(algorithm, ()))
-        for name, box in self.boxes.items():
-            box.setVisible(name in mine)
+        for name, row in self.rows.items():
+            row.setVisible(name in mine)
             self.labels[name].setVisible(name in mine)
+        self.message.setText("")
+
+    def shown_settings(self) -> list[str]:
+        """The settings whose fields are shown (those of the chosen filter)."""
+        return [n for n, row in self.rows.items() if not row.isHidden()]
+
+    def apply(self, name: str) -> bool:
+        """Check the field of ``name`` and apply it (False: refused, the message says why)."""
+        edit = self.edits[name]
+        text = edit.text().strip()
+        old = self.values[name]
+        rng = option_range("filter", name)
+        valid = f"valid {rng.describe()}" if rng is not None else "any number"
+        try:
+            value = check_option("filter", name, float(text))
+        except ValueError as exc:
+            why = str(exc).split(" (")[0] if _is_number(text) else \
+                f"filter.{name}: {text!r} is not a number"
+            shown = "" if rng is not None and rng.describe() in why else f"; {valid}"
+            return self._refuse(name, f"refused {why}{shown}; kept {old:g}")
+        edit.setText(f"{value:g}")
+        if value == old:
+            return True
+        self._refused = ""
+        self.values[name] = value
+        self.gainsChanged.emit({name: value})  # the receiver may refuse(): the session said no
+        if self._refused:
+            self.values[name] = old
+            return self._refuse(name, f"refused filter.{name} = {value:g}: {self._refused}; "
+                                      f"kept {old:g}")
+        self.message.setText("")
+        self.logged.emit(f"filter gain {name}: {old:g} → {value:g}", "info")
+        return True
+
+    def refuse(self, why: str) -> None:
+        """Called by a ``gainsChanged`` receiver whose session refused the value."""
+        self._refused = why or "refused"
+
+    def _refuse(self, name: str, message: str) -> bool:
+        self.edits[name].setText(f"{self.values[name]:g}")
+        self.message.setText(message)
+        self.logged.emit(message, "warning")
+        return False
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _short_name(name: str) -> str:
+    """``observer_k_incl`` → ``k_incl``: the filter's name is in the combo box above."""
+    for algorithm in ALGORITHM_SETTINGS:
+        if name.startswith(f"{algorithm}_"):
+            return name.removeprefix(f"{algorithm}_")
+    return name
 
 
 class FilePanel(QGroupBox):
@@ -301,7 +378,7 @@ class PlaybackPanel(QGroupBox):
         assert runner.replay is not None
         self.runner = runner
         self.replay = runner.replay
-        self.step_buttons: list[QPushButton] = []
+        self.step_buttons: list[QToolButton] = []
         self.shown = self.replay.position  # the frame at the slider
         layout = QVBoxLayout(self)
         self.slider = QSlider(Qt.Orientation.Horizontal)
@@ -323,16 +400,33 @@ class PlaybackPanel(QGroupBox):
                 ticks.addStretch(1)
         layout.addLayout(ticks)
         steps = QHBoxLayout()
-        for text, n, tip in (("⏮ −1 s", -50, "Ctrl+Shift+Left"), ("◀ −1", -1, "Ctrl+Left"),
-                             ("+1 ▶", 1, "Ctrl+Right"), ("+1 s ⏭", 50, "Ctrl+Shift+Right")):
-            button = QPushButton(text)
-            button.setToolTip(f"Paused: step {abs(n)} frame(s) ({tip})")
+        icon = self.style().standardIcon
+        sp = QStyle.StandardPixmap
+        # icons from Qt's standard set (a font may lack the media glyphs)
+        for pixmap, text, n, tip in (
+                (sp.SP_MediaSkipBackward, "−1 s", -50, "Ctrl+Shift+Left"),
+                (sp.SP_MediaSeekBackward, "−1", -1, "Ctrl+Left"),
+                (sp.SP_MediaSeekForward, "+1", 1, "Ctrl+Right"),
+                (sp.SP_MediaSkipForward, "+1 s", 50, "Ctrl+Shift+Right")):
+            # tool buttons: as wide as icon and text (push buttons keep a style minimum that
+            # makes four of them scroll a narrow panel sideways)
+            button = QToolButton()
+            button.setIcon(icon(pixmap))
+            button.setText(text)
+            button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+            button.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
+            if n > 0:
+                button.setLayoutDirection(Qt.LayoutDirection.RightToLeft)  # text, then icon
+            word = "forward" if n > 0 else "back"
+            button.setToolTip(f"Paused: {abs(n)} frame{'s' if abs(n) > 1 else ''} {word} "
+                              f"({'1 s' if abs(n) == 50 else 'one frame'}; {tip})")
             button.clicked.connect(lambda _=False, n=n: self.step(n))
             steps.addWidget(button)
             self.step_buttons.append(button)
         layout.addLayout(steps)
         row = QHBoxLayout()
         self.position_label = QLabel()
+        self.position_label.setWordWrap(True)  # a narrow panel: two lines, no sideways scroll
         row.addWidget(self.position_label, 1)
         row.addWidget(QLabel("Speed"))
         self.speed_combo = QComboBox()
@@ -380,10 +474,9 @@ class PlaybackPanel(QGroupBox):
 
     def show_status(self, st: LiveStatus | None = None) -> None:
         playing = self.replay.playing
-        self.slider.setEnabled(not playing)
-        self.speed_combo.setEnabled(not playing)
-        for button in self.step_buttons:
-            button.setEnabled(not playing)
+        # disabled while playing; the focus stays on this panel (not the next field below)
+        set_enabled_keeping_focus(not playing, self, self.slider, self.speed_combo,
+                                  *self.step_buttons)
         if playing and not self.slider.isSliderDown():
             # the last delivered frame (position is the next one)
             pos = min(max(0, self.replay.position - 1), self.slider.maximum())
@@ -440,5 +533,7 @@ class UdpServerPanel(QGroupBox):
 
     def show_status(self, st: LiveStatus) -> None:
         if self.on:
+            refused = f", nobody listening ({st.forward_refused})" if st.forward_refused else ""
             self.status_label.setText(f"sending to {', '.join(st.forwarding)}: "
-                                      f"{st.forwarded} datagrams, {st.forward_errors} errors")
+                                      f"{st.forwarded} datagrams, {st.forward_errors} errors"
+                                      f"{refused}")

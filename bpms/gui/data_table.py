@@ -5,9 +5,14 @@ and announces one ``dataChanged`` per display tick; Qt asks for the visible cell
 Calibrated values are :meth:`SensorCalibration.physical_units` (accel m/s², mag gauss,
 gyro rad/s, signed board axes); Euler angles (rad or deg, switchable live) are by default the
 processor's output angles (``PoseSample.euler_output``: segment angles after Reset Zero), or the
-filter's sensor angles (``PoseSample.euler``) — the headers say which. The disturbance column
-marks IMUs whose magnetometer ("mag") or acceleration ("acc") is disturbed
-(:mod:`bpms.filter.disturbance`), in amber.
+filter's sensor angles (``PoseSample.euler``) — the headers say which; the caller may pass
+the continuous readout of them (:mod:`bpms.gui.angle_readout`), and roll and yaw near pitch
+±90° are greyed with the reason in their tooltip. The disturbance column marks IMUs whose
+magnetometer ("mag") or acceleration ("acc") is disturbed (:mod:`bpms.filter.disturbance`),
+in amber, with how long each flag has been up (:mod:`bpms.gui.disturbance_view`).
+
+Every column is as wide as its header in bold (the header of a selected cell's column is
+drawn bold) and its widest possible cell (:data:`WIDEST`), so neither is ever cut.
 """
 
 from __future__ import annotations
@@ -16,12 +21,15 @@ import time
 
 import numpy as np
 from PyQt6.QtCore import QAbstractTableModel, QMimeData, QModelIndex, Qt, pyqtSignal
-from PyQt6.QtGui import QColor
-from PyQt6.QtWidgets import QAbstractItemView, QHeaderView, QTableView, QWidget
+from PyQt6.QtGui import QColor, QFont, QFontMetrics
+from PyQt6.QtWidgets import QAbstractItemView, QHeaderView, QStyle, QTableView, QWidget
 
 from bpms.filter.calibration import SensorCalibration
+from bpms.gui.angle_readout import poorly_defined
 from bpms.gui.columns import COLUMNS, TEXT_GROUPS, calibrated, human_joint_name, shown_angles
+from bpms.gui.disturbance_view import FlagAges
 from bpms.gui.drag import CELLS_MIME, JOINTS_MIME, cells_to_mime, joints_to_mime
+from bpms.gui.stale import StaleOverlay
 from bpms.io.frames import IMU_NAMES, N_IMUS, SENSOR_NAMES
 from bpms.pipeline.session import PoseSample
 
@@ -29,9 +37,6 @@ from bpms.pipeline.session import PoseSample
 ERROR_HOLD_S = 2.0
 
 
-def disturbance_text(mag: bool, acc: bool) -> str:
-    """"", "mag", "acc" or "mag acc"."""
-    return " ".join(name for name, on in (("mag", mag), ("acc", acc)) if on)
 
 
 def error_text(flags: np.ndarray) -> str:
@@ -44,11 +49,21 @@ _ALIGN = Qt.ItemDataRole.TextAlignmentRole
 _FOREGROUND = Qt.ItemDataRole.ForegroundRole
 _RIGHT = Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter
 _BACKGROUND = Qt.ItemDataRole.BackgroundRole
+_TOOLTIP = Qt.ItemDataRole.ToolTipRole
 _RED = QColor("#d62728")
 _AMBER = QColor("#c77c00")  # amber, dark enough to read on white
+_VAGUE = QColor("#8a8a8a")  # roll / yaw near pitch ±90°
 _FAILED_ROW = QColor("#fde0e0")
+VAGUE_TIP = ("pitch is near ±90°: roll and yaw are poorly defined here (only their sum or "
+             "difference is) and may sweep quickly; the joint angles read right")
 _ERRORS_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "errors")
 DISTURBANCE_COLUMN = next(k for k, c in enumerate(COLUMNS) if c.group == "disturbance")
+_ROLL_YAW = {k for k, c in enumerate(COLUMNS) if c.group == "euler" and c.k in (0, 2)}
+#: The widest text each column group can show (numbers at their extremes: the continuous
+#: angles pass ±180°, accelerations reach ±16 g, raw counts ±32768, hours-long flags).
+WIDEST = {"euler": ("-9999.99", "-99.999"), "raw": ("-32768",), "cal": ("-156.906",),
+          "est": ("-156.9060",), "errors": ("accel mag gyro",),
+          "disturbance": ("mag 59 min, acc 59 min",)}
 
 
 class ImuTableModel(QAbstractTableModel):
@@ -67,6 +82,8 @@ class ImuTableModel(QAbstractTableModel):
         self.mag_disturbed = np.zeros(N_IMUS, bool)
         self.est = np.full((N_IMUS, 6), np.nan)
         self.acc_disturbed = np.zeros(N_IMUS, bool)
+        self.flag_ages = FlagAges()
+        self.vague = np.zeros(N_IMUS, bool)  # roll and yaw poorly defined (pitch near ±90°)
         #: show the output angles (segment angles after Reset Zero) rather than the sensor's
         self.show_output = True
         #: what the Euler columns hold now: "segment" or "sensor"
@@ -76,16 +93,21 @@ class ImuTableModel(QAbstractTableModel):
 
     # -- updates ------------------------------------------------------------------------
     def update(self, sample: PoseSample, errors: np.ndarray | None = None,
-               now: float | None = None) -> None:
+               now: float | None = None, euler: np.ndarray | None = None) -> None:
         """Show ``sample`` (one ``dataChanged`` for the whole table). ``errors [18, 3]``: the
         flags of every frame since the last update (default: this sample's); a flag stays
-        shown for :data:`ERROR_HOLD_S` after the last frame that raised it."""
+        shown for :data:`ERROR_HOLD_S` after the last frame that raised it. ``euler
+        [18, 3]`` rad: the angles to show instead of the sample's (the continuous readout
+        of the same angles, :mod:`bpms.gui.angle_readout`)."""
         now = time.monotonic() if now is None else now
         flags = sample.errors if errors is None else errors
         self.error_until[flags] = now + ERROR_HOLD_S
         self.raw = sample.raw
         self.cal = calibrated(self.calibration, sample.raw)
         self.euler, kind = shown_angles(sample, self.show_output)
+        if euler is not None:
+            self.euler = np.asarray(euler, np.float64)
+        self.vague = poorly_defined(self.euler[:, 1])
         if kind != self.angles_kind:
             self.angles_kind = kind
             self.headerDataChanged.emit(Qt.Orientation.Horizontal, 0, len(COLUMNS) - 1)
@@ -94,6 +116,7 @@ class ImuTableModel(QAbstractTableModel):
                     else sample.estimates)
         self.mag_disturbed = none if sample.mag_disturbed is None else sample.mag_disturbed
         self.acc_disturbed = none if sample.acc_disturbed is None else sample.acc_disturbed
+        self.flag_ages.update(sample.index, self.mag_disturbed, self.acc_disturbed)
         self.errors = self.error_until > now
         self.has_data = True
         self._format()
@@ -110,7 +133,7 @@ class ImuTableModel(QAbstractTableModel):
             raw = [str(v) for v in self.raw[i].tolist()]
             cal = ["–" if v != v else f"{v:.3f}" for v in self.cal[i].tolist()]
             eul = ["–" if v != v else efmt.format(v) for v in euler[i].tolist()]
-            dist = disturbance_text(self.mag_disturbed[i], self.acc_disturbed[i])
+            dist = self.flag_ages.text(i)
             est = ["–" if v != v else f"{v:.4f}" for v in self.est[i].tolist()]
             rows.append([*eul, error_text(self.errors[i]), *cal, *raw, dist, *est])
         self._text = rows
@@ -143,7 +166,7 @@ class ImuTableModel(QAbstractTableModel):
         if column.group == "errors":
             return error_text(self.errors[row])
         if column.group == "disturbance":
-            return disturbance_text(self.mag_disturbed[row], self.acc_disturbed[row])
+            return self.flag_ages.text(row)
         if column.group == "raw":
             return int(self.raw[row, column.k])
         if column.group == "cal":
@@ -162,6 +185,13 @@ class ImuTableModel(QAbstractTableModel):
             return _RED
         if role == _FOREGROUND and index.column() == DISTURBANCE_COLUMN:
             return _AMBER
+        if index.column() in _ROLL_YAW and self.vague[index.row()] and self.has_data:
+            if role == _FOREGROUND:
+                return _VAGUE
+            if role == _TOOLTIP:
+                return VAGUE_TIP
+        if role == _TOOLTIP and index.column() == DISTURBANCE_COLUMN:
+            return self.flag_ages.tooltip(index.row()) or None
         if role == _BACKGROUND and self.errors[index.row()].any():
             return _FAILED_ROW  # a failed sensor: the IMU's whole row
         return None
@@ -213,12 +243,36 @@ class DataTable(QTableView):
         self.setWordWrap(False)
         header = self.horizontalHeader()
         header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
-        metrics = header.fontMetrics()
-        for col in range(len(COLUMNS)):
-            text = str(model.headerData(col, Qt.Orientation.Horizontal))
-            header.resizeSection(col, max(70, metrics.horizontalAdvance(text) + 18))
+        self.fit_columns()
         header.moveSection(header.visualIndex(DISTURBANCE_COLUMN), _ERRORS_COLUMN + 1)
         self.verticalHeader().setDefaultSectionSize(22)
+        model.headerDataChanged.connect(lambda *_: self.fit_columns())
+        #: veils the cells while the data is not live (the main window says when)
+        self.stale = StaleOverlay(self.viewport())
+
+    def column_width(self, col: int) -> int:
+        """Pixels for column ``col``: its header in bold (a selected cell's column header is
+        drawn bold) and its widest possible cell, each with the style's margins."""
+        header = self.horizontalHeader()
+        bold = QFont(header.font())
+        bold.setBold(True)
+        text = str(self.model().headerData(col, Qt.Orientation.Horizontal))
+        margin = self.style().pixelMetric(QStyle.PixelMetric.PM_HeaderMargin, None, header)
+        head = QFontMetrics(bold).horizontalAdvance(text) + 2 * margin + 4
+        cells = QFontMetrics(self.font())
+        cell_margin = self.style().pixelMetric(QStyle.PixelMetric.PM_FocusFrameHMargin,
+                                               None, self) + 1
+        widest = max(cells.horizontalAdvance(t) for t in WIDEST[COLUMNS[col].group])
+        return max(head, widest + 2 * cell_margin + 6)
+
+    def fit_columns(self) -> None:
+        """Every column wide enough for its header and its widest cell (headers change with
+        the angle unit and with what the angles are)."""
+        header = self.horizontalHeader()
+        for col in range(len(COLUMNS)):
+            width = self.column_width(col)
+            if header.sectionSize(col) < width:
+                header.resizeSection(col, width)
 
     def table_model(self) -> ImuTableModel:
         model = self.model()
@@ -317,6 +371,7 @@ class JointTable(QTableView):
         self.verticalHeader().setDefaultSectionSize(22)
         self.horizontalHeader().setStretchLastSection(True)
         self.setColumnWidth(0, 220)
+        self.stale = StaleOverlay(self.viewport())
 
     def selected_joints(self) -> list[int]:
         return sorted({i.row() for i in self.selectionModel().selectedIndexes()})

@@ -12,8 +12,9 @@ from __future__ import annotations
 import logging
 import time
 
+from PyQt6.QtCore import Qt
 from PyQt6.QtGui import QColor
-from PyQt6.QtWidgets import QListWidget, QListWidgetItem, QWidget
+from PyQt6.QtWidgets import QListView, QListWidget, QListWidgetItem, QWidget
 
 log = logging.getLogger(__name__)
 
@@ -28,6 +29,10 @@ class EventLog(QListWidget):
         super().__init__(parent)
         self.setObjectName("event_log")
         self.setAlternatingRowColors(True)
+        # long entries wrap at the panel's width: it never scrolls sideways
+        self.setWordWrap(True)
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.setResizeMode(QListView.ResizeMode.Adjust)
         self.setToolTip("Link lost/recovered, Reset Zero, logging, filter changes, file "
                         "warnings, with times")
         self.entries: list[tuple[str, str, str]] = []  # (time, level, text)

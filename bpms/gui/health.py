@@ -2,7 +2,8 @@
 
 :class:`LinkHealth` is the rule (no Qt): given what the GUI saw, it says
 
-- grey  "stopped": data is off (Stop Data, playback paused);
+- grey  "stopped": data is off (Stop Data), "paused" / "end of the recording" (the replay
+  says so: paused from the slider, or at the end of the file);
 - red   "no data": data is on and no frame arrived for :data:`SILENT_S` (1 s), or the source
   itself reports a lost link;
 - amber "degraded": the rate is below :data:`DEGRADED_HZ` (45 Hz, scaled by the playback
@@ -12,6 +13,9 @@
 Times are ``time.monotonic()`` seconds of the GUI thread. A Stop → Start restarts the clock,
 so a quick Stop → Start is never a link loss; a loss is only reported after frames had arrived
 since the last Start.
+
+:func:`stale_text` turns an evaluation into what every view writes over data that is not
+live (link lost, no data, paused, stopped): the state and the age of the last frame shown.
 
 :class:`HealthPanel` shows it: a coloured light, the time since the last frame, the rate, the
 error counter, the battery (a warning below :data:`LOW_BATTERY_V`), a red REC indicator with
@@ -51,13 +55,42 @@ AMBER_TEXT = "color: black; background: #f0a000; font-weight: bold; padding: 1px
 @dataclass(frozen=True)
 class Health:
     """One evaluation: ``colour`` grey/green/amber/red, ``state`` a few words, ``since_s`` the
-    time since the last frame (None before the first), ``transition`` "lost"/"recovered"/""
-    when the link was lost or came back at this evaluation."""
+    time since the last frame since Start (None before the first), ``transition``
+    "lost"/"recovered"/"" when the link was lost or came back at this evaluation; ``age_s``
+    the age of the newest frame shown at all, s (across Stop → Start; None before any)."""
 
     colour: str
     state: str
     since_s: float | None
     transition: str = ""
+    age_s: float | None = None
+
+    @property
+    def live(self) -> bool:
+        """The views show live data (streaming, possibly degraded)."""
+        return self.colour == "green" or self.state.startswith("degraded")
+
+
+#: Replay states in which no frame comes by design (grey, never a loss).
+_PAUSED_STATES = {"paused": "paused", "ended": "end of the recording"}
+
+
+def _age(seconds: float) -> str:
+    s = int(seconds)
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s // 60 % 60:02d} min"
+
+
+def stale_text(health: Health) -> str | None:
+    """The line a view shows over data that is not live ("NO DATA · last frame 4 s ago"), or
+    None while it is live or before anything was shown. Whole seconds: the line changes once
+    a second at most."""
+    if health.live or health.age_s is None:
+        return None
+    return f"{health.state.upper()} · last frame {_age(health.age_s)} ago"
 
 
 class LinkHealth:
@@ -67,6 +100,7 @@ class LinkHealth:
         self.silent_s = silent_s
         self.degraded_hz = degraded_hz
         self.last_frame: float | None = None
+        self.last_shown: float | None = None  # the newest frame at all (Start does not forget)
         self.started: float | None = None
         self._last_error_t: float | None = None
         self._error_bits: int | None = None
@@ -85,37 +119,43 @@ class LinkHealth:
 
     def frames_arrived(self, now: float | None = None) -> None:
         self.last_frame = time.monotonic() if now is None else now
+        self.last_shown = self.last_frame
 
     def evaluate(self, now: float, rate_hz: float, error_bits: int,
                  source_state: str = "streaming", nominal_hz: float | None = 50.0) -> Health:
         """The light now. ``nominal_hz`` the expected rate (None: any rate is fine, e.g. a
-        replay at maximum speed); ``error_bits`` the session's growing error counter."""
+        replay at maximum speed); ``error_bits`` the session's growing error counter;
+        ``source_state`` the source's own word (a replay's "paused" / "ended" is grey)."""
         if self._error_bits is not None and error_bits > self._error_bits:
             self._last_error_t = now
         self._error_bits = error_bits
         since = None if self.last_frame is None else now - self.last_frame
+        age = None if self.last_shown is None else now - self.last_shown
         if self.started is None:
-            return Health("grey", "stopped", since)
+            return Health("grey", "stopped", since, age_s=age)
+        if source_state in _PAUSED_STATES:
+            self._lost = False
+            return Health("grey", _PAUSED_STATES[source_state], since, age_s=age)
         reference = self.last_frame if self.last_frame is not None else self.started
         silent = now - reference >= self.silent_s
         if silent or source_state == "link lost":
             transition = "lost" if (not self._lost and self.last_frame is not None) else ""
             self._lost = self._lost or self.last_frame is not None
             if self.last_frame is None:
-                return Health("red", "no data since Start", since, transition)
+                return Health("red", "no data since Start", since, transition, age)
             return Health("red", "no data" if source_state != "link lost" else "link lost",
-                          since, transition)
+                          since, transition, age)
         transition = "recovered" if self._lost else ""
         self._lost = False
         if self.last_frame is None:
-            return Health("amber", "waiting for data", since, transition)
+            return Health("amber", "waiting for data", since, transition, age)
         low = nominal_hz is not None and rate_hz < self.degraded_hz * nominal_hz / 50.0
         errors = self._last_error_t is not None and now - self._last_error_t < ERROR_HOLD_S
         if low or errors:
             why = " and ".join(w for w, on in (("low rate", low), ("sensor errors", errors))
                                if on)
-            return Health("amber", f"degraded ({why})", since, transition)
-        return Health("green", "streaming", since, transition)
+            return Health("amber", f"degraded ({why})", since, transition, age)
+        return Health("green", "streaming", since, transition, age)
 
 
 def _clock(seconds: float) -> str:
@@ -132,6 +172,8 @@ class HealthPanel(QGroupBox):
                  listening: str | None = None) -> None:
         super().__init__("Health", parent)
         form = QFormLayout(self)
+        # a narrow dock puts a long value under its name instead of scrolling sideways
+        form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapLongRows)
         row = QHBoxLayout()
         self.light = QLabel()
         self.light.setFixedSize(18, 18)
@@ -152,6 +194,7 @@ class HealthPanel(QGroupBox):
                            ("backlog", "Backlog"), ("skipped", "Display skipped"),
                            ("disturbance", "Disturbed")):
             label = QLabel("–")
+            label.setWordWrap(True)
             self.labels[key] = label
             form.addRow(title, label)
         self.labels["not_filtered"].setToolTip(
@@ -164,6 +207,7 @@ class HealthPanel(QGroupBox):
             "IMUs whose magnetometer (mag: field off the earth's or turned) or acceleration "
             "(acc: over 0.2 g) is disturbed now (docs/filters.md)")
         self.listening_label = QLabel(listening or "")
+        self.listening_label.setWordWrap(True)
         self.listening_label.setTextInteractionFlags(
             Qt.TextInteractionFlag.TextSelectableByMouse)
         self.listening_label.setToolTip("The UDP client's socket (host:port)")
@@ -182,6 +226,10 @@ class HealthPanel(QGroupBox):
         self.rec_label.setWordWrap(True)
         self.rec_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         form.addRow(self.rec_label)
+        #: the REC state for the window's status bar (always in view, whatever the docks)
+        self.rec_badge = QLabel("")
+        self.rec_badge.setToolTip("Logging: elapsed time (the files are in the Status panel)")
+        self.rec_badge.setVisible(False)
         self.colour = ""
         self.battery_low = False
         self._rec_started: float | None = None
@@ -244,8 +292,8 @@ class HealthPanel(QGroupBox):
         if mag is None or acc is None:
             self._set("disturbance", "–")
             return
-        self._set("disturbance", f"mag {mag} IMUs, acc {acc} IMUs",
-                  AMBER_TEXT if mag or acc else "")
+        self._set("disturbance", f"mag {mag} IMU{'' if mag == 1 else 's'}, acc {acc} "
+                  f"IMU{'' if acc == 1 else 's'}", AMBER_TEXT if mag or acc else "")
 
     def show_source(self, st: LiveStatus, down: bool) -> None:
         """The source's reason (red) while the link is down, else its warning (amber)."""
@@ -272,18 +320,23 @@ class HealthPanel(QGroupBox):
             if self.rec_label.text():
                 self.rec_label.setText("")
                 self.rec_label.setStyleSheet("")
+                self.rec_badge.setVisible(False)
+                self.rec_badge.setText("")
             return
         if rec is not self._rec_key:
             self._rec_key, self._rec_started = rec, now
         path: Path | None = rec.raw_path or rec.filtered_path
         names = ", ".join(p.name for p in (rec.raw_path, rec.filtered_path) if p is not None)
         folder = str(path.parent) if path is not None else "–"
-        text = (f"● REC {_clock(now - (self._rec_started or now))}  {names}  in {folder}"
+        clock = _clock(now - (self._rec_started or now))
+        text = (f"REC {clock}  {names}  in {folder}"
                 + (f"  — error: {rec.error}" if rec.error else ""))
         if self.rec_label.text() != text:
             self.rec_label.setText(text)
-            self.rec_label.setStyleSheet("color: white; background: #d62728; "
-                                         "font-weight: bold; padding: 2px")
+            self.rec_label.setStyleSheet(RED_TEXT)
+            self.rec_badge.setText(f"REC {clock}" + ("  write error" if rec.error else ""))
+            self.rec_badge.setStyleSheet(RED_TEXT)
+            self.rec_badge.setVisible(True)
 
     @property
     def recording_text(self) -> str:

@@ -1,12 +1,13 @@
 """Named dock layouts, saved per user and remembered between launches.
 
 A layout is Qt's ``QMainWindow.saveState()`` (dock positions, sizes, tabs, floating) plus the
-list of dynamic docks it needs (plots with their curves, 3D views), so restoring it first
-re-creates those docks under the same object names, then restores the state.
+list of dynamic docks it needs (plots with their curves and view, 3D views with their camera)
+and extras (the data table's columns), so restoring it first re-creates those docks under the
+same object names, then restores the state.
 
 Stored in ``<config_dir>/gui-layouts.json`` (``bpms.io.userdirs.config_dir()``)::
 
-    {"layouts": {"my layout": {"state": "<base64>", "docks": [...]}, ...},
+    {"layouts": {"my layout": {"state": "<base64>", "docks": [...], "extras": {...}}, ...},
      "last": {"state": ..., "docks": ...}}
 
 ``last`` is the layout in use when the main window closed; the next main window starts with
@@ -36,17 +37,24 @@ FILE_NAME = "gui-layouts.json"
 class Layout:
     """``state``: QMainWindow.saveState() bytes; ``docks``: the dynamic docks, each a dict
     with ``kind`` ("plot" or "view3d"), ``name`` (objectName) and, for plots, ``plot`` (the
-    plot's description, :meth:`bpms.gui.plots.PlotWindow.description`)."""
+    plot's description, :meth:`bpms.gui.plots.PlotWindow.description`), for 3D views
+    ``view`` (:meth:`bpms.gui.view3d.View3DWindow.view_settings`); ``extras``:
+    ``table_header`` (the data table's column widths and order, base64 of
+    ``QHeaderView.saveState()``)."""
 
     state: bytes
     docks: list[dict[str, Any]] = field(default_factory=list)
+    extras: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
-        return {"state": base64.b64encode(self.state).decode("ascii"), "docks": self.docks}
+        return {"state": base64.b64encode(self.state).decode("ascii"), "docks": self.docks,
+                "extras": self.extras}
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> Layout:
-        return cls(base64.b64decode(data["state"]), list(data.get("docks", [])))
+        extras = data.get("extras", {})
+        return cls(base64.b64decode(data["state"]), list(data.get("docks", [])),
+                   dict(extras) if isinstance(extras, dict) else {})
 
 
 class LayoutStore:

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import numpy as np
 from PyQt6 import sip
-from PyQt6.QtCore import pyqtSignal
+from PyQt6.QtCore import QTimer, pyqtSignal
 from PyQt6.QtWidgets import QDockWidget, QMainWindow, QMessageBox, QWidget
 
-from bpms.gui.health import LinkHealth
+from bpms.gui.angle_readout import ContinuousAngles
 from bpms.gui.layouts import LayoutStore
 from bpms.gui.model import SessionModel
 from bpms.gui.modes import MODE_LABELS, SessionRunner
+from bpms.gui.plot_data import BlockHistory
 from bpms.gui.plots import PlotWindow
 from bpms.gui.window.actions import WindowActions
 from bpms.gui.window.commands import SessionCommands
@@ -33,6 +34,7 @@ from bpms.gui.window.dynamic_docks import DynamicDocks
 from bpms.gui.window.mode_wiring import ModeWiring
 from bpms.gui.window.panels import WindowPanels
 from bpms.gui.window.status import StatusDisplay
+from bpms.io.frames import FRAME_RATE_HZ
 from bpms.io.options import Options
 
 
@@ -60,6 +62,8 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         self.layout_store = layout_store if layout_store is not None else LayoutStore()
         self.current_layout = ""
         self._menus()
+        # REC in the status bar: in view whatever the docks (closed, tabbed, scrolled)
+        self.statusBar().addPermanentWidget(self.health_panel.rec_badge)
         self.resize(1500, 860)
         self._first_layout(restore_last)
         self._open_session()
@@ -71,7 +75,6 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         self.dynamic_docks: list[QDockWidget] = []
         self._dock_serial = 0
         self.tick_times_s: list[float] = []  # GUI time per display tick (bench/gui.py)
-        self.health = LinkHealth()
         self._recent_R: list[np.ndarray] = []  # filter DCMs of the last Reset Zero window
         self._last_recording = None
         self._counters: dict[str, int] = {}
@@ -80,6 +83,9 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         self._source_warning = ""
         self._reinit_count = 0
         self._disturbed: tuple[int, int] | None = None  # IMUs (mag, acc) disturbed now
+        self.readout = ContinuousAngles()  # the angles shown, continuous (docs/main-window.md)
+        self.history = BlockHistory(max(1, round(self.options.display.plot_history_s
+                                                 * FRAME_RATE_HZ)))
 
     def _set_up_frame(self) -> None:
         title = f"BPMS Suite — {MODE_LABELS[self.runner.mode]}"
@@ -93,9 +99,12 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         """Show the runner's file warnings, connect the model and attach the session."""
         for problem in getattr(self.runner, "problems", []):
             self.event_log.add(f"file warning: {problem}", "warning")
+        self.model.nominal_hz = self._nominal_hz
         self.model.samplesArrived.connect(self._on_samples)
+        self.model.healthChanged.connect(self._show_stale)
         self.model.statusChanged.connect(self._on_status)
         self.model.attach(self.runner.session)
+        self.model.set_data_on(self.runner.data_on)
         self.event_log.add(f"session opened: {MODE_LABELS[self.runner.mode]}"
                            + (" (SIMULATED data)" if self.simulated else ""))
 
@@ -113,6 +122,14 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
                 view.close()
         self.model.attach(None)
         self.runner.close()
+
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        QTimer.singleShot(0, self.raise_front)
+
+    def resizeEvent(self, event) -> None:
+        super().resizeEvent(event)
+        QTimer.singleShot(0, self.fit_table)  # the table keeps its rows in view
 
     def closeEvent(self, event) -> None:
         if self.file_panel.logging:

@@ -8,14 +8,23 @@ UDP flood) costs one redraw.
 Views connect to:
 - ``samplesArrived(list[PoseSample])``: the samples since the last tick, oldest first;
 - ``statusChanged(LiveStatus)``: a status snapshot each tick;
-- ``sessionChanged(object)``: a new session (or None) was attached.
-``latest`` is the newest sample (or None).
+- ``sessionChanged(object)``: a new session (or None) was attached;
+- ``healthChanged(Health)``: the link light's evaluation each tick (:mod:`bpms.gui.health`),
+  emitted before ``statusChanged``; every view marks its data stale from it
+  (:func:`bpms.gui.health.stale_text`).
+``latest`` is the newest sample (or None); ``health`` the one :class:`LinkHealth` of the
+window (Start/Stop Data go through :meth:`set_data_on`); ``nominal_hz`` returns the frame
+rate expected now (None: any, e.g. a replay at maximum speed).
 """
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
+
 from PyQt6.QtCore import QObject, Qt, QTimer, pyqtSignal
 
+from bpms.gui.health import Health, LinkHealth
 from bpms.io.options import Options
 from bpms.pipeline.fanout import Subscription
 from bpms.pipeline.session import LiveSession, LiveStatus, PoseSample
@@ -25,6 +34,7 @@ class SessionModel(QObject):
     samplesArrived = pyqtSignal(list)
     statusChanged = pyqtSignal(object)
     sessionChanged = pyqtSignal(object)
+    healthChanged = pyqtSignal(object)
 
     def __init__(self, options: Options | None = None, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -32,6 +42,9 @@ class SessionModel(QObject):
         self.session: LiveSession | None = None
         self.latest: PoseSample | None = None
         self.last_status: LiveStatus | None = None
+        self.health = LinkHealth()
+        self.last_health: Health | None = None
+        self.nominal_hz: Callable[[], float | None] = lambda: 50.0
         self._sub: Subscription[PoseSample] | None = None
         self._timer = QTimer(self)
         # Precise: a late tick does not push every later one back (a coarse timer drifts by
@@ -44,8 +57,16 @@ class SessionModel(QObject):
         """Redraw rate of every view attached to this model, Hz."""
         self._timer.setInterval(max(1, round(1000.0 / hz)))
 
+    def set_data_on(self, on: bool) -> None:
+        """Start Data / Stop Data pressed: the link rule's clock restarts or stops (grey)."""
+        if on:
+            self.health.start()
+        else:
+            self.health.stop()
+
     def attach(self, session: LiveSession | None) -> None:
-        """Show ``session`` (already started or not); None detaches."""
+        """Show ``session`` (already started or not; data counts as on until
+        :meth:`set_data_on` says otherwise); None detaches."""
         if self.session is not None and self._sub is not None:
             self.session.unsubscribe(self._sub)
         self.session = session
@@ -54,6 +75,7 @@ class SessionModel(QObject):
         if session is None:
             self._timer.stop()
         else:
+            self.health.start()
             self._timer.start()
         self.sessionChanged.emit(session)
 
@@ -62,11 +84,16 @@ class SessionModel(QObject):
         if self.session is None or self._sub is None:
             return
         samples = self._sub.drain()
+        now = time.monotonic()
         if samples:
             self.latest = samples[-1]
+            self.health.frames_arrived(now)
             self.samplesArrived.emit(samples)
-        self.last_status = self.session.status()
-        self.statusChanged.emit(self.last_status)
+        st = self.last_status = self.session.status()
+        self.last_health = self.health.evaluate(now, st.rate_hz, st.error_bits, st.source.state,
+                                                self.nominal_hz())
+        self.healthChanged.emit(self.last_health)
+        self.statusChanged.emit(st)
 
     def stop(self) -> None:
         """Stop and detach the session (threads joined, files closed)."""

@@ -11,6 +11,7 @@ stays open); file → play/pause; UDP → a fresh session listening again / the 
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -37,7 +38,19 @@ MODE_LABELS = {
 
 
 class ModeError(Exception):
-    """The chosen mode cannot start; the message says what to check (one line)."""
+    """The chosen mode cannot start; the message says what to check (one line).
+    ``reason``: what went wrong alone; ``checks``: what to check, each once (a dialog lists
+    them)."""
+
+    def __init__(self, message: str, reason: str = "", checks: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.reason = reason or message
+        self.checks = checks
+
+
+#: What to check when no suit answers (said once, in the message and in the dialog).
+SUIT_CHECKS = ("the suit is paired over Bluetooth", "it is switched on and its battery charged",
+               "the port and the baud rate are right")
 
 
 @dataclass
@@ -192,11 +205,12 @@ class SessionRunner:
             except LinkError as exc:
                 self.close()
                 where = f"port {port}" if port else "any serial port"
-                raise ModeError(
-                    f"no suit on {where}: {exc}. Check that the suit is paired over Bluetooth, "
-                    "switched on, its battery charged, and that the port and baud rate are "
-                    "right"
-                ) from None
+                # the link's own hint ("(is it paired, …?)") is what SUIT_CHECKS say in full
+                detail = re.sub(r"\s*\([^()]*\?\)\s*$", "", str(exc))
+                reason = detail if detail.startswith("no suit") else \
+                    f"no suit on {where}: {detail}"
+                raise ModeError(f"{reason}. Check that " + ", ".join(SUIT_CHECKS),
+                                reason, SUIT_CHECKS) from None
             self.suit = source
             self.session = self._new_session(source)
         return self.session
@@ -206,7 +220,8 @@ class SessionRunner:
             from bpms.io.udp.auth import shared_key
 
             return UdpFrameSource(self.config.listen, self.config.group or None,
-                                  key=shared_key(self.options.udp.key_file))
+                                  key=shared_key(self.options.udp.key_file),
+                                  takeover_after_s=self.options.udp.takeover_after_s)
         except (OSError, ValueError) as exc:
             raise ModeError(f"cannot listen on UDP {self.config.listen}: {exc}") from None
 

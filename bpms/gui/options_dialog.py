@@ -111,7 +111,10 @@ class OptionsDialog(QDialog):
                 label.setWordWrap(True)
                 label.setBuddy(editor)
                 guard_wheel(editor)
-                form.addRow(label, editor)
+                # the name and help on a row of their own, the form's whole width (as a label
+                # column they wrap at about 200 px), the field under them
+                form.addRow(label)
+                form.addRow(editor)
             scroll = _FormScroll()
             scroll.setWidget(page)
             scroll.setWidgetResizable(True)

@@ -33,15 +33,18 @@ class TickBlock:
 
     @classmethod
     def from_samples(cls, samples: Sequence[PoseSample], calibration: SensorCalibration,
-                     output: bool = True) -> TickBlock:
+                     output: bool = True, euler: np.ndarray | None = None) -> TickBlock:
         """``output``: Euler columns hold the output angles (after Reset Zero, the default)
-        rather than the sensor angles (:func:`bpms.gui.columns.shown_angles`)."""
+        rather than the sensor angles (:func:`bpms.gui.columns.shown_angles`); ``euler
+        [n, 18, 3]`` rad: the angles to use instead (the continuous readout of those,
+        :mod:`bpms.gui.angle_readout`)."""
         raw = np.array([s.raw for s in samples])
         return cls(
             t=np.array([s.index for s in samples], np.float64) * FRAME_PERIOD_S,
             raw=raw,
             cal=calibrated(calibration, raw),
-            euler=np.array([shown_angles(s, output)[0] for s in samples]),
+            euler=np.array([shown_angles(s, output)[0] for s in samples]) if euler is None
+            else np.asarray(euler, np.float64),
             joint_angles=np.array([s.joint_angles for s in samples]),
             est=np.array([np.full((18, 6), np.nan) if s.estimates is None else s.estimates
                           for s in samples]),
@@ -88,6 +91,47 @@ class RingBuffer:
         """``[len, width]`` rows, oldest first (a view: copy it to keep it)."""
         end = self._head + self.capacity
         return self._data[end - self._count:end]
+
+
+class BlockHistory:
+    """The last ``capacity`` frames of what plots draw (time, raw counts, angles, joint angles,
+    estimates), so that a plot opened — or re-created by a layout — starts with the history
+    instead of an empty axis. Calibrated values are recomputed from the raw counts on
+    :meth:`block`. A step back in time (a seek, a new stream) starts it again."""
+
+    _PARTS = (("raw", (18, 9)), ("euler", (18, 3)), ("joint_angles", (28,)), ("est", (18, 6)))
+
+    def __init__(self, capacity: int) -> None:
+        self._sizes = [int(np.prod(shape)) for _, shape in self._PARTS]
+        self.buffer = RingBuffer(capacity, 1 + sum(self._sizes))
+
+    def __len__(self) -> int:
+        return len(self.buffer)
+
+    def extend(self, block: TickBlock) -> None:
+        n = len(block.t)
+        if n == 0:
+            return
+        if len(self.buffer) and block.t[0] < self.buffer.view()[-1, 0]:
+            self.buffer.clear()
+        est = block.est if block.est is not None else np.full((n, 18, 6), np.nan)
+        parts = [block.t[:, None], block.raw.reshape(n, -1), block.euler.reshape(n, -1),
+                 block.joint_angles.reshape(n, -1), est.reshape(n, -1)]
+        self.buffer.extend(np.concatenate(parts, axis=1))
+
+    def block(self, calibration: SensorCalibration) -> TickBlock | None:
+        """Everything kept, oldest first (None when empty)."""
+        rows = self.buffer.view()
+        if len(rows) == 0:
+            return None
+        n, out, start = len(rows), {}, 1
+        for (name, shape), size in zip(self._PARTS, self._sizes, strict=True):
+            out[name] = rows[:, start:start + size].reshape(n, *shape)
+            start += size
+        raw = out["raw"].astype(np.int16)
+        return TickBlock(t=rows[:, 0].copy(), raw=raw, cal=calibrated(calibration, raw),
+                         euler=out["euler"].copy(), joint_angles=out["joint_angles"].copy(),
+                         est=out["est"].copy())
 
 
 @dataclass(frozen=True)

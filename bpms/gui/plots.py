@@ -2,9 +2,12 @@
 buffers of :mod:`bpms.gui.plot_data`.
 
 - :class:`PlotWindow`: a top-level pyqtgraph window, one curve per selected cell (or joint
-  angle), labelled IMU name + quantity + unit. Legend click hides/shows a curve; left-drag
-  zooms a rectangle; right-click opens pyqtgraph's menu ("View All"); double-click resets the
-  view; Pause freezes the drawing (the history keeps filling).
+  angle), labelled IMU name + quantity + unit. The legend sits beside the data and folds away
+  (Legend); a click on a name hides/shows its curve; left-drag zooms a rectangle; right-click
+  opens pyqtgraph's menu ("View All"); double-click resets the view; Pause (Space) freezes the
+  drawing (the history keeps filling); Lock y keeps each plot's y range as it is. Data that
+  is not live is veiled (``stale``, :mod:`bpms.gui.stale`). Pens, axes and the legend:
+  :mod:`bpms.gui.plot_style`; keys: :data:`bpms.gui.view3d_keys.PLOT_BINDINGS`.
 """
 
 from __future__ import annotations
@@ -19,7 +22,6 @@ from PyQt6.QtCore import QPointF, Qt, pyqtSignal
 from PyQt6.QtGui import QKeySequence, QShortcut
 from PyQt6.QtWidgets import (
     QApplication,
-    QGraphicsItem,
     QHBoxLayout,
     QLabel,
     QPushButton,
@@ -40,24 +42,20 @@ from bpms.gui.plot_data import (
     joint_curve,
     peak_decimate,
 )
+from bpms.gui.plot_style import (
+    MIN_DATA_WIDTH,
+    RoomyAxis,
+    SideLegend,
+    curve_pen,
+    fit_axis_title,
+    style_axes,
+)
+from bpms.gui.stale import StaleOverlay
+from bpms.gui.view3d_keys import PLOT_BINDINGS
 from bpms.io.frames import FRAME_RATE_HZ, IMU_NAMES
 
 #: The time axis of a following plot moves by this much at a time, s.
 PAGE_S = 5.0
-#: Colour-blind-safe palette: Okabe & Ito (2008) without black, then Paul Tol's "bright"
-#: purple and grey; curves beyond it repeat the colours dashed, then dotted.
-PALETTE = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442",
-           "#AA3377", "#BBBBBB")
-_STYLES = (Qt.PenStyle.SolidLine, Qt.PenStyle.DashLine, Qt.PenStyle.DotLine)
-
-
-def curve_pen(k: int) -> Any:
-    """The pen of the ``k``-th curve of one plot (distinct colours first, then dashes)."""
-    colour = PALETTE[k % len(PALETTE)]
-    style = _STYLES[(k // len(PALETTE)) % len(_STYLES)]
-    return pg.mkPen(colour, width=1, style=style)
-
-
 class PlotWindow(QWidget):
     """A live plot: ``groups`` of curves, one pyqtgraph plot (one y axis, one unit) per group,
     x axes linked. It lives in a dock of the main window (or stands alone).
@@ -102,12 +100,25 @@ class PlotWindow(QWidget):
                                       "the plot or View All turns it back on)")
         self.follow_button.toggled.connect(lambda on: self.reset_view() if on
                                            else self._manual_range())
-        bar.addWidget(self.pause_button)
-        bar.addWidget(self.follow_button)
-        hint = QLabel(f"{history_s:g} s · drop table cells here · click a legend name to "
-                      "hide/show")
+        self.lock_button = QPushButton("Lock y")
+        self.lock_button.setCheckable(True)
+        self.lock_button.setToolTip("Keep each plot's y range as it is now (Follow and "
+                                    "double-click no longer rescale it)")
+        self.lock_button.toggled.connect(self.lock_y)
+        self.legend_button = QPushButton("Legend")
+        self.legend_button.setCheckable(True)
+        self.legend_button.setChecked(True)
+        self.legend_button.setToolTip("The curves' names beside the data: show or fold away")
+        self.legend_button.toggled.connect(self.show_legends)
+        self.legend_button.clicked.connect(self._legend_chosen)
+        self.legend_auto = True  # fold the legends when the plot is too narrow for them
+        for button in (self.pause_button, self.follow_button, self.lock_button,
+                       self.legend_button):
+            bar.addWidget(button)
+        hint = QLabel(f"{history_s:g} s")
+        hint.setToolTip(f"{history_s:g} s of history · drop table cells here to add them · "
+                        "click a legend name to hide/show its curve")
         hint.setStyleSheet("color: #666")
-        hint.setMinimumWidth(10)
         bar.addWidget(hint, 1)
         layout.addLayout(bar)
         self.graphics = pg.GraphicsLayoutWidget()
@@ -115,13 +126,19 @@ class PlotWindow(QWidget):
         self.graphics.setMinimumSize(150, 100)
         self.graphics.setAcceptDrops(False)  # drops land on this widget
         layout.addWidget(self.graphics)
-        QShortcut(QKeySequence(Qt.Key.Key_Space), self, activated=self.pause_button.toggle)
+        for binding in PLOT_BINDINGS:  # the keys of the F1 table (Space: pause)
+            for key, _shift in binding.presses:
+                QShortcut(QKeySequence(key), self, activated=getattr(self, binding.command))
+        self.stale = StaleOverlay(self.graphics.viewport())
 
         self.specs: list[CurveSpec] = []
         self.plots: list[pg.PlotItem] = []
+        self.legends: list[SideLegend] = []
+        self.titles: list[tuple[str, str]] = []  # per plot: y-axis title, and its short form
         self.curves: list[pg.PlotCurveItem] = []
         self._plot_unit: dict[str, pg.PlotItem] = {}
         self.columns = max(1, columns)
+        self.auto_columns = kind == "joints"  # the grid follows the plot's shape
         self.buffer = RingBuffer(self.capacity, 1)
         for group_title, specs in groups:
             plot = self._new_plot(group_title, specs[0].unit if specs else "")
@@ -133,22 +150,22 @@ class PlotWindow(QWidget):
 
     # -- building ---------------------------------------------------------------------------
     def _new_plot(self, title: str, unit: str) -> pg.PlotItem:
-        # The group's name goes on its y axis (a title row would take a fifth of a small plot).
+        # The group's name goes on its y axis (a title row would take a fifth of a small
+        # plot); the legend goes in the grid cell to the right of its plot.
         n = len(self.plots)
-        plot = self.graphics.addPlot(row=n // self.columns, col=n % self.columns)
-        legend = plot.addLegend(offset=(5, 5), labelTextColor="k",
-                                brush=pg.mkBrush(255, 255, 255, 200))
-        # Text is the slowest thing to paint: the legend and the axes are drawn once into
-        # a pixmap and reused while the curves under them change.
-        legend.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
-        for name in ("left", "bottom"):
-            axis = plot.getAxis(name)
-            axis.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
-            axis.setPen("k")
-            axis.setTextPen("k")
-        plot.setLabel("bottom", "time [s]")
-        if unit or title:
-            plot.setLabel("left", f"{title} [{unit}]" if title else f"[{unit}]")
+        row, col = n // self.columns, 2 * (n % self.columns)
+        plot = self.graphics.addPlot(row=row, col=col, axisItems={
+            "left": RoomyAxis("left"), "bottom": RoomyAxis("bottom")})
+        self.legends.append(SideLegend(self.graphics.ci, plot, row, col + 1))
+        self.legends[-1].show(self.legend_button.isChecked())
+        style_axes(plot)
+        if title:  # a group of the joint angles: its name over it, small
+            plot.setTitle(title, size="8pt", color="k")
+            plot.layout.setRowFixedHeight(0, 14)
+        short = f"[{unit}]" if unit else ""
+        self.titles.append((short, short))
+        if short:
+            plot.setLabel("left", short)
         plot.showGrid(x=True, y=True, alpha=0.25)
         plot.setClipToView(True)
         plot.setDownsampling(auto=True, mode="peak")
@@ -156,12 +173,33 @@ class PlotWindow(QWidget):
         box.setMouseMode(pg.ViewBox.RectMode)
         box.sigRangeChangedManually.connect(self._manual_range)
         box.menu.viewAll.triggered.connect(self.reset_view)  # View All: follow again
+        box.sigResized.connect(self._fit_titles)
         plot.enableAutoRange(axis="x", enable=False)
+        if self.lock_button.isChecked():
+            plot.enableAutoRange(axis="y", enable=False)
         if self.plots:
             plot.setXLink(self.plots[0])
         self.plots.append(plot)
         self._plot_unit.setdefault(unit, plot)
+        self._time_axes()
         return plot
+
+    def _time_axes(self) -> None:
+        """Time labels only under the lowest plot of each column (the x axes are linked):
+        no row of tick labels and titles between two stacked plots."""
+        for n, plot in enumerate(self.plots):
+            lowest = n + self.columns >= len(self.plots)
+            axis = plot.getAxis("bottom")
+            axis.setStyle(showValues=lowest)
+            if lowest:
+                plot.setLabel("bottom", "time [s]")
+            else:
+                plot.showLabel("bottom", False)
+
+    def _fit_titles(self, *_args) -> None:
+        for plot, (full, short) in zip(self.plots, self.titles, strict=True):
+            if full:
+                fit_axis_title(plot.getAxis("left"), full, short)
 
     def _add_curve(self, plot: pg.PlotItem, spec: CurveSpec) -> pg.PlotCurveItem:
         k = sum(1 for c in self.curves if c.getViewBox() is plot.getViewBox())
@@ -203,13 +241,28 @@ class PlotWindow(QWidget):
         return len(new)
 
     def description(self) -> dict[str, Any]:
-        """What a saved layout needs to re-create this plot."""
+        """What a saved layout needs to re-create this plot: its curves, the locked y ranges
+        (or None) and whether the legend is shown."""
+        view = {"y_lock": self.y_ranges() if self.lock_button.isChecked() else None,
+                "legend": "auto" if self.legend_auto else self.legend_button.isChecked()}
         if self.kind == "joints":  # the 28 angles, plus any cells dropped on it
             return {"kind": "joints", "title": self.windowTitle(),
-                    "cells": [list(s.cell) for s in self.specs if s.cell is not None]}
+                    "cells": [list(s.cell) for s in self.specs if s.cell is not None], **view}
         return {"kind": "cells", "title": self.windowTitle(),
                 "cells": [list(s.cell) for s in self.specs if s.cell is not None],
-                "joints": [s.joint for s in self.specs if s.joint is not None]}
+                "joints": [s.joint for s in self.specs if s.joint is not None], **view}
+
+    def apply_view(self, description: dict[str, Any]) -> None:
+        """The view settings of a :meth:`description`: legend shown (or folded; "auto" when
+        left to the plot's width), y ranges locked."""
+        legend = description.get("legend", "auto")
+        self.legend_auto = legend == "auto"
+        if not self.legend_auto:
+            self.show_legends(bool(legend))
+        ranges = description.get("y_lock")
+        if isinstance(ranges, list) and all(isinstance(r, list) and len(r) == 2
+                                            for r in ranges):
+            self.set_y_ranges(ranges)
 
     # -- drag and drop ------------------------------------------------------------------------
     def dragEnterEvent(self, event) -> None:
@@ -267,7 +320,7 @@ class PlotWindow(QWidget):
                     sample.update()
 
     def reset_view(self) -> None:
-        """Back to following the data: y auto-range, x the newest history."""
+        """Back to following the data: y auto-range (unless locked), x the newest history."""
         self.follow = True
         self._x_end = None
         if not self.follow_button.isChecked():
@@ -275,9 +328,80 @@ class PlotWindow(QWidget):
             self.follow_button.setChecked(True)
             self.follow_button.blockSignals(False)
         for plot in self.plots:
-            plot.enableAutoRange(axis="y")
+            if not self.lock_button.isChecked():
+                plot.enableAutoRange(axis="y")
             plot.enableAutoRange(axis="x", enable=False)
         self.redraw()
+
+    def lock_y(self, on: bool) -> None:
+        """Keep every plot's y range as it is (on), or rescale to the data again (off)."""
+        if self.lock_button.isChecked() != on:
+            self.lock_button.setChecked(on)  # comes back here through toggled
+            return
+        for plot in self.plots:
+            plot.enableAutoRange(axis="y", enable=not on)
+            plot.setMouseEnabled(y=not on)
+        self.redraw()
+
+    def y_ranges(self) -> list[list[float]]:
+        """Each plot's y range now, [[low, high], …]."""
+        return [[float(v) for v in plot.getViewBox().viewRange()[1]] for plot in self.plots]
+
+    def set_y_ranges(self, ranges: Sequence[Sequence[float]]) -> None:
+        """Lock the plots' y ranges at ``ranges`` (as :meth:`y_ranges` gives them)."""
+        for plot, (low, high) in zip(self.plots, ranges, strict=False):
+            plot.setYRange(float(low), float(high), padding=0.0)
+        self.lock_y(True)
+
+    def show_legends(self, on: bool) -> None:
+        """The legends beside the plots (on) or folded away (off)."""
+        if self.legend_button.isChecked() != on:
+            self.legend_button.setChecked(on)
+            return
+        for legend in self.legends:
+            legend.show(on)
+
+    def _legend_chosen(self, on: bool) -> None:
+        """The user's choice (the Legend button) wins over the automatic folding."""
+        self.legend_auto = False
+
+    def legends_fit(self) -> bool:
+        """Every column of plots keeps MIN_DATA_WIDTH beside its widest legend."""
+        widest = [0] * self.columns
+        for n, legend in enumerate(self.legends):
+            widest[n % self.columns] = max(widest[n % self.columns], legend.width())
+        return self.graphics.width() >= sum(w + MIN_DATA_WIDTH + 60 for w in widest)
+
+    def resizeEvent(self, event) -> None:
+        super().resizeEvent(event)
+        if self.auto_columns:
+            self.arrange(best_columns(len(self.plots), self.graphics.width(),
+                                      self.graphics.height()))
+        if self.legend_auto and self.legends:
+            fit = self.legends_fit()
+            if fit != self.legend_button.isChecked():
+                self.show_legends(fit)
+
+    def arrange(self, columns: int) -> None:
+        """Lay the plots out in ``columns`` columns (each with its legend beside it)."""
+        columns = max(1, columns)
+        if columns == self.columns:
+            return
+        self.columns = columns
+        grid = self.graphics.ci
+        shown = [legend.shown for legend in self.legends]
+        for plot, legend in zip(self.plots, self.legends, strict=True):
+            grid.removeItem(plot)
+            legend.show(False)
+        for n, (plot, legend) in enumerate(zip(self.plots, self.legends, strict=True)):
+            legend.row, legend.col = n // columns, 2 * (n % columns) + 1
+            grid.addItem(plot, row=legend.row, col=legend.col - 1)
+            legend.show(shown[n])
+        self._time_axes()
+
+    def toggle_pause(self) -> None:
+        """Space: pause or resume the drawing."""
+        self.pause_button.toggle()
 
     def _manual_range(self, *_args) -> None:
         self.follow = False
@@ -352,6 +476,28 @@ class PlotWindow(QWidget):
         super().closeEvent(event)
 
 
+#: Wide plots read best for time series: the grid's columns are chosen for cells about this
+#: many times wider than high.
+CELL_ASPECT = 2.5
+
+
+def best_columns(n: int, width: int, height: int) -> int:
+    """Columns (1, 2, 3 or n) for ``n`` plots in ``width`` × ``height`` px whose cells come
+    nearest :data:`CELL_ASPECT`."""
+    if n <= 1 or width <= 0 or height <= 0:
+        return 1
+    best, score = 1, float("inf")
+    for columns in sorted({1, 2, 3, n}):
+        if columns > n:
+            continue
+        rows = -(-n // columns)
+        aspect = (width / columns) / (height / rows)
+        s = abs(np.log(aspect / CELL_ASPECT))
+        if s < score:
+            best, score = columns, s
+    return best
+
+
 class PlotDropArea(QLabel):
     """Empty space of the main window: table cells dropped here open a new plot
     (``cellsDropped(cells, None)``)."""
@@ -411,6 +557,7 @@ def plot_from(description: dict[str, Any], angle_unit: str = "deg",
         window = joint_angle_plot(angle_unit, history_s)
         if cells:
             window.add_cells(cells, angle_unit)
+        window.apply_view(description)
         return window
     joints = [int(k) for k in description.get("joints", [])
               if isinstance(k, int) and 0 <= k < len(JOINT_ANGLE_NAMES)]
@@ -419,4 +566,5 @@ def plot_from(description: dict[str, Any], angle_unit: str = "deg",
     specs = [cell_curve(r, c, angle_unit) for r, c in cells] \
         + [joint_curve(k, angle_unit) for k in joints]
     window = PlotWindow(str(description.get("title", "Plot")), group_by_unit(specs), history_s)
+    window.apply_view(description)
     return window

@@ -5,6 +5,8 @@ undoes a destructive toggle, and slow work never runs on the GUI thread.
   ignores wheel events until it has focus (the wheel then scrolls the panel under it instead);
 - :func:`debounce`: a button's ``clicked`` goes through only if the previous accepted click
   was at least :data:`DEBOUNCE_S` ago;
+- :func:`set_enabled_keeping_focus`: disabling a focused control leaves the focus (and the
+  scroll position of the panel) where it is;
 - :class:`BackgroundTask`: run a blocking call (closing files, joining threads) in a worker
   thread, ``done(result, error)`` back on the GUI thread.
 """
@@ -17,7 +19,7 @@ from collections.abc import Callable
 from typing import Any
 
 from PyQt6.QtCore import QEvent, QObject, Qt, QTimer
-from PyQt6.QtWidgets import QAbstractButton, QWidget
+from PyQt6.QtWidgets import QAbstractButton, QApplication, QWidget
 
 #: A second click on a destructive toggle within this time is ignored, s.
 DEBOUNCE_S = 0.5
@@ -45,6 +47,22 @@ def guard_wheel(*widgets: QWidget) -> None:
     for widget in widgets:
         widget.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         widget.installEventFilter(_GUARD)
+
+
+def set_enabled_keeping_focus(enabled: bool, holder: QWidget, *widgets: QWidget) -> None:
+    """Enable or disable ``widgets``; when one being disabled has the keyboard focus, the focus
+    goes to ``holder`` first. Otherwise Qt hands it to the next widget in the focus chain,
+    and a scroll area around that one scrolls to show it (Start Data made the playback
+    panel jump to the Name field, its slider out of view)."""
+    if not enabled:
+        focus = QApplication.focusWidget()
+        if focus is not None and any(w is focus or w.isAncestorOf(focus) for w in widgets):
+            if holder.focusPolicy() == Qt.FocusPolicy.NoFocus:
+                holder.setFocusPolicy(Qt.FocusPolicy.ClickFocus)
+            holder.setFocus(Qt.FocusReason.OtherFocusReason)
+    for widget in widgets:
+        if widget.isEnabled() != enabled:
+            widget.setEnabled(enabled)
 
 
 def debounce(button: QAbstractButton, slot: Callable[[], Any],

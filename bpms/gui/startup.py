@@ -428,7 +428,7 @@ class StartupWindow(QWidget):
                     f"{type(error).__name__}: {error}"
                 self.status_label.setText(message)
                 if runner.mode == "suit":
-                    self.last_dialog = self._offer_simulated_suit(message)
+                    self.last_dialog = self._offer_simulated_suit(error)
                 else:
                     self.last_dialog = show_error(self, "Cannot start", message)
                 self.show()
@@ -438,10 +438,18 @@ class StartupWindow(QWidget):
 
         self._worker = BackgroundTask(self, runner.prepare, done)
 
-    def _offer_simulated_suit(self, message: str) -> QMessageBox:
-        """No suit: say what to check, and offer the simulated suit in the same dialog."""
-        box = QMessageBox(QMessageBox.Icon.Warning, "No suit found", message, parent=self)
-        box.setInformativeText("You can try the software with the simulated suit instead.")
+    def _offer_simulated_suit(self, error: BaseException) -> QMessageBox:
+        """No suit: what went wrong, what to check (each point once), and the simulated
+        suit offered in the same dialog."""
+        reason = getattr(error, "reason", "") or str(error)
+        checks = getattr(error, "checks", ())
+        text = reason[:1].upper() + reason[1:] + "."
+        if checks:
+            text += "<br><br>Check that:<ul>" + "".join(f"<li>{c}</li>" for c in checks) \
+                + "</ul>"
+        box = QMessageBox(QMessageBox.Icon.Warning, "No suit found", text, parent=self)
+        box.setTextFormat(Qt.TextFormat.RichText)
+        box.setInformativeText("Or try the software with the simulated suit.")
         self.use_sim_button = box.addButton("Use the simulated suit",
                                             QMessageBox.ButtonRole.AcceptRole)
         box.addButton(QMessageBox.StandardButton.Close)

@@ -10,14 +10,13 @@ The figure is one shaded mesh of capsules (:mod:`bpms.gui.avatar`: trunk, head, 
 legs, feet; right side blue, left orange, arms lighter than legs) over a floor grid, with its
 shadow on the floor. The mesh of a pose is computed once and shared by every view.
 
-Keys: x, y, z look along that display axis (from +x, from +y, from above); d toggles each
-IMU's axes (a small triad at its segment's mid-point: red = segment x/forward, green = y/right,
-blue = z/down, in segment axes after Reset Zero); r resets the view. The original suite's keys:
-arrow keys pan, c = Reset Zero from the view, v = alignment (Reset Zero) off/on, p = re-centre
-on the figure, = / - / 0 = narrower / wider / default field of view. t cycles the trail of one
-joint (off, right wrist, left wrist, right toe, left toe, head). Shift + arrows orbit. The mouse
-rotates (left drag), pans (middle drag, or Ctrl + left drag) and zooms (wheel), as pyqtgraph's
-``GLViewWidget`` does.
+Keys and mouse: :data:`bpms.gui.view3d_keys.VIEW3D_BINDINGS`, the one table the views
+dispatch from and the F1 page is made of. On opening and on ``r`` the camera frames the whole
+body (:func:`bpms.gui.view3d_geometry.frame_camera`, for the view's current shape); while the
+user has not moved the camera, a resize or the first real pose frames it again.
+
+Data that is not live (link lost, paused, stopped) is veiled with the age of the last frame
+(:mod:`bpms.gui.stale`, from ``SessionModel.healthChanged``).
 
 When OpenGL is unavailable (pyqtgraph.opengl or PyOpenGL cannot be imported, no GL context
 can be made, or Qt runs on a platform without GL such as ``offscreen``) the window shows a
@@ -30,14 +29,11 @@ import contextlib
 import logging
 import time
 import weakref
-from collections import deque
 
-import numpy as np
 from PyQt6.QtCore import QSize, Qt, QTimer, pyqtSignal
 from PyQt6.QtGui import (
     QGuiApplication,
     QImage,
-    QKeyEvent,
     QOffscreenSurface,
     QOpenGLContext,
     QPainter,
@@ -45,20 +41,13 @@ from PyQt6.QtGui import (
 )
 from PyQt6.QtWidgets import QApplication, QLabel, QVBoxLayout, QWidget
 
-from bpms.filter.body_model import POINT_INDEX, joint_positions
-from bpms.gui import avatar
+from bpms.gui.health import Health, stale_text
 from bpms.gui.model import SessionModel
-from bpms.gui.view3d_geometry import CALIBRATION_POSE, imu_axes_lines, to_display
+from bpms.gui.stale import StaleOverlay
+from bpms.gui.view3d_keys import VIEW3D_BINDINGS, short_help
 from bpms.pipeline.session import PoseSample
 
 log = logging.getLogger(__name__)
-
-#: Camera target: about the figure's mid-height, metres (display frame).
-VIEW_CENTRE = (0.0, 0.0, 0.9)
-VIEW_DISTANCE_M = 3.0
-#: (elevation, azimuth) in degrees for the default view and the x/y/z keys.
-HOME_VIEW = (15.0, 35.0)
-AXIS_VIEWS = {"x": (0.0, 0.0), "y": (0.0, 90.0), "z": (90.0, 0.0)}
 
 #: Share of the GUI thread all 3D windows together may spend painting. With hardware GL a
 #: paint takes ~1 ms and this never bites; with software GL (llvmpipe, Xvfb, VMs) a paint takes
@@ -66,38 +55,7 @@ AXIS_VIEWS = {"x": (0.0, 0.0), "y": (0.0, 90.0), "z": (90.0, 0.0)}
 GL_TIME_BUDGET = 0.4
 
 WAITING_TEXT = "Waiting for Reset Zero: grey figure = calibration pose"
-KEYS_TEXT = ("arrows pan · c Reset Zero · v alignment · p re-centre · =/-/0 field of view · "
-             "x/y/z axis view · d IMU axes · t trail · r reset")
-#: The t key cycles the trail through these joints (None = no trail).
-TRAIL_JOINTS: tuple[str | None, ...] = (None, "wrist_r", "wrist_l", "toe_r", "toe_l",
-                                        "head_top")
-TRAIL_S = 3.0
-TRAIL_COLOUR = (0.0, 0.62, 0.45, 1.0)  # bluish green (Okabe & Ito)
-DEFAULT_FOV = 60.0
-PAN_STEP_M = 0.1
-
-_shared_mesh: dict[str, object] = {}
-
-
-def shared_meshdata(key: object, points: np.ndarray, waiting: bool) -> tuple[object, object]:
-    """pyqtgraph MeshData of the body and its shadow for one pose, built once per pose and
-    shared by every view (normals are computed once, inside the shared MeshData)."""
-    from pyqtgraph.opengl import MeshData
-
-    if _shared_mesh.get("key") is key and key is not None \
-            and _shared_mesh.get("waiting") == waiting:
-        return _shared_mesh["body"], _shared_mesh["shadow"]
-    verts, normals = avatar.figure_mesh(points)
-    shadow = avatar.shadow_vertices(verts)
-    colours = avatar.WAITING_COLOURS if waiting else avatar.VERTEX_COLOURS
-    body = MeshData(vertexes=verts, faces=avatar.FACES, vertexColors=colours)
-    # MeshData would compute the normals from the faces in a Python loop (slower than the
-    # whole frame); the capsules' exact normals go into its cache instead.
-    body._vertexNormals = normals.astype(np.float32)
-    flat = MeshData(vertexes=shadow, faces=avatar.FACES)
-    _shared_mesh.update(key=key, waiting=waiting, body=body, shadow=flat)
-    return body, flat
-
+KEYS_TEXT = short_help(VIEW3D_BINDINGS)
 
 _gl_problem: str | None = None
 _OPEN_WINDOWS: weakref.WeakSet[QWidget] = weakref.WeakSet()
@@ -135,205 +93,6 @@ def opengl_problem() -> str | None:
     if _gl_problem:
         log.warning("3D views disabled: %s", _gl_problem)
     return _gl_problem
-
-
-def _make_gl_view() -> QWidget:
-    """The GLViewWidget subclass, defined lazily so importing this module never needs GL."""
-    import pyqtgraph.opengl as gl
-    from pyqtgraph.opengl.shaders import ShaderProgram
-
-    # pyqtgraph caches compiled shader programs per class (process-wide), but each window has
-    # its own GL context; unless the app shares contexts, a program from the first window is
-    # invalid in the second. So each view keeps its own programs and swaps them in to paint.
-    cached_classes = (gl.GLLinePlotItem, gl.GLScatterPlotItem)
-
-    class AvatarGL(gl.GLViewWidget):
-        resetZeroKey = pyqtSignal()  # c
-        changed = pyqtSignal()  # v, t: what the status line says changed
-
-        def __init__(self) -> None:
-            super().__init__()
-            self.last_sample: PoseSample | None = None
-            self._programs: dict[object, object] = {}
-            self.show_axes = False
-            self.aligned = True  # v: False shows the figure without Reset Zero
-            self.waiting = True
-            self.trail_joint: str | None = None
-            self.trail: deque[np.ndarray] = deque(maxlen=round(TRAIL_S * 50))
-            self.paint_s = 0.0  # smoothed paintGL time, s
-            self.paints = 0  # frames painted (bench/gui.py)
-            self.last_points: np.ndarray | None = None
-            grid = gl.GLGridItem()
-            grid.setSize(6, 6)
-            grid.setSpacing(0.5, 0.5)
-            grid.setColor((95, 95, 120, 255))  # bluish: never mistaken for the grey figure
-            self.addItem(grid)
-            self.shadow = gl.GLMeshItem(smooth=False, computeNormals=False, shader=None,
-                                        color=avatar.SHADOW, glOptions="opaque")
-            self.body = gl.GLMeshItem(smooth=True, computeNormals=True, shader="shaded",
-                                      glOptions="opaque")
-            self.axes = gl.GLLinePlotItem(mode="lines", width=2.0, antialias=True)
-            self.axes.setVisible(False)
-            self.trail_item = gl.GLLinePlotItem(mode="line_strip", width=2.0,
-                                                color=TRAIL_COLOUR, antialias=True)
-            self.trail_item.setVisible(False)
-            for item in (self.shadow, self.body, self.axes, self.trail_item):
-                self.addItem(item)
-            self.opts["fov"] = DEFAULT_FOV
-            self.reset_view()
-            self.show_pose(None)
-
-        # -- drawing ---------------------------------------------------------------------
-        def show_pose(self, sample: PoseSample | None) -> None:
-            C = None if sample is None else sample.C
-            if sample is not None and not self.aligned:
-                pos = joint_positions(np.asarray(sample.R))
-            else:
-                pos = None if sample is None else sample.joint_positions
-            self.waiting = pos is None or not np.isfinite(pos).any()
-            points = to_display(CALIBRATION_POSE if self.waiting else pos)
-            self.last_points = points
-            self.last_sample = sample
-            # the aligned figure of a sample is the same in every view: share its mesh
-            key = sample if self.aligned else None
-            body, shadow = shared_meshdata(key, points, self.waiting)
-            self.body.setMeshData(meshdata=body)
-            self.shadow.setMeshData(meshdata=shadow)
-            if C is not None and not self.waiting:
-                axes, axis_colours = imu_axes_lines(points, np.asarray(C))
-                self.axes.setData(pos=axes, color=axis_colours)
-                self.axes.setVisible(self.show_axes and len(axes) > 0)
-            else:
-                self.axes.setVisible(False)
-            self._draw_trail()
-
-        def add_to_trail(self, samples: list[PoseSample]) -> None:
-            if self.trail_joint is None:
-                return
-            k = POINT_INDEX[self.trail_joint]
-            for sample in samples:
-                p = sample.joint_positions[k]
-                if np.isfinite(p).all():
-                    self.trail.append(to_display(p))
-
-        def _draw_trail(self) -> None:
-            if self.trail_joint is None or len(self.trail) < 2 or self.waiting:
-                self.trail_item.setVisible(False)
-                return
-            self.trail_item.setData(pos=np.array(self.trail))
-            self.trail_item.setVisible(True)
-
-        def cycle_trail(self) -> str | None:
-            k = TRAIL_JOINTS.index(self.trail_joint)
-            self.trail_joint = TRAIL_JOINTS[(k + 1) % len(TRAIL_JOINTS)]
-            self.trail.clear()
-            self._draw_trail()
-            return self.trail_joint
-
-        # -- camera and keys -------------------------------------------------------------
-        def reset_view(self) -> None:
-            elevation, azimuth = HOME_VIEW
-            self.opts["fov"] = DEFAULT_FOV
-            self.look(elevation, azimuth)
-
-        def look(self, elevation: float, azimuth: float) -> None:
-            from pyqtgraph import Vector
-
-            self.setCameraPosition(pos=Vector(*VIEW_CENTRE), distance=VIEW_DISTANCE_M,
-                                   elevation=elevation, azimuth=azimuth)
-
-        def recentre(self) -> None:
-            """p: the camera looks at the figure's pelvis (mid-height)."""
-            from pyqtgraph import Vector
-
-            if self.last_points is not None and np.isfinite(self.last_points[0]).all():
-                x, y, z = self.last_points[0]
-                self.setCameraPosition(pos=Vector(float(x), float(y), float(z)))
-
-        def set_fov(self, fov: float) -> None:
-            self.opts["fov"] = float(min(max(fov, 10.0), 120.0))
-            self.update()
-
-        def toggle_axes(self) -> None:
-            self.show_axes = not self.show_axes
-            self.axes.setVisible(self.show_axes and not self.waiting)
-
-        def keyPressEvent(self, ev: QKeyEvent | None) -> None:
-            if ev is None:
-                return
-            key, text = ev.key(), ev.text().lower()
-            shift = bool(ev.modifiers() & Qt.KeyboardModifier.ShiftModifier)
-            pans = {Qt.Key.Key_Left: (PAN_STEP_M, 0.0), Qt.Key.Key_Right: (-PAN_STEP_M, 0.0),
-                    Qt.Key.Key_Up: (0.0, -PAN_STEP_M), Qt.Key.Key_Down: (0.0, PAN_STEP_M)}
-            if key in pans and not shift:
-                dx, dz = pans[key]
-                self.pan(dx, 0.0, dz, relative="view-upright")
-            elif text in AXIS_VIEWS:
-                self.look(*AXIS_VIEWS[text])
-            elif text == "d":
-                self.toggle_axes()
-            elif text == "r":
-                self.reset_view()
-            elif text == "p":
-                self.recentre()
-            elif text in ("=", "+"):
-                self.set_fov(self.opts["fov"] / 1.2)
-            elif text == "-":
-                self.set_fov(self.opts["fov"] * 1.2)
-            elif text == "0":
-                self.set_fov(DEFAULT_FOV)
-            elif text == "c":
-                self.resetZeroKey.emit()
-            elif text == "v":
-                self.aligned = not self.aligned
-                self.show_pose(self.last_sample)
-                self.changed.emit()
-            elif text == "t":
-                self.cycle_trail()
-                self.changed.emit()
-            else:
-                super().keyPressEvent(ev)  # Shift + arrows orbit, as pyqtgraph does
-                return
-            ev.accept()
-
-        def initializeGL(self) -> None:
-            # A second initialisation means Qt gave this widget a new context (it moved to
-            # another top-level window: a dock floated or docked again). Its items' shader
-            # programs and buffers belong to the old one, so it stops drawing and the owner
-            # replaces it (View3DWindow.rebuild_view).
-            self.stale = getattr(self, "_initialised", False)
-            self._initialised = True
-            if not self.stale:
-                super().initializeGL()
-
-        def paintGL(self, *args: object, **kwargs: object) -> None:
-            # Never draw without a valid context (e.g. a window torn down mid-frame).
-            context = self.context()
-            if not self.isValid() or context is None or not context.isValid() \
-                    or getattr(self, "stale", False):
-                return
-            start = time.perf_counter()
-            shared = list(ShaderProgram.names.values())
-            saved = [(k, k._shaderProgram) for k in cached_classes]
-            saved_shared = [(p, p.prog) for p in shared]
-            for k in cached_classes:
-                k._shaderProgram = self._programs.get(k)
-            for p in shared:
-                p.prog = self._programs.get(p)
-            try:
-                super().paintGL(*args, **kwargs)
-            finally:
-                for k, old in saved:
-                    self._programs[k] = k._shaderProgram
-                    k._shaderProgram = old
-                for p, old in saved_shared:
-                    self._programs[p] = p.prog
-                    p.prog = old
-            spent = time.perf_counter() - start
-            self.paints += 1
-            self.paint_s = spent if self.paint_s == 0.0 else 0.8 * self.paint_s + 0.2 * spent
-
-    return AvatarGL()
 
 
 class ImageView(QWidget):
@@ -417,7 +176,9 @@ class View3DWindow(QWidget):
         problem = opengl_problem()
         if problem is None:
             try:
-                self.view = _make_gl_view()
+                from bpms.gui.view3d_gl import make_gl_view
+
+                self.view = make_gl_view()
             except Exception as exc:  # a broken driver must not take the app down
                 problem = f"the 3D view could not be created ({type(exc).__name__}: {exc})"
                 log.warning("3D view: %s", problem)
@@ -445,8 +206,59 @@ class View3DWindow(QWidget):
         self.draws = 0  # redraws done (bench/gui.py)
         if self.view is not None:
             _OPEN_WINDOWS.add(self)
+        self.stale = StaleOverlay(self)
         model.samplesArrived.connect(self.on_samples)
+        model.healthChanged.connect(self.show_health)
         self.on_samples([])
+        if model.last_health is not None:
+            self.show_health(model.last_health)
+
+    def show_health(self, health: Health) -> None:
+        """Veil the figure while the data is not live (link lost, paused, stopped)."""
+        self.stale.show_text(stale_text(health))
+
+    def view_settings(self) -> dict:
+        """What a saved layout keeps of this view: the camera (centre, distance, elevation,
+        azimuth, field of view, whether it frames the body), alignment, IMU axes, trail."""
+        view = self.view
+        if view is None:
+            return {}
+        c = view.opts["center"]
+        return {"center": [c.x(), c.y(), c.z()], "distance": view.opts["distance"],
+                "elevation": view.opts["elevation"], "azimuth": view.opts["azimuth"],
+                "fov": view.opts["fov"], "framed": view.framed, "aligned": view.aligned,
+                "axes": view.show_axes, "trail": view.trail_joint}
+
+    def apply_view_settings(self, settings: dict) -> None:
+        """The settings of :meth:`view_settings` (unknown or bad entries are ignored)."""
+        view = self.view
+        if view is None or not settings:
+            return
+        from bpms.gui.view3d_gl import TRAIL_JOINTS
+
+        try:
+            for key in ("distance", "elevation", "azimuth", "fov"):
+                if key in settings:
+                    view.opts[key] = float(settings[key])
+            if "center" in settings:
+                from pyqtgraph import Vector
+
+                view.opts["center"] = Vector(*(float(v) for v in settings["center"]))
+        except (TypeError, ValueError):
+            log.warning("3D view: saved camera settings ignored (%r)", settings)
+        view.framed = bool(settings.get("framed", False))
+        if bool(settings.get("aligned", True)) != view.aligned:
+            view.toggle_alignment()
+        if bool(settings.get("axes", False)) != view.show_axes:
+            view.toggle_axes()
+        trail = settings.get("trail")
+        if trail in TRAIL_JOINTS:
+            while view.trail_joint != trail:
+                view.cycle_trail()
+        if view.framed:
+            view.frame()
+        view.update()
+        self.draw_pending()
 
     def request_reset_zero(self) -> None:
         if self.receivers(self.resetZeroRequested):
@@ -550,6 +362,8 @@ class View3DWindow(QWidget):
         self._redraw.stop()
         with contextlib.suppress(TypeError, RuntimeError):
             self.model.samplesArrived.disconnect(self.on_samples)
+        with contextlib.suppress(TypeError, RuntimeError):
+            self.model.healthChanged.disconnect(self.show_health)
         if self.view is not None:
             self.view.deleteLater()  # a parentless widget: not deleted with this one
         super().closeEvent(event)

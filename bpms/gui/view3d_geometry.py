@@ -82,3 +82,62 @@ def imu_axes_lines(points: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.nd
     return pos, np.repeat(col, 2, axis=0)
 
 
+
+
+def camera_axes(elevation_deg: float, azimuth_deg: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit vectors (towards the camera, screen right, screen up) in display axes for a
+    camera at ``elevation`` above the ground plane and ``azimuth`` about display z, as
+    pyqtgraph's GLViewWidget places it (camera = centre + distance × the first vector)."""
+    el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
+    back = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    right = np.array([-np.sin(az), np.cos(az), 0.0])
+    up = np.array([-np.sin(el) * np.cos(az), -np.sin(el) * np.sin(az), np.cos(el)])
+    return back, right, up
+
+
+#: Framing: room left around the figure (capsule radii, head), metres, and the share of the
+#: view the figure may fill.
+FRAME_PAD_M = 0.12
+FRAME_FILL = 0.92
+
+
+_ARMS = tuple(tuple(POINT_INDEX[f"{joint}_{side}"]
+                    for joint in ("shoulder", "elbow", "wrist", "fingers")) for side in "rl")
+_REACH = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]], np.float64)
+
+
+def reach_points(points: np.ndarray) -> np.ndarray:
+    """``points [21, 3]`` (display metres) and, around each shoulder, where the hand can reach
+    (forward, back, both sides, up: one arm's length away), so that a view framed on them
+    keeps the whole body in the picture when the arms are raised."""
+    pts = np.asarray(points, np.float64)
+    extra = []
+    for shoulder, elbow, wrist, fingers in _ARMS:
+        chain = pts[[shoulder, elbow, wrist, fingers]]
+        if not np.isfinite(chain).all():
+            continue
+        length = float(np.linalg.norm(np.diff(chain, axis=0), axis=1).sum())
+        extra.append(chain[0] + length * _REACH)
+    return np.concatenate([pts, *extra]) if extra else pts
+
+
+def frame_camera(points: np.ndarray, elevation_deg: float, azimuth_deg: float,
+                 fov_deg: float, aspect: float) -> tuple[np.ndarray, float]:
+    """(centre, distance) of a camera looking from ``elevation``/``azimuth`` that shows every
+    point of ``points [N, 3]`` (display metres; non-finite rows ignored), padded by
+    :data:`FRAME_PAD_M`, within :data:`FRAME_FILL` of the view. ``fov_deg`` is the horizontal
+    field of view (pyqtgraph's ``fov``); ``aspect`` width / height of the view in pixels."""
+    pts = np.asarray(points, np.float64)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if len(pts) == 0:
+        pts = CALIBRATION_POSE @ NED_TO_DISPLAY
+    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2.0
+    back, right, up = camera_axes(elevation_deg, azimuth_deg)
+    q = pts - centre
+    depth = q @ back  # towards the camera
+    half_h = np.tan(np.radians(fov_deg) / 2.0) * FRAME_FILL
+    half_v = half_h / max(aspect, 1e-6)
+    need = np.maximum(depth + (np.abs(q @ right) + FRAME_PAD_M) / half_h,
+                      depth + (np.abs(q @ up) + FRAME_PAD_M) / half_v)
+    return centre, float(need.max())

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bpms.io.bounded import BoundError, read_config_bytes
 from bpms.io.frames import N_IMUS
 from bpms.io.paths import factory_calibration_path
 from bpms.io.problems import FileProblem, report
@@ -24,10 +25,24 @@ FIELDS: tuple[str, ...] = (
 )
 N_FIELDS = len(FIELDS)
 
-#: Raw counts are int16: a min, max or average beyond this is absurd.
-MAX_COUNTS = 32768.0
-#: Narrowest usable min..max range, counts (a 1-count range scales noise by ~100 or ~256).
-MIN_RANGE_COUNTS = 4.0
+#: Physical ranges of one IMU record, from the sensors' data sheets (docs/configuration.md,
+#: "Calibration ranges"). A value outside cannot come from a working sensor stick: the IMU
+#: gets its factory record, with a warning, as for NaN.
+#: ADXL345 sensitivity in full resolution, 230–282 counts per g at every range (data sheet),
+#: widened by 10 % for the measurement (tilt, noise, temperature): Gravity and every
+#: accelerometer half-range (max − min) / 2, which is that axis' 1 g.
+GRAVITY_RANGE = (207.0, 310.0)
+#: ADXL345 0 g offset: at most ±250 mg (z; x and y ±150 mg) × 310 counts per g, counts.
+ACCEL_OFFSET_MAX = 80.0
+#: ADXL345 in full resolution at ±16 g: 13-bit readings, −4096 … 4095 counts.
+ACCEL_COUNTS = (-4096.0, 4095.0)
+#: HMC5883L 12-bit readings, −2048 … 2047 counts (−4096 marks an overflow).
+MAG_COUNTS = (-2048.0, 2047.0)
+#: Smallest magnetometer half-range, counts: the weakest Earth field (0.22 G) at the
+#: HMC5883L's least sensitive gain (230 counts per G) reads 50 counts.
+MAG_HALF_RANGE_MIN = 50.0
+#: ITG-3200 zero-rate output: at most ±40 °/s × 14.375 counts per °/s = ±575 counts.
+GYRO_BIAS_MAX = 575.0
 
 
 @dataclass
@@ -96,25 +111,41 @@ def check_record(row: np.ndarray) -> tuple[int, str] | None:
     index is -1 for a min/max pair (the message names both fields).
 
     The one check every calibration door uses (``Calib.cfg``, JSON, a recording's header,
-    whatever reaches the filter): every value finite; Gravity in (0, 32768] counts per g;
-    every min, max and gyro average within the int16 range; every max at least
-    :data:`MIN_RANGE_COUNTS` above its min (a zero range would divide by zero)."""
+    whatever reaches the filter): every value finite and inside the physical ranges above
+    (Gravity, each accelerometer axis' half-range and offset, magnetometer readings and
+    half-range, gyro zero-rate average), every max above its min."""
     row = np.asarray(row, dtype=np.float64)
     for k, value in enumerate(row):
         if not math.isfinite(value):
             return k, f"{float(value)!r} is not a finite number"
-    if not 0.0 < row[0] <= MAX_COUNTS:
-        return 0, f"Gravity {row[0]:g} is not in 0 … {MAX_COUNTS:g} counts per g"
-    for k in range(1, N_FIELDS):
-        if abs(row[k]) > MAX_COUNTS:
-            return k, f"{FIELDS[k]} {row[k]:g} is outside the sensor's ±{MAX_COUNTS:g} counts"
+    lo_g, hi_g = GRAVITY_RANGE
+    if not lo_g <= row[0] <= hi_g:
+        return 0, (f"Gravity {row[0]:g} is outside {lo_g:g} … {hi_g:g} counts per g (the "
+                   "ADXL345's sensitivity)")
     for axis, (lo, hi) in enumerate(row[1:13].reshape(6, 2)):
-        lo_name, hi_name = FIELDS[1 + 2 * axis], FIELDS[2 + 2 * axis]
+        k = 1 + 2 * axis
+        lo_name, hi_name = FIELDS[k], FIELDS[k + 1]
+        counts = ACCEL_COUNTS if axis < 3 else MAG_COUNTS
+        for j, value in ((k, lo), (k + 1, hi)):
+            if not counts[0] <= value <= counts[1]:
+                return j, (f"{FIELDS[j]} {value:g} is outside the sensor's readings "
+                           f"{counts[0]:g} … {counts[1]:g} counts")
         if hi <= lo:  # (the message names both fields: no single field index)
             return -1, f"{lo_name} ≥ {hi_name} (min must be below max: {lo:g} ≥ {hi:g})"
-        if hi - lo < MIN_RANGE_COUNTS:
-            return -1, (f"{lo_name} {lo:g} … {hi_name} {hi:g} is too narrow a range (max must "
-                        f"exceed min by {MIN_RANGE_COUNTS:g} counts or more)")
+        half, offset = (hi - lo) / 2, (hi + lo) / 2
+        if axis < 3 and not lo_g <= half <= hi_g:
+            return -1, (f"{lo_name} {lo:g} … {hi_name} {hi:g}: half-range {half:g} counts is "
+                        f"not 1 g ({lo_g:g} … {hi_g:g} counts, the ADXL345's sensitivity)")
+        if axis < 3 and abs(offset) > ACCEL_OFFSET_MAX:
+            return -1, (f"{lo_name} {lo:g} … {hi_name} {hi:g}: offset {offset:g} counts is "
+                        f"beyond the ADXL345's ±{ACCEL_OFFSET_MAX:g}")
+        if axis >= 3 and half < MAG_HALF_RANGE_MIN:
+            return -1, (f"{lo_name} {lo:g} … {hi_name} {hi:g}: half-range {half:g} counts is "
+                        f"below the weakest Earth field ({MAG_HALF_RANGE_MIN:g} counts)")
+    for k in range(13, 16):
+        if abs(row[k]) > GYRO_BIAS_MAX:
+            return k, (f"{FIELDS[k]} {row[k]:g} is beyond the ITG-3200's zero-rate output "
+                       f"±{GYRO_BIAS_MAX:g} counts (±40 °/s)")
     return None
 
 
@@ -174,7 +205,12 @@ def load_calibration(path: str | Path | None) -> CalibrationTable:
         return load_factory_calibration()
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = read_config_bytes(path).decode("utf-8", errors="replace")
+    except BoundError as exc:
+        table = load_factory_calibration().copy()
+        report(table.problems, path, "file", str(exc), "factory calibration used")
+        table.source = f"factory ({path} too big)"
+        return table
     except OSError as exc:
         table = load_factory_calibration().copy()
         report(table.problems, path, "file", f"cannot be read ({exc.strerror or exc})",

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from bpms.io.bounded import loads_json, read_config_bytes
 from bpms.io.calib_file import FIELDS, CalibrationTable, check_record, load_factory_calibration
 from bpms.io.frames import N_IMUS
 from bpms.io.mag_ellipsoid import MagEllipsoid
@@ -130,7 +131,7 @@ def load_modern(path: str | Path) -> ModernCalibration:
     problems: list[FileProblem] = []
     factory = load_factory_calibration()
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = loads_json(read_config_bytes(path).decode("utf-8"), "the file")
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:
             raise ValueError(f"not a {FORMAT} file")
         records = doc["imus"]

@@ -72,11 +72,21 @@ class LinkClosedError(LinkError):
     """The link was closed (possibly by another thread) during or before the operation."""
 
 
+class TransportEndedError(OSError):
+    """The device is gone, and ``data`` holds the bytes the same read got before the end (a
+    transport that learns of the end while reading raises this rather than dropping them)."""
+
+    def __init__(self, message: str, data: bytes = b"") -> None:
+        super().__init__(message)
+        self.data = bytes(data)
+
+
 class Transport(Protocol):
     """A byte pipe to the suit. ``read`` waits up to ``wait_s`` for the first bytes and
-    returns b"" when none came; it raises OSError when the device is gone and
-    :class:`LinkClosedError` once closed. ``close`` may be called from any thread: it wakes a
-    blocked ``read``, writes ``goodbye`` (best effort) and releases the port."""
+    returns b"" when none came; it raises OSError when the device is gone (with the bytes it
+    had read by then in :class:`TransportEndedError`'s ``data``) and :class:`LinkClosedError`
+    once closed. ``close`` may be called from any thread: it wakes a blocked ``read``, writes
+    ``goodbye`` (best effort) and releases the port."""
 
     def read(self, wait_s: float) -> bytes: ...
 
@@ -86,7 +96,11 @@ class Transport(Protocol):
 
 
 class SerialTransport:
-    """A pyserial port (device path or URL) as a :class:`Transport`. Thread-safe close."""
+    """A pyserial port (device path or URL) as a :class:`Transport`. Thread-safe close.
+
+    The port is opened with ``timeout=0``: each pyserial ``read`` makes one system read, so a
+    call that raises on a disconnect has read nothing (the bytes before the end came in an
+    earlier call, and :class:`SuitLink` keeps those)."""
 
     def __init__(self, port: str, baud: int = DEFAULT_BAUD) -> None:
         self._ser = serial.serial_for_url(port, baudrate=baud, timeout=0, write_timeout=1.0)
@@ -213,6 +227,7 @@ class SuitLink:
         self.stats = LinkStats()
         self.streaming = False
         self._pending: list[bytes] = []  # frames parsed while waiting for something else
+        self._gone: DeviceGoneError | None = None  # the end, seen after bytes still to hand
         self._synced = False  # a reply was seen since opening: the line is quiet
         self._clock = clock
         if transport is None:
@@ -231,12 +246,33 @@ class SuitLink:
             raise DeviceGoneError(f"cannot write to {self.port}: {_reason(exc)}") from None
 
     def _read(self, wait_s: float) -> bytes:
-        """The bytes available now, waiting up to ``wait_s`` for the first ones."""
+        """The bytes available now, waiting up to ``wait_s`` for the first ones. Bytes a
+        transport read before the device went away come first; the end is raised at the next
+        call (:class:`DeviceGoneError`)."""
+        if self._gone is not None:
+            self.streaming = False
+            raise self._gone
         try:
             return self._t.read(wait_s)
         except (serial.SerialException, OSError) as exc:
             self.streaming = False  # the stream is gone with the port
-            raise DeviceGoneError(f"cannot read from {self.port}: {_reason(exc)}") from None
+            gone = DeviceGoneError(f"cannot read from {self.port}: {_reason(exc)}")
+            data = getattr(exc, "data", b"")
+            if data:
+                self._gone = gone
+                return data
+            raise gone from None
+
+    def _keep_until_gone(self, buf: bytes | bytearray, keep: bool) -> None:
+        """The device went away while a command waited: frames in ``buf`` stay pending."""
+        if keep and buf:
+            self._pending += self.parser.feed(bytes(buf))
+
+    def take_pending(self) -> list[bytes]:
+        """Frames parsed but not yet returned (what a link that just failed still holds)."""
+        out, self._pending = self._pending, []
+        self.stats.frames_read += len(out)
+        return out
 
     def _command(self, cmd: bytes, reply: re.Pattern[bytes], what: str,
                  keep_frames: bool | None = None) -> re.Match[bytes]:
@@ -271,7 +307,11 @@ class SuitLink:
                 kind = NotASuitError if buf and not suit_like else LinkTimeoutError
                 raise kind(f"{self.port} did not answer {what} within "
                            f"{self.reply_timeout_s:g} s ({got})")
-            buf += self._read(min(left, 0.05))
+            try:
+                buf += self._read(min(left, 0.05))
+            except DeviceGoneError:
+                self._keep_until_gone(buf, keep)
+                raise
 
     # -- commands -------------------------------------------------------------------------
     def identify(self, keep_frames: bool | None = None) -> None:
@@ -312,7 +352,11 @@ class SuitLink:
                 raise LinkTimeoutError(f"{self.port} did not answer within "
                                        f"{self.reply_timeout_s:g} s (no answer)")
             wait = min(deadline - now, 0.02) if frames_at is None else 0.02
-            buf += self._read(max(wait, 0.0))
+            try:
+                buf += self._read(max(wait, 0.0))
+            except DeviceGoneError:
+                self._keep_until_gone(buf, True)
+                raise
 
     def battery_volts(self) -> float:
         """Send 0x01 and return the battery voltage, V (reply ``V3.27\\n``)."""
@@ -358,15 +402,20 @@ class SuitLink:
         when none is ready yet), in order."""
         out, self._pending = self._pending, []
         fresh: list[bytes] = []
-        if not out:
-            wait = self.read_timeout_s if wait_s is None else wait_s
-            fresh = self.parser.feed(self._read(wait))
-        while True:  # drain what else is already there, without waiting
-            more = self._read(0.0)
-            if not more:
-                break
-            fresh += self.parser.feed(more)
-        if fresh:
+        try:
+            if not out:
+                wait = self.read_timeout_s if wait_s is None else wait_s
+                fresh = self.parser.feed(self._read(wait))
+            while True:  # drain what else is already there, without waiting
+                more = self._read(0.0)
+                if not more:
+                    break
+                fresh += self.parser.feed(more)
+        except DeviceGoneError as exc:
+            if not (out or fresh):
+                raise
+            self._gone = exc  # these frames came before the end: hand them over first
+        if fresh and self._gone is None:
             self.streaming = True  # frames keep coming: the stream is on
         out += fresh
         self.stats.frames_read += len(out)

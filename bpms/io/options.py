@@ -20,6 +20,7 @@ from typing import Any
 
 import tomli_w
 
+from bpms.io.bounded import BoundError, read_config_bytes
 from bpms.io.problems import FileProblem, report
 
 
@@ -103,9 +104,13 @@ VALID_RANGES: dict[str, dict[str, Range]] = {
         "read_timeout_s": Range(0.001, 10.0),
         "link_lost_after_s": Range(0.1, 600.0),
     },
-    "udp": {"multicast_ttl": Range(0, 255)},
+    "udp": {"multicast_ttl": Range(0, 255),
+            "takeover_after_s": Range(1.0, 3600.0, why="a pause of the sender followed "
+                                      "shorter than this never hands the receiver over")},
     "logging": {"flush_interval_s": Range(0.05, 60.0, why="data on disk within a minute "
-                                                      "at the latest")},
+                                                      "at the latest"),
+                "disk_reserve_s": Range(0.0, 1e8, why="seconds of raw data (17.4 kB/s); 1e8 s "
+                                                      "is more than any disk")},
     "pose": {
         "reset_window_s": Range(0.0, 10.0),
         "heading_reference": Range(choices=("hip", "mean")),
@@ -241,6 +246,9 @@ class UdpOptions:
     key_file: str = _opt("", "file holding the shared UDP key that signs and checks every "
                          "datagram (docs/udp.md); empty = no key; the BPMS_UDP_KEY "
                          "environment variable wins")
+    takeover_after_s: float = _opt(
+        5.0, "UDP client: another sender takes over only after the one followed has been "
+        "silent this long, s, and then only after 25 consecutive datagrams (docs/udp.md)")
 
 
 @dataclass
@@ -250,6 +258,10 @@ class LoggingOptions:
     raw: bool = _opt(True, "record raw frames")
     filtered: bool = _opt(True, "record filtered angles")
     flush_interval_s: float = _opt(1.0, "data reach the disk at least this often, s")
+    disk_reserve_s: float = _opt(
+        120.0, "free disk space kept for the raw recording, in seconds of raw data (17.4 kB "
+        "per second): below it the filtered file stops first, the raw file goes on until the "
+        "disk is full; 0 = no reserve (docs/pipeline.md)")
 
 
 @dataclass
@@ -489,8 +501,8 @@ def load_options(path: str | Path | None) -> Options:
         return Options()
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_config_bytes(path).decode("utf-8")
+    except (OSError, UnicodeDecodeError, BoundError) as exc:
         options = Options(source=f"factory ({path} unreadable)")
         report(options.problems, path, "file", f"cannot be read ({exc})", "factory options used")
         return options

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from bpms.io.bounded import MAX_HEADER_BYTES, BoundError, check_size, loads_json
 from bpms.io.frames import (
     FRAME_DTYPE,
     FRAME_SIZE,
@@ -117,13 +118,19 @@ def read_header(path: str | Path) -> tuple[dict[str, Any], int]:
                 raise RawFileError(
                     f"{path}: raw format version {version} is newer than this software "
                     f"({FORMAT_VERSION}); update BPMS Suite")
+            try:  # bounded before anything is read or parsed (bpms/io/bounded.py)
+                check_size(length, MAX_HEADER_BYTES, "the header")
+            except BoundError as exc:
+                raise RawFileError(f"{path}: {exc}") from None
             text = f.read(length)
     except OSError as exc:
         raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from exc
     if len(text) < length:
         raise RawFileError(f"{path}: the header is cut short ({len(text)} of {length} bytes)")
     try:
-        header = json.loads(text.decode("utf-8"))
+        header = loads_json(text.decode("utf-8"), "the header")
+    except BoundError as exc:
+        raise RawFileError(f"{path}: {exc}") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise RawFileError(f"{path}: the header is damaged ({exc})") from exc
     if not isinstance(header, dict):
@@ -137,7 +144,10 @@ def read_raw(path: str | Path) -> RawRecording:
     placeholder frames (every sensor flagged failed), counted and reported."""
     path = Path(path)
     header, offset = read_header(path)
-    data = path.read_bytes()[offset:]
+    try:
+        data = path.read_bytes()[offset:]
+    except OSError as exc:
+        raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from exc
     problems: list[str] = []
     records, damaged, skipped, torn = _scan_records(data)
     if torn:

@@ -9,6 +9,11 @@ thread switch per frame less). A write error (disk full, folder gone, device rem
 the writing for good; the error stays in :class:`RecordingStatus`-like ``status.error`` until
 logging stops, later frames are counted as lost, and at the end ``status.raw_on_disk`` says
 what a reader will find in the file.
+
+Disk space goes to the raw file first: with a reserve (seconds of raw data,
+:class:`bpms.pipeline.disk_reserve.DiskReserve`) the logger checks the free space five times
+a second, and when it falls below the reserve it sets ``status.filtered_stopped``: the session
+then stops the filtered file; the raw file goes on until the disk is full.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from typing import Any
 
 from bpms.io.events import FrameEvent
 from bpms.io.rawfile import RawWriter, RecordingError
+from bpms.pipeline.disk_reserve import DiskReserve
 
 STOP = object()
 BATCH_S = 0.1  # longest wait between two batches of records, s
@@ -28,14 +34,18 @@ BATCH_S = 0.1  # longest wait between two batches of records, s
 class RawLogger(threading.Thread):
     """Writes raw records from :attr:`queue` until :meth:`stop` (or :data:`STOP` is put and
     the next batch is due). ``status`` gets ``raw_received``, ``raw_records``,
-    ``raw_on_disk``, ``raw_lost``, ``raw_bytes`` and ``error``; ``on_error(message)`` is
-    called once, when the writing fails."""
+    ``raw_on_disk``, ``raw_lost``, ``raw_bytes``, ``error`` and ``filtered_stopped``;
+    ``on_error(message)`` is called once, when the writing fails. With ``reserve_s`` (seconds
+    of raw data, :class:`DiskReserve`), ``filtered_stopped`` is set (to the reason) once the
+    free space falls below it."""
 
-    def __init__(self, writer: RawWriter, status: Any, on_error: Callable[[str], None]) -> None:
+    def __init__(self, writer: RawWriter, status: Any, on_error: Callable[[str], None],
+                 reserve_s: float = 0.0) -> None:
         super().__init__(name="bpms-raw-logger", daemon=True)
         self.writer = writer
         self.status = status
         self.on_error = on_error
+        self.reserve = DiskReserve(writer.path.parent, reserve_s) if reserve_s > 0 else None
         self.queue: queue.SimpleQueue[FrameEvent | object] = queue.SimpleQueue()
         self._wake = threading.Event()
         # a fifth of the flush interval at most: flush_if_due flushes at 0.8 of it
@@ -58,6 +68,12 @@ class RawLogger(threading.Thread):
             self.writer.write(item.host_time, item.frame)
         except RecordingError as exc:
             self._failed(exc)
+
+    def _check_space(self) -> None:
+        reserve = self.reserve
+        if reserve is None or self.status.filtered_stopped or not reserve.low():
+            return
+        self.status.filtered_stopped = reserve.reason
 
     def run(self) -> None:
         writer, status, items = self.writer, self.status, self.queue
@@ -83,6 +99,7 @@ class RawLogger(threading.Thread):
                 status.raw_records = writer.records
                 status.raw_bytes = writer.size_bytes
                 status.raw_on_disk = writer.synced_records
+                self._check_space()
         finally:
             try:
                 writer.close()

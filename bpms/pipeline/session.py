@@ -18,6 +18,7 @@ the processor are queued and run in the processing thread between two frames.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import queue
@@ -207,7 +208,7 @@ class LiveSession:
                                 options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description)
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
-            logger = RawLogger(writer, status, self.note)
+            logger = RawLogger(writer, status, self.note, self.options.logging.disk_reserve_s)
             logger.start()
             status.raw_path = raw_path
             self._raw_logger = logger
@@ -293,6 +294,7 @@ class LiveSession:
             forwarding=[f"{h}:{p}" for h, p in fwd.targets] if fwd else [],
             forwarded=fstats.sent if fstats else 0,
             forward_errors=fstats.errors if fstats else 0,
+            forward_refused=fstats.refused if fstats else 0,
             latency_p99_ms=1e3 * lat[int(0.99 * (len(lat) - 1))] if lat else 0.0,
             events=events, reinit_count=self._reinit_seen,
             not_filtered=self.health.not_filtered,
@@ -484,6 +486,8 @@ class LiveSession:
         concat, filtered_arrays = _filtered_rows()
         arrays = filtered_arrays(concat([r for _, r in pending]), writer.groups)
         try:
+            if self._recording is not None and self._recording.filtered_stopped:
+                raise OSError(self._recording.filtered_stopped)  # the raw file goes first
             rows, marked, self._holes = write_with_holes(
                 writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
             self.health.holes_marked += marked
@@ -495,6 +499,8 @@ class LiveSession:
                 self._filtered_flushed = now
         except OSError as exc:
             self._filtered = None
+            with contextlib.suppress(OSError):
+                writer.close()
             self.note(f"filtered recording stopped: {exc}")
 
 

@@ -22,6 +22,7 @@ from bpms.io.link import (
 from bpms.io.link_states import LOST_STATES, LinkEvent, LinkState, next_state
 from bpms.io.options import SerialOptions
 from bpms.io.udp.auth import key_from_env
+from bpms.io.udp.gate import TAKEOVER_AFTER_S
 from bpms.io.udp.receiver import UdpSource
 
 log = logging.getLogger(__name__)
@@ -34,17 +35,20 @@ class UdpFrameSource:
     """Raw frames received from a BPMS UDP forwarder (docs/udp.md UDP client mode).
 
     Frame indices come from the sender's suit time, so filtered files written here line up with
-    the sender's. A new sender session (restart) is a discontinuity: the filters re-initialise.
-    ``key``: the shared UDP key (default: the ``BPMS_UDP_KEY`` environment variable). While
-    datagrams of another sender arrive (and are ignored), the status' ``warning`` says so.
+    the sender's. A new sender session (restart, takeover) is a discontinuity: the filters
+    re-initialise. ``key``: the shared UDP key (default: the ``BPMS_UDP_KEY`` environment
+    variable); ``takeover_after_s``: the option ``udp.takeover_after_s`` (docs/udp.md "One
+    sender at a time"). The status' ``warning`` says when another sender is on this port
+    (ignored), when another sender is on *this session* (its datagrams contradict the stream;
+    possible without a key), and for a while after the sender changed.
     """
 
     def __init__(self, listen: str, multicast_group: str | None = None, *,
-                 key: bytes | None = None, silent_after_s: float = 1.0) -> None:
-        self.udp = UdpSource(listen, multicast_group,
+                 key: bytes | None = None, silent_after_s: float = 1.0,
+                 takeover_after_s: float = TAKEOVER_AFTER_S) -> None:
+        self.udp = UdpSource(listen, multicast_group, takeover_after_s=takeover_after_s,
                              key=key if key is not None else key_from_env())
         self.silent_after_s = silent_after_s
-        self._session: int | None = None
         self._state = "connecting"
         self._last_frame = time.monotonic()
 
@@ -52,11 +56,9 @@ class UdpFrameSource:
         out: list[FrameEvent] = []
         received = self.udp.read(timeout)
         while received is not None:
-            new_session = received.session != self._session
-            self._session = received.session
             # the receiver keeps suit times within 0..1e8 s, so this is a sane integer
             index = round(received.suit_time / 0.02)
-            out.append(FrameEvent(received.recv_time, received.frame, index, new_session))
+            out.append(FrameEvent(received.recv_time, received.frame, index, received.restart))
             self._state = "streaming"
             if len(out) >= 256:
                 break
@@ -70,15 +72,22 @@ class UdpFrameSource:
 
     def status(self) -> SourceStatus:
         s = self.udp.stats
-        warning = (f"another sender ({s.another_sender}) on this port: ignored"
-                   if s.another_sender else "")
+        warnings = []
+        if s.same_session_sender:
+            warnings.append(f"another sender on this session ({s.same_session_sender}; "
+                            f"{s.conflicts} conflicting datagrams): frames may be forged")
+        if s.another_sender:
+            warnings.append(f"another sender ({s.another_sender}) on this port: ignored")
+        if s.takeover:
+            warnings.append(s.takeover)
         return SourceStatus(
             f"UDP on {self.udp.listening}",
             "closed" if self.udp.closed else self._state,
             counters={"lost": s.lost, "duplicated": s.duplicated, "reordered": s.reordered,
                       "malformed": s.malformed, "restarts": s.restarts, "foreign": s.foreign,
-                      "unauthenticated": s.unauthenticated},
-            warning=warning)
+                      "unauthenticated": s.unauthenticated, "replayed": s.replayed,
+                      "implausible": s.implausible, "conflicts": s.conflicts},
+            warning="; ".join(warnings))
 
     def close(self) -> None:
         self.udp.close()
@@ -306,6 +315,7 @@ class SuitFrameSource:
                 with contextlib.suppress(LinkError):  # the reason is kept in the status
                     self.connect()
             return []
+        gone: DeviceGoneError | None = None
         try:
             self._apply_stream_request(link)
             frames = link.read_frames(timeout)
@@ -315,12 +325,15 @@ class SuitFrameSource:
         except LinkClosedError:
             return []
         except DeviceGoneError as exc:
-            if self._state is not LinkState.CLOSED:
-                self._event(LinkEvent.DEVICE_GONE, str(exc))
+            # frames that came before the end (read while a command waited) still count
+            frames, gone = link.take_pending(), exc
+        if gone is not None and not frames:
+            self._gone(gone)
             return []
         if not frames:
             return []
-        if self._state is LinkState.STOPPED and self._clock() - self._stop_sent > STOP_REPEAT_S:
+        if (gone is None and self._state is LinkState.STOPPED
+                and self._clock() - self._stop_sent > STOP_REPEAT_S):
             # Frames long after Stop Data: the suit did not hear it (it was out of range)
             try:
                 link.send_stop()
@@ -338,7 +351,13 @@ class SuitFrameSource:
                 events.append(FrameEvent(host_time, frame, self._count, self._discontinuity))
                 self._discontinuity = False
                 self._count += 1
+        if gone is not None:
+            self._gone(gone)
         return events
+
+    def _gone(self, exc: DeviceGoneError) -> None:
+        if self._state is not LinkState.CLOSED:
+            self._event(LinkEvent.DEVICE_GONE, str(exc))
 
     def _watchdog(self, link: SuitLink) -> None:
         """No frame in this read: maybe the link went quiet, maybe it is time to probe."""

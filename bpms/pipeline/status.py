@@ -20,6 +20,7 @@ class RecordingStatus:
     raw_lost: int = 0  # at the end: received but not on the disk
     filtered_rows: int = 0
     error: str | None = None  # a write error: shown (in red) until logging stops
+    filtered_stopped: str | None = None  # set by the raw logger: the disk reserve is reached
 
 
 @dataclass
@@ -38,6 +39,7 @@ class LiveStatus:
     forwarding: list[str] = field(default_factory=list)
     forwarded: int = 0
     forward_errors: int = 0
+    forward_refused: int = 0  # datagrams a target refused: nobody listening there (not errors)
     latency_p99_ms: float = 0.0
     events: list[str] = field(default_factory=list)  # recent notable events, newest last
     reinit_count: int = 0  # filter re-initialisations by the state guard (all IMUs)

@@ -1,8 +1,10 @@
 """Under Xvfb (QT_QPA_PLATFORM=xcb): two 3D windows on a replayed simulated recording.
 
-Usage: run_3d_windows.py OUTDIR. Presses each key in each window, saves the framebuffer after
+Usage: run_3d_windows.py OUTDIR. Presses keys in each window, saves the framebuffer after
 every step as OUTDIR/<window>_<step>.png and writes OUTDIR/results.json with pixel counts per
-image; tests/test_gui_3d_gl.py asserts on them. Exit status 3 = OpenGL unavailable.
+image; then every input of the help table on the first window, and its framing in views of
+other shapes (view3d_presses.py); tests/test_gui_3d_gl.py asserts on them. Exit status 3 =
+OpenGL unavailable.
 """
 
 from __future__ import annotations
@@ -13,63 +15,21 @@ import time
 from pathlib import Path
 
 import numpy as np
-from PyQt6.QtCore import Qt
-from PyQt6.QtGui import QImage
 from PyQt6.QtTest import QTest
 from PyQt6.QtWidgets import QApplication
 
+sys.path.insert(0, str(Path(__file__).parent))
+from gl_pixels import extent, measure, pixels, pump
+from view3d_presses import press_all
+
 from bpms.firmware.sim.session import simulate
-from bpms.gui.avatar import LEFT_ARM, LEFT_LEG, RIGHT_ARM, RIGHT_LEG
 from bpms.gui.model import SessionModel
 from bpms.gui.view3d import open_3d_window, opengl_problem
-from bpms.gui.view3d_geometry import AXIS_COLOURS
 from bpms.io.rawfile import new_header, read_raw, write_raw
 from bpms.io.replay import ReplaySource
 from bpms.pipeline.session import LiveSession
 
 KEYS = ("x", "y", "z", "r", "d")
-#: The original suite's keys, pressed after KEYS: pan, field of view, re-centre, trail.
-EXTRA_KEYS = ("Left", "=", "0", "p", "t")
-
-
-def pump(app: QApplication, seconds: float) -> None:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        app.processEvents()
-        time.sleep(0.005)
-
-
-def pixels(image: QImage) -> np.ndarray:
-    image = image.convertToFormat(QImage.Format.Format_RGB888)
-    h, w, stride = image.height(), image.width(), image.bytesPerLine()
-    buf = np.frombuffer(image.constBits().asstring(stride * h), np.uint8)
-    return buf.reshape(h, stride)[:, : w * 3].reshape(h, w, 3)
-
-
-def hue(rgb: np.ndarray, *colours: tuple[float, ...], cos: float = 0.995) -> int:
-    """Pixels of one of ``colours`` whatever the shading (the shaded solid scales a colour's
-    brightness, not its direction in RGB space); dark pixels are left out."""
-    p = rgb.reshape(-1, 3).astype(float)
-    bright = p.max(axis=1) > 40
-    unit = p / np.maximum(np.linalg.norm(p, axis=1), 1e-9)[:, None]
-    hit = np.zeros(len(p), bool)
-    for colour in colours:
-        c = np.array(colour[:3], float)
-        hit |= unit @ (c / np.linalg.norm(c)) > cos
-    return int((hit & bright).sum())
-
-
-def measure(image: QImage) -> dict:
-    rgb = pixels(image)
-    spread = rgb.max(axis=2).astype(int) - rgb.min(axis=2)
-    return {
-        "size": [image.width(), image.height()],
-        "non_background": int((rgb.max(axis=2) > 30).sum()),
-        "right": hue(rgb, RIGHT_ARM, RIGHT_LEG),
-        "left": hue(rgb, LEFT_ARM, LEFT_LEG),
-        "grey": int(((spread < 8) & (rgb.max(axis=2) > 70)).sum()),
-        "axis_blue": hue(rgb, AXIS_COLOURS[2], cos=0.98),
-    }
 
 
 def main(out: Path) -> int:
@@ -87,6 +47,13 @@ def main(out: Path) -> int:
     session = LiveSession(ReplaySource(recording, speed=None), recording_dir=out)
     model = SessionModel()
     model.attach(session)
+    # Opened wide and short: the waiting (calibration) figure is framed whole at once.
+    wide = open_3d_window(model)
+    wide.resize(760, 300)
+    pump(app, 0.3)
+    wide.view_resized()
+    opened_wide = {"when": "opened wide", **extent(wide.view.grabFramebuffer())}
+    wide.close()
     windows = [open_3d_window(model), open_3d_window(model)]
     for i, window in enumerate(windows):
         window.move(40 + 560 * i, 40)
@@ -124,20 +91,10 @@ def main(out: Path) -> int:
             shots[step]["camera"] = [view.opts["elevation"], view.opts["azimuth"]]
             shots[step]["axes_shown"] = view.show_axes
             np.save(out / f"w{w}_{step}.npy", pixels(image))
-        extra = {}
-        for step in EXTRA_KEYS:
-            key = getattr(Qt.Key, f"Key_{step}") if len(step) > 1 else step
-            c = view.opts["center"]
-            before = [c.x(), c.y(), c.z(), view.opts["fov"]]
-            QTest.keyClick(view, key)
-            pump(app, 0.1)
-            c = view.opts["center"]
-            after = [c.x(), c.y(), c.z(), view.opts["fov"]]
-            extra[step] = {"before": before, "after": after,
-                           "trail": view.trail_joint}
-        results.setdefault("extra", []).append(extra)
         # The other window did not move when this one's keys were pressed.
         results["windows"].append(shots)
+    results["bindings"] = press_all(app, windows[0], out)
+    results["bindings"]["framing"].insert(0, opened_wide)
     model.stop()
     for window in windows:
         window.close()

@@ -26,7 +26,7 @@ from bpms.gui.view3d import opengl_problem
 from bpms.io.options import Options
 
 sys.path.insert(0, str(Path(__file__).parent))
-from run_3d_windows import measure, pump
+from gl_pixels import measure, pump
 
 
 def main(out: Path) -> int:

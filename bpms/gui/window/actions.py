@@ -5,10 +5,24 @@ area) and the keys help. Mixed into :class:`bpms.gui.main_window.MainWindow`."""
 from __future__ import annotations
 
 from PyQt6.QtCore import Qt
-from PyQt6.QtGui import QAction, QKeySequence
-from PyQt6.QtWidgets import QMessageBox
+from PyQt6.QtGui import QAction, QColor, QIcon, QKeySequence, QPainter, QPixmap
+from PyQt6.QtWidgets import QMessageBox, QStyle
 
 from bpms.gui.layouts import DEFAULT_LAYOUTS
+from bpms.gui.view3d_keys import PLOT_BINDINGS, VIEW3D_BINDINGS, help_html
+
+
+def record_icon(size: int = 16) -> QIcon:
+    """A red disc (drawn: no font has to have a glyph for it)."""
+    pixmap = QPixmap(size, size)
+    pixmap.fill(QColor(0, 0, 0, 0))
+    painter = QPainter(pixmap)
+    painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+    painter.setPen(QColor("#8b1a1a"))
+    painter.setBrush(QColor("#d62728"))
+    painter.drawEllipse(2, 2, size - 4, size - 4)
+    painter.end()
+    return QIcon(pixmap)
 
 
 class WindowActions:
@@ -45,6 +59,8 @@ class WindowActions:
                       "A new plot of the selected table cells"),
             "joints": a("Joint angles plot", self.open_joint_plot, "Ctrl+J"),
             "view3d": a("New 3D view", self.open_3d_view, "Ctrl+3"),
+            "tile": a("Tile plots", self.tile_plots,
+                      tip="Every docked plot in view at once, in a grid under the table"),
             "browser": a("Browser 3D view", self.open_browser_view),
             "unit": a("Angles deg/rad", self._toggle_unit, "Ctrl+U"),
             "step_back": a("Previous frame", lambda: self.step_frames(-1), "Ctrl+Left",
@@ -94,7 +110,7 @@ class WindowActions:
             menu.addAction(acts[key])
         self._add_playback_actions(menu)
         menu = bar.addMenu("&View")
-        for key in ("plot", "joints", "view3d", "browser", "unit", "sensor_angles"):
+        for key in ("plot", "joints", "tile", "view3d", "browser", "unit", "sensor_angles"):
             menu.addAction(acts[key])
         menu.addSeparator()
         for dock in self.docks.values():
@@ -109,13 +125,21 @@ class WindowActions:
         acts = self.actions_by_name
         toolbar = self.addToolBar("Session")
         toolbar.setObjectName("toolbar")
+        toolbar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
         self.toolbar = toolbar
-        self.start_action = toolbar.addAction("▶ Start", lambda: self.set_data(True))
+        icon = self.style().standardIcon
+        sp = QStyle.StandardPixmap
+        # icons from Qt's standard set (a font may lack the media glyphs)
+        self.start_action = toolbar.addAction(icon(sp.SP_MediaPlay), "Start",
+                                              lambda: self.set_data(True))
         self.start_action.setToolTip("Start Data (Ctrl+Space)")
-        self.stop_action = toolbar.addAction("■ Stop", lambda: self.set_data(False))
+        self.stop_action = toolbar.addAction(icon(sp.SP_MediaStop), "Stop",
+                                             lambda: self.set_data(False))
         self.stop_action.setToolTip("Stop Data (Ctrl+Space)")
+        acts["reset_zero"].setIcon(icon(sp.SP_BrowserReload))
         toolbar.addAction(acts["reset_zero"])
-        self.record_action = toolbar.addAction("● Record", self.file_panel.toggle_logging)
+        self.record_action = toolbar.addAction(record_icon(), "Record",
+                                               self.file_panel.toggle_logging)
         self.record_action.setToolTip("Start/Stop Logging (Ctrl+L)")
         toolbar.addAction(acts["lsl"])
         toolbar.addSeparator()
@@ -142,16 +166,22 @@ class WindowActions:
         self.start_action.setEnabled(not on)
         self.stop_action.setEnabled(on)
         self.actions_by_name["reset_zero"].setEnabled(on)
-        self.record_action.setText("■ Stop recording" if self.file_panel.logging
-                                   else "● Record")
+        self.record_action.setText("Stop recording" if self.file_panel.logging else "Record")
 
-    def show_keys(self) -> None:
-        text = "\n".join(f"{act.shortcut().toString():<18} {act.text()}"
-                         for act in self.actions_by_name.values() if not act.shortcut().isEmpty())
-        text += ("\n\n3D view (click it first): arrows pan, c centre on the body, v cycle "
-                 "front/side/top, p toggle perspective, = / - zoom, 0 reset, x/y/z look along "
-                 "an axis, d IMU axes, t joint trail\nPlots: drag table cells onto a plot (or "
-                 "onto empty space for a new one); click a legend name to hide/show; "
-                 "double-click resets the view; Space pauses")
-        box = QMessageBox(QMessageBox.Icon.Information, "Keys and mouse", text, parent=self)
+    def keys_html(self) -> str:
+        """The F1 page: the window's shortcuts (from its actions), the 3D view's and the
+        plots' keys and mouse (from their tables, :mod:`bpms.gui.view3d_keys`)."""
+        rows = "".join(f"<tr><td><b>{act.shortcut().toString()}</b></td><td>{act.text()}"
+                       "</td></tr>" for act in self.actions_by_name.values()
+                       if not act.shortcut().isEmpty())
+        window = f"<h3>Main window</h3><table cellspacing='2' cellpadding='2'>{rows}</table>"
+        return (window + help_html("3D view (click it first)", VIEW3D_BINDINGS)
+                + help_html("Plots", PLOT_BINDINGS))
+
+    def show_keys(self) -> QMessageBox:
+        box = QMessageBox(QMessageBox.Icon.Information, "Keys and mouse", "", parent=self)
+        box.setTextFormat(Qt.TextFormat.RichText)
+        box.setText(self.keys_html())
         box.open()
+        self.keys_box = box
+        return box

@@ -29,11 +29,11 @@ class SessionCommands:
             if session is not self.model.session:
                 self.model.attach(session)
                 self.health_panel.set_listening(self._listening())
-            self.health.start()
+            self.model.set_data_on(True)
             self.event_log.add("data started")
         else:
             self.runner.stop_data()
-            self.health.stop()
+            self.model.set_data_on(False)
             self.event_log.add("data stopped")
         self.status_panel.set_streaming(self.runner.data_on)
         self._update_toolbar()
@@ -69,6 +69,7 @@ class SessionCommands:
         (checked) or the output angles ``euler_output`` (unchecked, the default)."""
         sensor = self.actions_by_name["sensor_angles"].isChecked()
         self.table_model.set_show_output(not sensor)
+        self.readout.reset()  # other angles: their continuous readout starts again
         self.statusBar().showMessage("angles shown: " + ("sensor angles (uncorrected)" if sensor
                                      else "output angles (after Reset Zero)"), 3000)
 
@@ -96,11 +97,14 @@ class SessionCommands:
         self.event_log.add("LSL streaming " + ("on" if self.runner.lsl_on else "off"))
 
     def _set_gains(self, gains: dict) -> None:
+        """A gain the panel accepted; the session checks it again (the panel logs the change,
+        or the refusal with the range)."""
         if self.runner.session is not None:
             try:
                 self.runner.session.set_gains(**gains)
             except ValueError as exc:  # outside the valid range: refused, said why
                 self.statusBar().showMessage(str(exc), 8000)
+                self.gains_panel.refuse(str(exc))
                 return
             for name, value in gains.items():
                 setattr(self.options.filter, name, value)

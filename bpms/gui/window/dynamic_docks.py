@@ -4,15 +4,12 @@ and pruned. Mixed into :class:`bpms.gui.main_window.MainWindow`."""
 from __future__ import annotations
 
 from PyQt6 import sip
-from PyQt6.QtCore import Qt
+from PyQt6.QtCore import Qt, QTimer
 from PyQt6.QtWidgets import QDockWidget, QWidget
 
 from bpms.gui.docks import make_dock
-from bpms.gui.plot_data import TickBlock
+from bpms.gui.health import stale_text
 from bpms.gui.plots import PlotWindow, cells_plot, joint_angle_plot, plot_from
-
-_RIGHT = Qt.DockWidgetArea.RightDockWidgetArea
-_BOTTOM = Qt.DockWidgetArea.BottomDockWidgetArea
 
 
 class DynamicDocks:
@@ -23,27 +20,45 @@ class DynamicDocks:
         return f"{kind}-{self._dock_serial}"
 
     def add_plot_dock(self, plot: PlotWindow, name: str | None = None,
-                      area: Qt.DockWidgetArea = _BOTTOM) -> QDockWidget:
-        """Show ``plot`` in a new dock (closing the dock deletes the plot)."""
+                      area: Qt.DockWidgetArea | None = None) -> QDockWidget:
+        """Show ``plot`` in a new dock (closing the dock deletes the plot): under the table,
+        beside the plots there (then tabbed), the table keeping its rows in view; or in
+        ``area``."""
         dock = make_dock(plot.windowTitle(), name or self._next_name("plot"), plot,
                          dynamic=True)
         plot.setMinimumSize(200, 150)
         plot.cellsDropped.connect(self._cells_dropped)
         plot.jointsDropped.connect(self._joints_dropped)
-        self.addDockWidget(area, dock)
+        if area is None:
+            self._place_plot(dock, [d for d in self.dynamic_docks
+                                    if isinstance(d.widget(), PlotWindow)])
+            QTimer.singleShot(0, self.fit_table)
+        else:
+            self.addDockWidget(area, dock)
         self.plot_windows.append(plot)
         self.dynamic_docks.append(dock)
+        self._backfill(plot)
+        plot.stale.show_text(stale_text(self.model.last_health)
+                             if self.model.last_health is not None else None)
         plot.redraw()
         return dock
 
     def add_view3d_dock(self, name: str | None = None,
-                        area: Qt.DockWidgetArea = _RIGHT) -> QDockWidget | None:
+                        area: Qt.DockWidgetArea | None = None) -> QDockWidget | None:
+        """A new 3D view: beside the last docked one (or the table), or in ``area``."""
         if self._view3d is None or not self.view3d_button.isEnabled():
             return None
         view = self._view3d.View3DWindow(self.model)  # type: ignore[attr-defined]
         view.resetZeroRequested.connect(self.reset_zero)
         dock = make_dock("3D view", name or self._next_name("view3d"), view, dynamic=True)
-        self.addDockWidget(area, dock)
+        views = [d for d in self.dynamic_docks if not isinstance(d.widget(), PlotWindow)
+                 and not d.isFloating() and d.parent() is self and not d.isHidden()]
+        if area is not None:
+            self.addDockWidget(area, dock)
+        elif views:
+            self.splitDockWidget(views[-1], dock, Qt.Orientation.Horizontal)
+        else:
+            self.splitDockWidget(self.docks["table"], dock, Qt.Orientation.Horizontal)
         self.view3d_windows.append(view)
         self.dynamic_docks.append(dock)
         return dock
@@ -133,17 +148,13 @@ class DynamicDocks:
 
     def _show_plot(self, window: PlotWindow) -> PlotWindow:
         self.add_plot_dock(window)
-        block = self._history_block()
-        if block is not None:
-            window.append(block)
         return window
 
-    def _history_block(self) -> TickBlock | None:
-        latest = self.model.latest
-        if latest is None:
-            return None
-        return TickBlock.from_samples([latest], self.table_model.calibration,
-                                      self.table_model.show_output)
+    def _backfill(self, window: PlotWindow) -> None:
+        """A new plot starts with the window's history (the last plot_history_s seconds)."""
+        block = self.history.block(self.table_model.calibration)
+        if block is not None:
+            window.append(block)
 
     def open_3d_view(self) -> QWidget | None:
         """A new 3D view dock (when bpms.gui.view3d is available)."""

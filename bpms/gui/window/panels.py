@@ -152,6 +152,7 @@ class WindowPanels:
         self.gains_panel = GainsPanel(self.options.filter)
         self.gains_panel.gainsChanged.connect(self._set_gains)
         self.gains_panel.filterChanged.connect(self.select_filter)
+        self.gains_panel.logged.connect(lambda text, level: self.event_log.add(text, level))
         filter_box = QWidget()
         filter_layout = QVBoxLayout(filter_box)
         filter_layout.addWidget(self.gains_panel)

@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 
+from bpms.gui.columns import shown_angles
+from bpms.gui.health import Health, stale_text
 from bpms.gui.plot_data import TickBlock
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.pipeline.session import LiveStatus
@@ -23,9 +25,14 @@ class StatusDisplay:
     def _on_samples(self, samples: list) -> None:
         start = time.perf_counter()
         self._prune()
-        self.health.frames_arrived()
         last = samples[-1]
-        self.table_model.update(last, np.any([s.errors for s in samples], axis=0))
+        model = self.table_model
+        # the continuous readout of the angles shown (one per window: table and plots agree)
+        angles = np.array([shown_angles(s, model.show_output)[0] for s in samples])
+        euler = self.readout.feed(angles, np.array([s.index for s in samples]))
+        block = TickBlock.from_samples(samples, model.calibration, model.show_output, euler)
+        self.history.extend(block)
+        model.update(last, np.any([s.errors for s in samples], axis=0), euler=euler[-1])
         if last.mag_disturbed is not None and last.acc_disturbed is not None:
             self._disturbed = (int(np.count_nonzero(last.mag_disturbed)),
                                int(np.count_nonzero(last.acc_disturbed)))
@@ -34,24 +41,26 @@ class StatusDisplay:
         window = max(2, round(self.options.pose.reset_window_s / FRAME_PERIOD_S))
         self._recent_R.extend(s.R for s in samples[-window:])
         del self._recent_R[:-window]
-        if self.plot_windows:
-            block = TickBlock.from_samples(samples, self.table_model.calibration,
-                                           self.table_model.show_output)
-            for plot in self.plot_windows:
-                plot.append(block)
+        for plot in self.plot_windows:
+            plot.append(block)
         self.tick_times_s.append(time.perf_counter() - start)
         del self.tick_times_s[:-20000]
 
+    def _show_stale(self, health: Health) -> None:
+        """Every view marks data that is not live (3D views do it themselves)."""
+        text = stale_text(health)
+        self._prune()  # (a plot closed since the last tick)
+        self.table.stale.show_text(text)
+        self.joint_table.stale.show_text(text)
+        for plot in self.plot_windows:
+            plot.stale.show_text(text)
+
     def _on_status(self, st: LiveStatus) -> None:
         now = time.monotonic()
-        if self.runner.replay is not None and self.runner.data_on \
-                and not self.runner.replay.playing:
-            # paused from elsewhere (end of file): the light goes grey, not red
-            self.health.stop()
-        health = self.health.evaluate(now, st.rate_hz, st.error_bits, st.source.state,
-                                      self._nominal_hz())
+        # the model evaluated the link rule for this tick (a paused or ended replay: grey)
+        health = self.model.last_health
         if health.transition == "lost":
-            self.event_log.add(f"link lost: no frame for {self.health.silent_s:g} s "
+            self.event_log.add(f"link lost: no frame for {self.model.health.silent_s:g} s "
                                f"({st.source.description})", "warning")
         elif health.transition == "recovered":
             self.event_log.add("link recovered")

@@ -11,6 +11,7 @@ from typing import TextIO
 
 import numpy as np
 
+from bpms.io.bounded import MAX_HEADER_BYTES
 from bpms.io.filtered_file.columns import FIXED_COLUMNS, FORMAT_NAME, FORMAT_VERSION, column_groups
 from bpms.io.frames import N_IMUS
 
@@ -137,10 +138,16 @@ class FilteredReader:
         version = 1
         first = ""
         self._line_no = 0
+        left = MAX_HEADER_BYTES  # the header is bounded before it is parsed (io/bounded.py)
         while True:
-            line = self._file.readline()
+            line = self._file.readline(left + 1)
             if not line:
                 break
+            left -= len(line)
+            if left < 0:
+                raise FilteredFileError(f"{path}: the header is longer than the "
+                                        f"{MAX_HEADER_BYTES // (1024 * 1024)} MiB this "
+                                        "software reads")
             self._line_no += 1
             if not line.strip():
                 continue

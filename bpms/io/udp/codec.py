@@ -1,26 +1,33 @@
 """The BPMS datagram (docs/udp.md): its layout, encoding and the one decoder.
 
 The byte-exact format, the counter semantics and multicast notes are in ``docs/udp.md``.
-Every datagram is a 32-byte header followed by a payload; all fields are big-endian (network
-byte order, like the suit's frame)::
+Every datagram is a header followed by a payload; all fields are big-endian (network byte
+order, like the suit's frame). Version 3 (what this software sends) has a 48-byte header;
+versions 1 and 2 (still read) stop after the send time, 32 bytes::
 
     offset size type     field
     0      4    bytes    magic b"BPMS"
-    4      1    uint8    format version (1)
+    4      1    uint8    format version (3)
     5      1    uint8    message type: 1 RAW_FRAME, 2 POSE
-    6      2    uint16   flags (senders write 0; readers ignore unknown bits)
+    6      2    uint16   flags (bit 0: an HMAC-SHA256 tag follows; readers ignore unknown bits)
     8      4    uint32   session id (random per forwarder, never 0)
     12     4    uint32   sequence number (per message type and session, wraps 2**32-1 -> 0)
     16     8    float64  suit time, s (frame index × 0.02 since the stream started)
     24     8    float64  host send time, s since the Unix epoch
-    32     ...           payload
+    32     8    uint64   sender id (one per computer; version 3)
+    40     8    uint64   epoch: µs since 1970 on the sender's clock when the session started,
+                         rising with every session of one sender (version 3)
+    48     ...           payload
+
+With a shared key the tag signs the whole header, so the sender id and the epoch are the
+signed freshness of docs/udp.md "Freshness".
 
 RAW_FRAME payload: the 340-byte suit frame exactly as received. POSE payload: uint16 segment
 count S, uint16 angle count A, S quaternions (w, x, y, z float32, body→NED, IMU order), then A
-joint angles (float32 rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`). POSE version 2
-appends extension blocks (uint16 tag, uint16 length, data; readers skip unknown tags): tag 1
-joint positions (uint16 P, P × 3 float32 m NED, order ``POINT_NAMES``), tag 2 the joint-angle
-convention name (ASCII).
+joint angles (float32 rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`). From version
+2 on, POSE appends extension blocks (uint16 tag, uint16 length, data; readers skip unknown
+tags): tag 1 joint positions (uint16 P, P × 3 float32 m NED, order ``POINT_NAMES``), tag 2 the
+joint-angle convention name (ASCII), tag 3 the disturbance masks.
 """
 
 from __future__ import annotations
@@ -35,9 +42,11 @@ import numpy as np
 from bpms.io.frames import FRAME_SIZE, is_frame
 
 MAGIC = b"BPMS"
-VERSION = 1
-POSE_VERSION = 2  # POSE with extension blocks (joint positions, convention); docs/udp.md
-READ_VERSIONS = (1, 2)
+#: What senders write: version 3 (sender id and epoch in the header, for freshness).
+VERSION = 3
+#: The first version whose POSE payload may carry extension blocks after the angles.
+EXTENSIONS_SINCE = 2
+READ_VERSIONS = (1, 2, 3)
 EXT_BLOCK = struct.Struct("!HH")
 EXT_JOINT_POSITIONS = 1
 EXT_CONVENTION = 2
@@ -45,8 +54,13 @@ EXT_CONVENTION = 2
 EXT_DISTURBANCE = 3
 DISTURBANCE_MASKS = struct.Struct("!II")
 HEADER = struct.Struct("!4sBBHIIdd")
+#: The shortest header (versions 1 and 2), bytes.
 HEADER_SIZE = HEADER.size
 assert HEADER_SIZE == 32
+#: Version 3's freshness fields after the send time: sender id, epoch (µs).
+FRESHNESS = struct.Struct("!QQ")
+HEADER_V3_SIZE = HEADER_SIZE + FRESHNESS.size
+assert HEADER_V3_SIZE == 48
 POSE_COUNTS = struct.Struct("!HH")
 N_POSE_SEGMENTS = 18
 N_POSE_ANGLES = 28
@@ -83,7 +97,8 @@ class Pose:
 
 @dataclass(frozen=True)
 class Datagram:
-    """One decoded datagram. ``frame`` is set for RAW_FRAME, ``pose`` for POSE."""
+    """One decoded datagram. ``frame`` is set for RAW_FRAME, ``pose`` for POSE; ``sender``
+    and ``epoch`` (µs) are 0 before version 3."""
 
     type: MessageType
     flags: int
@@ -93,23 +108,35 @@ class Datagram:
     send_time: float
     frame: bytes | None = None
     pose: Pose | None = None
+    version: int = VERSION
+    sender: int = 0
+    epoch: int = 0
+
+
+def header_size(version: int) -> int:
+    """Bytes of the header of a datagram of format ``version``."""
+    return HEADER_V3_SIZE if version >= 3 else HEADER_SIZE
 
 
 
 def encode_header(mtype: int, session: int, seq: int, suit_time: float, send_time: float,
-                  flags: int = 0, version: int = VERSION) -> bytes:
-    """The 32-byte header. ``seq`` is reduced modulo 2**32."""
-    return HEADER.pack(MAGIC, version, int(mtype), flags, session, seq % SEQ_MOD,
+                  flags: int = 0, version: int = VERSION, sender: int = 0,
+                  epoch: int = 0) -> bytes:
+    """The header (48 bytes for version 3, 32 before). ``seq`` is reduced modulo 2**32;
+    ``sender`` and ``epoch`` (µs) are written from version 3 on."""
+    head = HEADER.pack(MAGIC, version, int(mtype), flags, session, seq % SEQ_MOD,
                        float(suit_time), float(send_time))
+    return head + FRESHNESS.pack(sender, epoch) if version >= 3 else head
 
 
 def encode_raw_frame(frame: bytes, *, session: int, seq: int, suit_time: float,
-                     send_time: float, flags: int = 0) -> bytes:
+                     send_time: float, flags: int = 0, version: int = VERSION,
+                     sender: int = 0, epoch: int = 0) -> bytes:
     """A RAW_FRAME datagram. Raises ValueError when ``frame`` is not a 340-byte frame."""
     if not is_frame(frame):
         raise ValueError(f"not a {FRAME_SIZE}-byte frame with $#/#$ markers")
     return encode_header(MessageType.RAW_FRAME, session, seq, suit_time, send_time,
-                         flags) + bytes(frame)
+                         flags, version, sender, epoch) + bytes(frame)
 
 
 def encode_pose_payload(quaternions: np.ndarray, angles: np.ndarray) -> bytes:
@@ -139,7 +166,7 @@ def disturbance_mask(flags: np.ndarray) -> int:
 def encode_pose_extensions(positions: np.ndarray | None = None,
                            convention: str | None = None,
                            disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> bytes:
-    """POSE version 2 extension blocks: joint positions ``[P, 3]`` m (NED), the joint-angle
+    """POSE extension blocks (version 2 on): joint positions ``[P, 3]`` m (NED), the joint-angle
     convention name and/or the disturbance flags ``(mag[18], acc[18])`` bool (tag 3, two
     masks). Raises ValueError on non-finite positions."""
     out = b""
@@ -189,10 +216,11 @@ def _decode_extensions(data: bytes) -> dict:
 
 
 def encode_pose(quaternions: np.ndarray, angles: np.ndarray, *, session: int, seq: int,
-                suit_time: float, send_time: float, flags: int = 0) -> bytes:
+                suit_time: float, send_time: float, flags: int = 0, version: int = VERSION,
+                sender: int = 0, epoch: int = 0) -> bytes:
     """A POSE datagram (see :func:`encode_pose_payload`)."""
-    return encode_header(MessageType.POSE, session, seq, suit_time, send_time,
-                         flags) + encode_pose_payload(quaternions, angles)
+    return encode_header(MessageType.POSE, session, seq, suit_time, send_time, flags,
+                         version, sender, epoch) + encode_pose_payload(quaternions, angles)
 
 
 def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
@@ -201,7 +229,7 @@ def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
     n_seg, n_ang = POSE_COUNTS.unpack_from(payload)
     expected = POSE_COUNTS.size + 16 * n_seg + 4 * n_ang
     extensions = {}
-    if version >= 2 and len(payload) >= expected:  # i16: extension blocks after the angles
+    if version >= EXTENSIONS_SINCE and len(payload) >= expected:  # blocks after the angles
         extensions = _decode_extensions(payload[expected:])
         payload = payload[:expected]
     if len(payload) != expected:
@@ -235,15 +263,22 @@ def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:
                             f"{', '.join(map(str, READ_VERSIONS))})")
     if not (math.isfinite(suit_time) and math.isfinite(send_time)):
         raise DatagramError("suit time or send time is not a finite number")
-    payload = data[HEADER_SIZE:]
+    sender = epoch = 0
+    if version >= 3:
+        if len(data) < HEADER_V3_SIZE:
+            raise DatagramError(f"{len(data)} bytes, shorter than the {HEADER_V3_SIZE}-byte "
+                                "version 3 header")
+        sender, epoch = FRESHNESS.unpack_from(data, HEADER_SIZE)
+    payload = data[header_size(version):]
     if mtype == MessageType.RAW_FRAME:
         if len(payload) != FRAME_SIZE:
             raise DatagramError(f"RAW_FRAME payload is {len(payload)} bytes, not {FRAME_SIZE}")
         if not is_frame(payload):
             raise DatagramError("RAW_FRAME payload lacks the $#/#$ frame markers")
         return Datagram(MessageType.RAW_FRAME, flags, session, seq, suit_time, send_time,
-                        frame=payload)
+                        frame=payload, version=version, sender=sender, epoch=epoch)
     if mtype == MessageType.POSE:
         return Datagram(MessageType.POSE, flags, session, seq, suit_time, send_time,
-                        pose=_decode_pose(payload, version))
+                        pose=_decode_pose(payload, version), version=version, sender=sender,
+                        epoch=epoch)
     raise DatagramError(f"unknown message type {mtype}")

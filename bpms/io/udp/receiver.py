@@ -1,6 +1,8 @@
 """The receiver: :class:`UdpSource` listens for BPMS datagrams and yields raw frames
 (docs/udp.md "Receiver"). Nothing a peer sends can raise here. Thread-safe: any thread may
-read stats or close."""
+read stats or close. Which sender it follows is the gate's decision (:mod:`bpms.io.udp.gate`:
+no takeover of a live session, freshness with a key); the accounting within the followed
+session is the tracker's (:mod:`bpms.io.udp.sequence`)."""
 
 from __future__ import annotations
 
@@ -11,12 +13,20 @@ import select
 import socket
 import threading
 import time
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from bpms.io.udp.addresses import DEFAULT_PORT, UdpConfigError, is_multicast, parse_address
 from bpms.io.udp.auth import split_tag, tag_is_valid
 from bpms.io.udp.codec import MAX_DATAGRAM, DatagramError, MessageType, decode_datagram
+from bpms.io.udp.gate import (
+    TAKEOVER_AFTER_S,
+    TAKEOVER_DATAGRAMS,
+    Admission,
+    SessionGate,
+    SessionKey,
+)
 from bpms.io.udp.ratelog import RateLimitedLog
 from bpms.io.udp.sequence import REORDER_WINDOW, SequenceTracker, Verdict
 
@@ -26,20 +36,21 @@ log = logging.getLogger(__name__)
 #: time, s since the epoch (1970 .. 2286). Outside: a malformed datagram.
 MAX_SUIT_TIME_S = 1e8
 MAX_SEND_TIME_S = 1e10
-#: An active session keeps the receiver until it has been silent this long, s.
-TAKEOVER_AFTER_S = 1.0
-#: "another sender" shows while foreign datagrams came within this time, s.
+#: "another sender", "another sender on this session" and a takeover show this long, s.
 FOREIGN_SHOWN_S = 5.0
+TAKEOVER_SHOWN_S = 10.0
 
 
 @dataclass(frozen=True)
 class SourceStats:
     """Counters of a :class:`UdpSource` (semantics in docs/udp.md).
 
-    ``datagrams = received + malformed + ignored + stale + foreign + unauthenticated``;
-    ``received = delivered + duplicated`` (RAW_FRAME datagrams of the current sessions);
-    ``reordered`` ⊂ ``delivered``; ``lost`` = sequence numbers never received between the
-    first and the highest of each session (``pending`` of them may still arrive late).
+    ``datagrams = received + malformed + ignored + stale + foreign + unauthenticated +
+    replayed``; ``received = delivered + duplicated + implausible`` (RAW_FRAME datagrams of
+    the sessions followed); ``reordered`` ⊂ ``delivered``; ``lost`` = sequence numbers never
+    received between the first and the highest of each session, plausible gaps only
+    (``pending`` of them may still arrive late); ``conflicts``: evidence of another sender on
+    the followed session (a number received again with a different frame, or far too late).
     """
 
     datagrams: int = 0
@@ -58,6 +69,12 @@ class SourceStats:
     foreign: int = 0  # datagrams of another session while the active one streams: dropped
     unauthenticated: int = 0  # refused: no valid HMAC tag while a key is set
     another_sender: str = ""  # "host:port" of a foreign sender seen in the last few seconds
+    replayed: int = 0  # keyed: older than the newest epoch followed for their sender: refused
+    implausible: int = 0  # sequence numbers jumped implausibly far: dropped, not counted lost
+    jumps: int = 0  # such jumps confirmed by JUMP_CONFIRM consecutive datagrams
+    conflicts: int = 0  # datagrams contradicting the followed session (another sender on it)
+    same_session_sender: str = ""  # "host:port" of the last conflicting datagram, while recent
+    takeover: str = ""  # the last takeover, in words, while recent
 
 
 @dataclass(frozen=True)
@@ -72,6 +89,9 @@ class ReceivedFrame:
     recv_time: float  # s since the epoch, this host's clock
     reordered: bool = False
     sender: tuple[str, int] = field(default=("", 0))
+    #: the first frame of a session followed from here (the first, a takeover, a confirmed
+    #: jump): what came before does not continue into it
+    restart: bool = False
 
 
 class UdpSource:
@@ -85,33 +105,42 @@ class UdpSource:
     times outside the sanity range) are counted and logged at most once per second with the
     reason. Nothing a peer sends can raise here.
 
-    One sender at a time: while the active session streams, datagrams of another session are
-    dropped and counted (``stats.foreign``, ``stats.another_sender``); a new session takes
-    over once the active one has been silent for ``takeover_after_s`` (a restarted sender
-    thus loses at most that long). ``key``: the shared key; datagrams without a valid
-    HMAC-SHA256 tag are then refused and counted (``stats.unauthenticated``).
+    One sender at a time (:class:`bpms.io.udp.gate.SessionGate`): while the followed session
+    streams, datagrams of another session are dropped and counted (``stats.foreign``,
+    ``stats.another_sender``); a newcomer takes over only once the followed session has been
+    silent for ``takeover_after_s`` (5 s) and the newcomer has sent ``takeover_datagrams``
+    (25) consecutive datagrams; takeovers are logged and shown (``stats.takeover``).
+    ``key``: the shared key; datagrams without a valid HMAC-SHA256 tag are then refused and
+    counted (``stats.unauthenticated``), so are datagrams before version 3 (they carry no
+    freshness), and a run older than the newest one followed from the same sender is refused
+    as replayed (``stats.replayed``).
     """
 
     def __init__(self, listen: str = f"0.0.0.0:{DEFAULT_PORT}",
                  multicast_group: str | None = None, *, multicast_interface: str = "0.0.0.0",
                  rcvbuf: int | None = 1 << 22, poll_s: float = 0.5,
                  window: int = REORDER_WINDOW, takeover_after_s: float = TAKEOVER_AFTER_S,
+                 takeover_datagrams: int = TAKEOVER_DATAGRAMS,
                  key: bytes | None = None) -> None:
         host, port = parse_address(listen)
         self.poll_s = poll_s
         self.takeover_after_s = takeover_after_s
         self.key = key or None
-        self._last_active = -math.inf  # monotonic time of the active session's last datagram
-        self._last_foreign = -math.inf
-        self._foreign_sender = ""
+        self._gate = SessionGate(takeover_after_s, takeover_datagrams, keyed=self.key is not None)
+        self._last_foreign = self._last_conflict = -math.inf
+        self._foreign_sender = self._conflict_sender = ""
         self._foreign_log = RateLimitedLog(log, 5.0)
         self._auth_log = RateLimitedLog(log, 5.0)
+        self._replay_log = RateLimitedLog(log, 5.0)
+        self._conflict_log = RateLimitedLog(log, 5.0)
         self._lock = threading.Lock()
         self._read_lock = threading.Lock()
         self._tracker = SequenceTracker(window)
         self._counts = {"datagrams": 0, "malformed": 0, "ignored": 0, "socket_errors": 0,
-                        "foreign": 0, "unauthenticated": 0}
+                        "foreign": 0, "unauthenticated": 0, "replayed": 0, "stale": 0}
         self._last_malformed = ""
+        self._started = False
+        self._conflicts_seen = 0
         self._malformed_log = RateLimitedLog(log)
         self._error_log = RateLimitedLog(log)
         self._closed = False
@@ -159,17 +188,32 @@ class UdpSource:
         with self._lock:
             t = self._tracker
             c = self._counts
+            now = time.monotonic()
             return SourceStats(
-                datagrams=c["datagrams"], received=t.unique + t.duplicated, delivered=t.unique,
-                lost=t.lost, pending=t.pending, duplicated=t.duplicated, reordered=t.reordered,
-                malformed=c["malformed"], ignored=c["ignored"], stale=t.stale,
-                restarts=t.restarts, socket_errors=c["socket_errors"],
-                last_malformed=self._last_malformed, foreign=c["foreign"],
-                unauthenticated=c["unauthenticated"], another_sender=self._another_sender())
+                datagrams=c["datagrams"], received=t.unique + t.duplicated + t.implausible,
+                delivered=t.unique, lost=t.lost, pending=t.pending, duplicated=t.duplicated,
+                reordered=t.reordered, malformed=c["malformed"], ignored=c["ignored"],
+                stale=t.stale + c["stale"], restarts=t.restarts,
+                socket_errors=c["socket_errors"], last_malformed=self._last_malformed,
+                foreign=c["foreign"], unauthenticated=c["unauthenticated"],
+                another_sender=self._recent(self._foreign_sender, self._last_foreign, now),
+                replayed=c["replayed"], implausible=t.implausible, jumps=t.jumps,
+                conflicts=t.conflicts,
+                same_session_sender=self._recent(self._conflict_sender, self._last_conflict,
+                                                 now),
+                takeover=self._takeover_text(now))
 
-    def _another_sender(self) -> str:
-        fresh = time.monotonic() - self._last_foreign < FOREIGN_SHOWN_S
-        return self._foreign_sender if fresh else ""
+    @staticmethod
+    def _recent(text: str, at: float, now: float) -> str:
+        return text if now - at < FOREIGN_SHOWN_S else ""
+
+    def _takeover_text(self, now: float) -> str:
+        last = self._gate.last_takeover
+        if last is None or now - last.at >= TAKEOVER_SHOWN_S:
+            return ""
+        why = ("a newer run of the same sender" if last.newer_run
+               else f"after {last.silent_s:.1f} s of silence")
+        return f"sender changed: session {last.new} replaced {last.old} ({why})"
 
     @property
     def listening(self) -> str:
@@ -187,6 +231,12 @@ class UdpSource:
     @property
     def closed(self) -> bool:
         return self._closed
+
+    @property
+    def followed(self) -> SessionKey | None:
+        """The session followed (None before the first datagram)."""
+        with self._lock:
+            return self._gate.active
 
     def _malformed(self, sender: tuple[str, int], why: object) -> None:
         self._counts["malformed"] += 1
@@ -211,6 +261,12 @@ class UdpSource:
             except DatagramError as exc:
                 self._malformed(sender, exc)
                 return None
+            if self.key is not None and dg.version < 3:
+                self._counts["unauthenticated"] += 1
+                self._auth_log.warn("UDP datagram from %s:%s refused: format version %d "
+                                    "carries no freshness (a shared key needs version 3)",
+                                    sender[0], sender[1], dg.version)
+                return None
             if not (0.0 <= dg.suit_time <= MAX_SUIT_TIME_S
                     and 0.0 <= dg.send_time <= MAX_SEND_TIME_S):
                 self._malformed(sender, f"times out of range (suit {dg.suit_time:.6g} s, "
@@ -219,25 +275,46 @@ class UdpSource:
             if dg.type != MessageType.RAW_FRAME:
                 self._counts["ignored"] += 1
                 return None
-            t = self._tracker
-            if (t.session is not None and dg.session != t.session
-                    and not t.is_retired(dg.session)
-                    and now - self._last_active < self.takeover_after_s):
-                self._counts["foreign"] += 1
-                self._foreign_sender = f"{sender[0]}:{sender[1]}"
-                self._last_foreign = now
-                self._foreign_log.warn("UDP datagrams of another sender (%s:%s, session %08x) "
-                                       "ignored while session %08x streams", sender[0],
-                                       sender[1], dg.session, t.session)
-                return None
-            verdict = t.observe(dg.session, dg.seq)
-            if verdict != Verdict.STALE:
-                self._last_active = now
-        if verdict in (Verdict.DUPLICATE, Verdict.STALE):
+            assert dg.frame is not None
+            verdict = self._account(dg, sender, now)
+        if verdict is None or verdict in (Verdict.DUPLICATE, Verdict.STALE,
+                                          Verdict.IMPLAUSIBLE, Verdict.CONFLICT):
             return None
-        assert dg.frame is not None
+        restart = verdict is Verdict.RESYNC or self._started
         return ReceivedFrame(dg.frame, dg.seq, dg.session, dg.suit_time, dg.send_time,
-                             recv_time, verdict == Verdict.REORDERED, sender)
+                             recv_time, verdict == Verdict.REORDERED, sender, restart)
+
+    def _account(self, dg, sender: tuple[str, int], now: float) -> Verdict | None:
+        """The gate's and the tracker's verdict on one RAW_FRAME datagram (lock held); None:
+        dropped by the gate (foreign, stale, replayed)."""
+        key = SessionKey(dg.session, dg.sender, dg.epoch)
+        who = f"{sender[0]}:{sender[1]}"
+        admission = self._gate.admit(key, dg.seq, now)
+        self._started = admission in (Admission.FIRST, Admission.TAKEOVER)
+        if admission is Admission.FOREIGN:
+            self._counts["foreign"] += 1
+            self._foreign_sender, self._last_foreign = who, now
+            self._foreign_log.warn("UDP datagrams of another sender (%s, session %s) ignored "
+                                   "while session %s streams", who, key, self._gate.active)
+            return None
+        if admission is Admission.STALE:
+            self._counts["stale"] += 1
+            return None
+        if admission is Admission.REPLAYED:
+            self._counts["replayed"] += 1
+            self._replay_log.warn("UDP datagram from %s refused as replayed: session %s began "
+                                  "before the newest run followed from its sender", who, key)
+            return None
+        if admission is Admission.TAKEOVER:
+            log.warning("UDP: %s", self._takeover_text(now))
+        verdict = self._tracker.observe(key, dg.seq, zlib.crc32(dg.frame))
+        if verdict is Verdict.CONFLICT or (verdict is Verdict.REORDERED
+                                           and self._tracker.conflicts > self._conflicts_seen):
+            self._conflict_sender, self._last_conflict = who, now
+            self._conflict_log.warn("UDP: another sender on session %s (%s): its sequence "
+                                    "numbers contradict the stream", key, who)
+        self._conflicts_seen = self._tracker.conflicts
+        return verdict
 
     def read(self, timeout: float | None = None) -> ReceivedFrame | None:
         """The next frame, or None when ``timeout`` s (default ``poll_s``) pass without one or

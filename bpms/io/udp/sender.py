@@ -1,26 +1,30 @@
 """The sender: :class:`UdpForwarder` sends frames and poses to one or more targets
-(docs/udp.md "Sender"). Thread-safe: any thread may send, read stats or close."""
+(docs/udp.md "Sender"). Thread-safe: any thread may send, read stats or close.
+
+Every datagram is version 3: besides its session id it carries this computer's sender id and
+the session's epoch (docs/udp.md "Freshness"), which a shared key signs with the rest."""
 
 from __future__ import annotations
 
 import errno
+import hashlib
 import logging
 import os
 import socket
 import threading
 import time
+import uuid
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE, is_frame
+from bpms.io.frames import FRAME_SIZE, is_frame
+from bpms.io.timebase import stream_time
 from bpms.io.udp.addresses import UdpConfigError, is_multicast, parse_address
 from bpms.io.udp.auth import sign_datagram
 from bpms.io.udp.codec import (
-    POSE_VERSION,
     SEQ_MOD,
-    VERSION,
     MessageType,
     encode_header,
     encode_pose_extensions,
@@ -37,17 +41,40 @@ def new_session_id() -> int:
     return int.from_bytes(os.urandom(4), "big") or 1
 
 
+def sender_id() -> int:
+    """This computer's sender id: 64 bits of a hash of its network address and host name
+    (the same for every run and process on it; the address itself is not sent)."""
+    seed = f"bpms sender {uuid.getnode():012x} {socket.gethostname()}".encode()
+    return int.from_bytes(hashlib.sha256(seed).digest()[:8], "big") or 1
+
+
+_epoch_lock = threading.Lock()
+_last_epoch = 0
+
+
+def new_epoch() -> int:
+    """The epoch of a new session: µs since 1970 on this computer's clock, and above every
+    epoch handed out before in this process (two sessions never share one)."""
+    global _last_epoch
+    with _epoch_lock:
+        _last_epoch = max(time.time_ns() // 1000, _last_epoch + 1)
+        return _last_epoch
+
+
 
 @dataclass(frozen=True)
 class ForwarderStats:
-    """Counters of a :class:`UdpForwarder`. ``sent`` and ``errors`` count datagrams (one per
-    target and message); ``frames`` / ``poses`` count messages handed to ``send_*``."""
+    """Counters of a :class:`UdpForwarder`. ``sent``, ``errors`` and ``refused`` count
+    datagrams (one per target and message); ``frames`` / ``poses`` count messages handed to
+    ``send_*``. ``refused``: the target said nobody listens there (ECONNREFUSED), not an
+    error of this computer; ``errors``: every other failed send."""
 
     frames: int = 0
     poses: int = 0
     sent: int = 0
     errors: int = 0
     last_error: str = ""
+    refused: int = 0
 
 
 class _Target:
@@ -75,6 +102,7 @@ class _Target:
             raise UdpConfigError(f"{text!r}: cannot send there ({exc.strerror or exc})") from None
         self.sock = sock
         self.log = RateLimitedLog(log)
+        self.refused_said = False  # "nobody is listening" is said once per target
 
 
 class UdpForwarder:
@@ -82,9 +110,12 @@ class UdpForwarder:
 
     Unicast and IPv4 multicast (224.0.0.0/4: TTL ``multicast_ttl``, loopback ``multicast_loop``,
     outgoing interface ``multicast_interface`` or the system's default) and broadcast addresses.
-    Sockets are non-blocking: a send never waits; a failed send (nobody listening, full buffer,
-    network down) is counted in ``stats.errors`` and logged at most once per second per target.
-    Sequence numbers count per message type from 0 in a fresh random session.
+    Sockets are non-blocking: a send never waits. A target where nobody listens (the other
+    computer refuses the datagrams) is said once, at the first refusal, and counted in
+    ``stats.refused``; any other failed send (full buffer, network down) is counted in
+    ``stats.errors`` and logged at most once per second per target. Sequence numbers count per
+    message type from 0 in a fresh random session; ``sender`` (this computer) and ``epoch``
+    (the session's start, µs) go into every datagram.
     """
 
     def __init__(self, targets: Sequence[str], multicast_ttl: int = 1, *,
@@ -96,6 +127,8 @@ class UdpForwarder:
         if not targets:
             raise UdpConfigError("no UDP target given (host:port)")
         self.session = new_session_id() if session is None else session & 0xFFFFFFFF
+        self.sender = sender_id()
+        self.epoch = new_epoch()
         self._targets: list[_Target] = []
         try:
             for text in targets:
@@ -132,12 +165,18 @@ class UdpForwarder:
             datagram = build(seq)  # type: ignore[operator]
             if self._key is not None:
                 datagram = sign_datagram(datagram, self._key)
-            sent = errors = 0
+            sent = errors = refused = 0
             last_error = self._stats.last_error
             for target in self._targets:
                 try:
                     target.sock.send(datagram)
                     sent += 1
+                except ConnectionRefusedError:
+                    refused += 1
+                    if not target.refused_said:
+                        target.refused_said = True
+                        log.warning("UDP target %s: nobody is listening there (connection "
+                                    "refused); sending on, counted as refused", target.text)
                 except OSError as exc:
                     errors += 1
                     reason = (errno.errorcode.get(exc.errno or 0, "")
@@ -147,7 +186,7 @@ class UdpForwarder:
             s = self._stats
             self._stats = ForwarderStats(
                 s.frames + (mtype == MessageType.RAW_FRAME), s.poses + (mtype == MessageType.POSE),
-                s.sent + sent, s.errors + errors, last_error)
+                s.sent + sent, s.errors + errors, last_error, s.refused + refused)
             return sent
 
     def send_frame(self, frame: bytes, suit_time: float | None = None) -> int:
@@ -158,9 +197,10 @@ class UdpForwarder:
         frame = bytes(frame)
 
         def build(seq: int) -> bytes:
-            t = seq * FRAME_PERIOD_S if suit_time is None else suit_time
+            t = stream_time(seq) if suit_time is None else suit_time
             return encode_raw_frame(frame, session=self.session, seq=seq, suit_time=t,
-                                    send_time=time.time())
+                                    send_time=time.time(), sender=self.sender,
+                                    epoch=self.epoch)
 
         return self._send(MessageType.RAW_FRAME, build)
 
@@ -169,17 +209,15 @@ class UdpForwarder:
                   disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> int:
         """Forward one filtered pose: ``quaternions[18, 4]`` (w, x, y, z, body→NED) and
         ``angles[28]`` rad; with ``positions[21, 3]`` (m, NED), ``convention`` and/or
-        ``disturbance`` = (mag[18], acc[18]) bool flags a version-2 POSE carrying them. Raises
-        ValueError on bad shapes or non-finite values."""
+        ``disturbance`` = (mag[18], acc[18]) bool flags a POSE carrying them (extension
+        blocks). Raises ValueError on bad shapes or non-finite values."""
         payload = encode_pose_payload(quaternions, angles)
-        version = VERSION
         if positions is not None or convention or disturbance is not None:
             payload += encode_pose_extensions(positions, convention, disturbance)
-            version = POSE_VERSION
 
         def build(seq: int) -> bytes:
-            return encode_header(MessageType.POSE, self.session, seq, suit_time,
-                                 time.time(), version=version) + payload
+            return encode_header(MessageType.POSE, self.session, seq, suit_time, time.time(),
+                                 sender=self.sender, epoch=self.epoch) + payload
 
         return self._send(MessageType.POSE, build)
 

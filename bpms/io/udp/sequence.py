@@ -1,5 +1,6 @@
 """Sequence tracking of one message type (docs/udp.md "Sequence numbers"): exact loss,
-duplicate and reorder accounting across sessions and the 2**32 wrap."""
+duplicate and reorder accounting across sessions and the 2**32 wrap; implausible jumps held
+back; datagrams that contradict the session (another sender on it) counted."""
 
 from __future__ import annotations
 
@@ -11,6 +12,16 @@ from bpms.io.udp.codec import SEQ_MOD
 
 #: Reorder window in sequence numbers (~11 min at 50 Hz). See docs/udp.md "Sequence numbers".
 REORDER_WINDOW = 1 << 15
+#: A jump forward by up to this many numbers is a plausible gap (a minute at 50 Hz): the
+#: numbers skipped count as lost. A longer jump, or one back by more than the window, is held.
+MAX_PLAUSIBLE_GAP = 3000
+#: Consecutive datagrams after a held jump that make the tracker follow it (a sender whose
+#: numbers really jumped, e.g. after a long outage); the numbers skipped are not counted lost.
+JUMP_CONFIRM = 25
+#: Frames remembered by sequence number, to tell a true duplicate from a contradicting one.
+DIGESTS_KEPT = 1024
+#: A frame arriving this many numbers late is evidence of another sender on the session.
+FAR_LATE = 256
 
 
 class Verdict(IntEnum):
@@ -18,6 +29,17 @@ class Verdict(IntEnum):
     REORDERED = 1  # fills an earlier gap (arrived after a higher sequence number)
     DUPLICATE = 2  # this sequence number was already received in this session
     STALE = 3  # from a session that has since been replaced: dropped
+    IMPLAUSIBLE = 4  # jumped implausibly far: dropped (held until JUMP_CONFIRM follow it)
+    CONFLICT = 5  # received before with a different frame: dropped (another sender)
+    RESYNC = 6  # a held jump confirmed: delivered, the numbers start anew from here
+
+
+class _Run:
+    __slots__ = ("count", "next")
+
+    def __init__(self, seq: int) -> None:
+        self.count = 1
+        self.next = (seq + 1) % SEQ_MOD
 
 
 def _signed(d: int) -> int:
@@ -29,9 +51,16 @@ class SequenceTracker:
     """Exact loss / duplicate / reorder accounting of one message type (docs/udp.md).
 
     Within a session, sequence numbers compare by serial-number arithmetic modulo 2**32, so
-    the wrap 2**32−1 → 0 is seamless. A new session id, or a jump back by more than
-    ``window``, starts a new session (a sender restart); gaps left open in the old session
-    become final losses. Datagrams of a replaced session are STALE and dropped.
+    the wrap 2**32−1 → 0 is seamless. A new session id starts a new session (a sender
+    restart); gaps left open in the old session become final losses. Datagrams of a replaced
+    session are STALE and dropped. A jump forward by more than :data:`MAX_PLAUSIBLE_GAP` or
+    back by more than ``window`` is IMPLAUSIBLE (dropped, not counted lost) until
+    :data:`JUMP_CONFIRM` consecutive numbers follow it: then the session goes on from there
+    (RESYNC: ``jumps`` forward, ``restarts`` back, for senders that restart without a new id).
+
+    ``digest`` (e.g. a CRC of the frame): a number received again with another digest is a
+    CONFLICT, and so is a frame more than :data:`FAR_LATE` numbers late: both count in
+    ``conflicts``, the evidence of a second sender on the same session.
 
     Gaps are kept as ranges of unwrapped sequence numbers, so the cost of one datagram is
     O(log gaps) whatever the jump (a jump of 40,000 costs what a jump of 2 does).
@@ -52,6 +81,12 @@ class SequenceTracker:
         self.stale = 0
         self.restarts = 0
         self.lost_final = 0
+        self.implausible = 0
+        self.jumps = 0
+        self.conflicts = 0
+        self._jump: _Run | None = None  # a held jump and the consecutive numbers after it
+        self._digests: dict[int, int] = {}  # unwrapped number -> digest, the latest kept
+        self._digest_order: deque[int] = deque()
 
     @property
     def first(self) -> int:
@@ -81,6 +116,48 @@ class SequenceTracker:
         self._open = 0
         self.session = session
         self._first = self._highest = seq
+        self._jump = None
+        self._digests.clear()
+        self._digest_order.clear()
+
+    def _remember(self, u: int, digest: int | None) -> None:
+        if digest is None:
+            return
+        if u not in self._digests:
+            self._digest_order.append(u)
+            if len(self._digest_order) > DIGESTS_KEPT:
+                self._digests.pop(self._digest_order.popleft(), None)
+        self._digests[u] = digest
+
+    def _again(self, u: int, digest: int | None) -> Verdict:
+        """Number ``u`` was received before: a duplicate, or a CONFLICT when its frame
+        differs."""
+        self.duplicated += 1
+        known = self._digests.get(u)
+        if digest is not None and known is not None and known != digest:
+            self.conflicts += 1
+            return Verdict.CONFLICT
+        return Verdict.DUPLICATE
+
+    def _held(self, seq: int, d: int, digest: int | None) -> Verdict:
+        """An implausible jump: held until :data:`JUMP_CONFIRM` consecutive numbers follow."""
+        run = self._jump
+        if run is not None and seq == run.next:
+            run.count += 1
+            run.next = (seq + 1) % SEQ_MOD
+        else:
+            run = self._jump = _Run(seq)
+        if run.count < JUMP_CONFIRM:
+            self.implausible += 1
+            return Verdict.IMPLAUSIBLE
+        if d < 0:
+            self.restarts += 1
+        else:
+            self.jumps += 1
+        self._start(self.session, self._highest + d)  # type: ignore[arg-type]
+        self._remember(self._highest, digest)
+        self.unique += 1
+        return Verdict.RESYNC
 
     def _add_gap(self, start: int, end: int) -> None:
         """Open the gap [start, end) (unwrapped), kept to the window below the highest."""
@@ -127,10 +204,13 @@ class SequenceTracker:
             self._ends.insert(k + 1, end)
         return True
 
-    def observe(self, session: int, seq: int) -> Verdict:
-        """Account for one well-formed datagram; tell the caller what it was."""
+    def observe(self, session: object, seq: int, digest: int | None = None) -> Verdict:
+        """Account for one well-formed datagram of ``session`` (any hashable identity) with
+        number ``seq`` and, optionally, a ``digest`` of its contents; tell the caller what it
+        was."""
         if self.session is None:
-            self._start(session, seq)
+            self._start(session, seq)  # type: ignore[arg-type]
+            self._remember(seq, digest)
             self.unique += 1
             return Verdict.NEW
         if session != self.session:
@@ -139,37 +219,34 @@ class SequenceTracker:
                 return Verdict.STALE
             self._retired.append(self.session)
             self.restarts += 1
-            self._start(session, seq)
+            self._start(session, seq)  # type: ignore[arg-type]
+            self._remember(seq, digest)
             self.unique += 1
             return Verdict.NEW
         d = _signed(seq - self._highest)
         u = self._highest + d
+        if d > MAX_PLAUSIBLE_GAP or d < -self.window:
+            return self._held(seq, d, digest)
+        self._jump = None  # the stream goes on where it was: a held jump is forgotten
         if d > 0:
             old = self._highest
             self._highest = u
             self._prune()
             self._add_gap(old + 1, u)
+            self._remember(u, digest)
             self.unique += 1
             return Verdict.NEW
         if d == 0:
-            self.duplicated += 1
-            return Verdict.DUPLICATE
-        if d < -self.window:
-            # Same session id yet far behind: a sender that restarted without a new session.
-            self.restarts += 1
-            self._start(session, seq)
-            self.unique += 1
-            return Verdict.NEW
+            return self._again(u, digest)
         if u < self._first:
             # Earlier than anything seen so far in this session: extends the session backwards.
             self._add_gap(u + 1, self._first)
             self._first = u
-            self.reordered += 1
-            self.unique += 1
-            return Verdict.REORDERED
-        if self._fill(u):
-            self.reordered += 1
-            self.unique += 1
-            return Verdict.REORDERED
-        self.duplicated += 1
-        return Verdict.DUPLICATE
+        elif not self._fill(u):
+            return self._again(u, digest)
+        if d < -FAR_LATE:
+            self.conflicts += 1  # no network reorders this far: another sender's numbers
+        self._remember(u, digest)
+        self.reordered += 1
+        self.unique += 1
+        return Verdict.REORDERED

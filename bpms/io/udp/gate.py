@@ -1,0 +1,142 @@
+"""Which sender the receiver listens to (docs/udp.md "One sender at a time" and "Freshness").
+
+A receiver follows one *session* at a time (a session is one sender's run: its session id,
+sender id and epoch). The gate decides, for every well-formed datagram, whether it belongs to
+the active session, starts the first one, takes over, or is dropped:
+
+- **no takeover of a live session**: another session's datagrams are *foreign* while the
+  active session has sent within ``takeover_after_s`` (5 s by default). A newcomer takes over
+  only once the active session has been silent that long *and* the newcomer has sent
+  ``takeover_datagrams`` (25) consecutive well-formed datagrams (sequence numbers one after
+  the other). One forged or replayed datagram during a pause changes nothing.
+- **freshness, with a shared key** (version 3 datagrams carry the sender id and the epoch in
+  the signed header): per sender id the gate keeps the newest epoch it has followed; a
+  datagram with an older epoch is *replayed* (a recording of an earlier run) and refused,
+  whatever the silence. An authenticated newer epoch of the sender being followed (the same
+  computer started a new run) takes over at once: the old run's datagrams are older from
+  then on. Without a key the sender id and epoch are not authenticated and are not used.
+- datagrams of a session that was replaced are *stale*.
+
+Pure bookkeeping (no sockets, no clock of its own): the receiver passes the time.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from enum import IntEnum
+
+from bpms.io.udp.codec import SEQ_MOD
+
+#: An active session keeps the receiver until it has been silent this long, s.
+TAKEOVER_AFTER_S = 5.0
+#: Consecutive well-formed datagrams a newcomer must send before it may take over.
+TAKEOVER_DATAGRAMS = 25
+#: Newcomers followed at once (the oldest is forgotten first).
+MAX_CANDIDATES = 8
+#: Replaced sessions remembered (their late datagrams are stale).
+MAX_RETIRED = 8
+
+
+@dataclass(frozen=True)
+class SessionKey:
+    """One sender's run: session id, sender id and epoch (µs; both 0 before version 3)."""
+
+    session: int
+    sender: int = 0
+    epoch: int = 0
+
+    def __str__(self) -> str:
+        return f"{self.session:08x}"
+
+
+class Admission(IntEnum):
+    ACTIVE = 0  # a datagram of the session being followed
+    FIRST = 1  # the first session: followed from this datagram on
+    TAKEOVER = 2  # a newcomer replaces the active session from this datagram on
+    FOREIGN = 3  # another session while the active one is live, or not yet 25 in a row
+    STALE = 4  # a session that was replaced
+    REPLAYED = 5  # keyed: older than the newest epoch followed for its sender
+
+
+@dataclass(frozen=True)
+class Takeover:
+    """A takeover, for the log and the status: who replaced whom after how much silence."""
+
+    old: SessionKey
+    new: SessionKey
+    silent_s: float
+    at: float  # the receiver's monotonic time
+    newer_run: bool = False  # keyed: the same sender's newer epoch (no silence needed)
+
+
+class _Run:
+    __slots__ = ("count", "next")
+
+    def __init__(self, seq: int) -> None:
+        self.count = 1
+        self.next = (seq + 1) % SEQ_MOD
+
+
+class SessionGate:
+    """The takeover and freshness rules above. ``keyed``: datagrams are authenticated (the
+    receiver has a shared key), so sender ids and epochs can be trusted."""
+
+    def __init__(self, takeover_after_s: float = TAKEOVER_AFTER_S,
+                 takeover_datagrams: int = TAKEOVER_DATAGRAMS, keyed: bool = False) -> None:
+        self.takeover_after_s = takeover_after_s
+        self.takeover_datagrams = takeover_datagrams
+        self.keyed = keyed
+        self.active: SessionKey | None = None
+        self.last_active = -float("inf")  # the active session's last datagram, monotonic s
+        self.last_takeover: Takeover | None = None
+        self.takeovers = 0
+        self._candidates: OrderedDict[SessionKey, _Run] = OrderedDict()
+        self._retired: OrderedDict[SessionKey, None] = OrderedDict()
+        self._newest_epoch: dict[int, int] = {}  # keyed: sender id -> newest epoch followed
+
+    def _follow(self, key: SessionKey, now: float) -> None:
+        if self.active is not None:
+            self._retired[self.active] = None
+            while len(self._retired) > MAX_RETIRED:
+                self._retired.popitem(last=False)
+        self.active = key
+        self.last_active = now
+        self._candidates.pop(key, None)
+        if self.keyed:
+            self._newest_epoch[key.sender] = max(key.epoch,
+                                                 self._newest_epoch.get(key.sender, 0))
+
+    def admit(self, key: SessionKey, seq: int, now: float) -> Admission:
+        """The verdict on one well-formed datagram of ``key`` with sequence number ``seq``
+        at monotonic time ``now`` (s)."""
+        if self.keyed and key.epoch < self._newest_epoch.get(key.sender, -1):
+            return Admission.REPLAYED
+        active = self.active
+        if active is None:
+            self._follow(key, now)
+            return Admission.FIRST
+        if key == active:
+            self.last_active = now
+            return Admission.ACTIVE
+        if key in self._retired:
+            return Admission.STALE
+        silent = now - self.last_active
+        newer_run = (self.keyed and key.sender == active.sender and key.epoch > active.epoch)
+        run = self._candidates.get(key)
+        if run is not None and seq == run.next:
+            run.count += 1
+            run.next = (seq + 1) % SEQ_MOD
+            self._candidates.move_to_end(key)
+        else:
+            run = self._candidates[key] = _Run(seq)
+            self._candidates.move_to_end(key)
+            while len(self._candidates) > MAX_CANDIDATES:
+                self._candidates.popitem(last=False)
+        if newer_run or (silent >= self.takeover_after_s
+                         and run.count >= self.takeover_datagrams):
+            self.last_takeover = Takeover(active, key, silent, now, newer_run)
+            self.takeovers += 1
+            self._follow(key, now)
+            return Admission.TAKEOVER
+        return Admission.FOREIGN

@@ -1,0 +1,404 @@
+"""The files of the hostile-input corpus (tools/hostile_corpus.py runs commands on them).
+
+:data:`CASES` lists every hostile input with what a correct reader makes of it, known from how
+it is built (docs/raw-format.md): the frames it still holds (3 deleted bytes cost one frame and
+keep its slot, a torn last record is dropped), or None when it must be refused; for absurd
+configurations and headers, the text a warning must contain. :class:`CorpusFiles` builds them
+from an intact 6 s recording of the simulated suit: truncations, random bytes, inserted and
+deleted bytes, lost record markers, a header nested 200,000 levels deep, a 200 MB header
+(sparse on the disk), empty files, directories, absurd headers, legacy pickles whose
+``__reduce__`` would run code (and create :data:`MARKER`), absurd calibration and options
+files.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import shutil
+import struct
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+N_FRAMES = 300  # the intact recording: 6 s at 50 Hz
+RECORD = 348  # bytes per raw record: float64 time + 340-byte frame (docs/raw-format.md)
+PREAMBLE = struct.Struct("<8sHI")  # magic, version, header length (docs/raw-format.md)
+MAGIC = b"BPMSRAW\0"
+#: The file a pickle's ``__reduce__`` would create if the reader ran it.
+MARKER = "PICKLE_RAN_CODE"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One hostile input. ``frames``: the frames a correct reader finds (None: the input must
+    be refused); ``warns``: text that a warning line must contain (configurations and absurd
+    headers); ``kind``: what the file is (recording, calibration, options)."""
+
+    name: str
+    damage: str  # the damage class (one line of the figures table)
+    frames: int | None
+    kind: str = "recording"
+    warns: tuple[str, ...] = ()
+    suffix: str = ".bpmsraw"
+
+
+R = "recording"
+CASES: tuple[Case, ...] = (
+    Case("intact", "control", N_FRAMES),
+    Case("torn_tail", "truncation", N_FRAMES - 1),
+    Case("truncated_half", "truncation", 150),
+    Case("header_cut", "truncation", None),
+    Case("preamble_only", "truncation", None),
+    Case("deleted_3_bytes", "deleted bytes", N_FRAMES),
+    Case("inserted_5_bytes", "inserted bytes", N_FRAMES),
+    Case("markers_lost_5", "lost markers", N_FRAMES),
+    Case("markers_lost_all", "lost markers", None),
+    Case("random_body", "random bytes", None),
+    Case("random_file", "random bytes", None),
+    Case("empty", "empty file", None),
+    Case("header_only", "empty file", None),
+    Case("directory", "directory", None),
+    Case("nested_header", "nested header", None),
+    Case("huge_header", "200 MB header", None),
+    Case("huge_length", "200 MB header", None),
+    Case("header_not_json", "absurd header", None),
+    Case("header_not_object", "absurd header", None),
+    Case("newer_version", "absurd header", None),
+    Case("absurd_times", "random bytes", N_FRAMES),
+    Case("header_absurd_values", "absurd header", N_FRAMES,
+         warns=("IMU 4", "kp_rollpitch")),
+    Case("header_wrong_types", "absurd header", N_FRAMES, warns=("calibration",)),
+    Case("legacy_intact", "control", 40, suffix=".txt"),
+    Case("legacy_reduce_exec", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_system", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_in_record", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_after_good", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_reduce_protocol_2", "pickle __reduce__", None, suffix=".txt"),
+    Case("legacy_random", "random bytes", None, suffix=".txt"),
+    Case("legacy_empty", "empty file", None, suffix=".txt"),
+    # configurations, used with the intact recording
+    Case("calib_gravity_tiny", "absurd calibration", N_FRAMES, "calibration", ("IMU 4",),
+         ".cfg"),
+    Case("calib_gyro_huge", "absurd calibration", N_FRAMES, "calibration", ("IMU 9",), ".cfg"),
+    Case("calib_nan", "absurd calibration", N_FRAMES, "calibration", ("IMU 2",), ".cfg"),
+    Case("calib_min_above_max", "absurd calibration", N_FRAMES, "calibration", ("IMU 5",),
+         ".cfg"),
+    Case("calib_17_records", "absurd calibration", N_FRAMES, "calibration",
+         ("17 IMU records",), ".cfg"),
+    Case("calib_random", "random bytes", N_FRAMES, "calibration", ("IMU records",), ".cfg"),
+    Case("calib_empty", "empty file", N_FRAMES, "calibration", ("0 IMU records",), ".cfg"),
+    Case("calib_directory", "directory", N_FRAMES, "calibration", ("cannot be read",), ".cfg"),
+    Case("calib_huge", "200 MB header", N_FRAMES, "calibration", ("MiB",), ".cfg"),
+    Case("calib_json_nested", "nested header", N_FRAMES, "calibration", ("nests",), ".cfg"),
+    Case("options_gain_huge", "absurd options", N_FRAMES, "options", ("kp_rollpitch",),
+         ".toml"),
+    Case("options_gain_nan", "absurd options", N_FRAMES, "options", ("kp_yaw",), ".toml"),
+    Case("options_wrong_types", "absurd options", N_FRAMES, "options",
+         ("kp_rollpitch", "[display]"), ".toml"),
+    Case("options_nested", "nested header", N_FRAMES, "options", ("nested too deeply",),
+         ".toml"),
+    Case("options_huge", "200 MB header", N_FRAMES, "options", ("MiB",), ".toml"),
+    Case("options_random", "random bytes", N_FRAMES, "options", ("cannot be read",), ".toml"),
+    Case("options_directory", "directory", N_FRAMES, "options", ("cannot be read",), ".toml"),
+)
+BY_NAME = {c.name: c for c in CASES}
+RECORDING_CASES = tuple(c for c in CASES if c.kind == R)
+CONFIG_CASES = tuple(c for c in CASES if c.kind != R)
+
+
+# --------------------------------------------------------------------------- building
+
+
+class _Reduce:
+    """A pickled object whose ``__reduce__`` calls ``func(*args)`` when unpickled."""
+
+    def __init__(self, func: Callable, *args: object) -> None:
+        self.func, self.args = func, args
+
+    def __reduce__(self):
+        return self.func, self.args
+
+
+def _write_raw_file(path: Path, header: bytes, body: bytes, version: int = 1,
+                    length: int | None = None) -> None:
+    pad = (-(PREAMBLE.size + len(header))) % 16
+    header = header + b" " * pad
+    path.write_bytes(PREAMBLE.pack(MAGIC, version, len(header) if length is None else length)
+                     + header + body)
+
+
+class CorpusFiles:
+    """Every case of :data:`CASES` built in ``folder`` (``cases/<name>/``), beside the intact
+    recording they are made from; :meth:`path` of each case."""
+
+    def __init__(self, folder: str | Path) -> None:
+        import numpy as np
+
+        from bpms.firmware.sim.session import simulate
+        from bpms.io.rawfile import new_header, write_raw
+
+        self.folder = Path(folder)
+        self.cases_dir = self.folder / "cases"
+        self.out_dir = self.folder / "out"
+        for d in (self.cases_dir, self.out_dir):
+            d.mkdir(parents=True, exist_ok=True)
+        rec = simulate(N_FRAMES * 0.02, seed=26)
+        assert len(rec.t) == N_FRAMES
+        self.frames = [rec.frames[k * 340:(k + 1) * 340] for k in range(N_FRAMES)]
+        self.times = 1.7e9 + np.arange(N_FRAMES) * 0.02
+        self.header = new_header(calibration=rec.calibration.values, source="hostile corpus")
+        (self.folder / "intact").mkdir(exist_ok=True)
+        self.intact = self.folder / "intact" / "Raw_corpus_1.bpmsraw"
+        write_raw(self.intact, self.times, rec.frames, self.header)
+        self._paths: dict[str, Path] = {}
+        rng = np.random.default_rng(26)
+        self._rng = rng
+        for case in CASES:
+            where = self.cases_dir / case.name
+            where.mkdir(exist_ok=True)
+            stem = "Raw_corpus_1" if case.kind == R else {"calibration": "Calib",
+                                                          "options": "options"}[case.kind]
+            path = where / (stem + case.suffix)
+            getattr(self, f"_make_{case.name}")(path)
+            self._paths[case.name] = path
+
+    def path(self, case: Case) -> Path:
+        return self._paths[case.name]
+
+    # -- recordings ----------------------------------------------------------------------
+    def _intact_bytes(self) -> tuple[bytearray, int]:
+        data = bytearray(self.intact.read_bytes())
+        length = PREAMBLE.unpack_from(data)[2]
+        return data, PREAMBLE.size + length
+
+    def _edit(self, path: Path, edit: Callable[[bytearray, int], None]) -> None:
+        data, offset = self._intact_bytes()
+        edit(data, offset)
+        path.write_bytes(bytes(data))
+
+    def _make_intact(self, path: Path) -> None:
+        shutil.copyfile(self.intact, path)
+
+    def _make_torn_tail(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(len(d) - 100, None)))
+
+    def _make_truncated_half(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o + 150 * RECORD + 200, None)))
+
+    def _make_header_cut(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o // 2, None)))
+
+    def _make_preamble_only(self, path: Path) -> None:
+        path.write_bytes(PREAMBLE.pack(MAGIC, 1, 1000))
+
+    def _make_deleted_3_bytes(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o + 150 * RECORD + 100,
+                                                          o + 150 * RECORD + 103)))
+
+    def _make_inserted_5_bytes(self, path: Path) -> None:
+        def insert(d: bytearray, o: int) -> None:
+            d[o + 150 * RECORD + 100:o + 150 * RECORD + 100] = b"\x55" * 5
+
+        self._edit(path, insert)
+
+    def _make_markers_lost_5(self, path: Path) -> None:
+        def lose(d: bytearray, o: int) -> None:
+            for k in range(100, 105):
+                d[o + k * RECORD + 8:o + k * RECORD + 10] = b"\0\0"
+                d[o + k * RECORD + 346:o + k * RECORD + 348] = b"\0\0"
+
+        self._edit(path, lose)
+
+    def _make_markers_lost_all(self, path: Path) -> None:
+        def lose(d: bytearray, o: int) -> None:
+            for k in range(N_FRAMES):
+                d[o + k * RECORD + 8:o + k * RECORD + 10] = b"\0\0"
+
+        self._edit(path, lose)
+
+    def _make_random_body(self, path: Path) -> None:
+        def randomise(d: bytearray, o: int) -> None:
+            d[o:] = self._rng.bytes(len(d) - o)
+
+        self._edit(path, randomise)
+
+    def _make_absurd_times(self, path: Path) -> None:
+        """Intact records whose receive times are damaged: 1e300 s in the first (the
+        recording's start), NaN in another."""
+        def times(d: bytearray, o: int) -> None:
+            struct.pack_into("<d", d, o, 1e300)
+            struct.pack_into("<d", d, o + 10 * RECORD, float("nan"))
+
+        self._edit(path, times)
+
+    def _make_random_file(self, path: Path) -> None:
+        path.write_bytes(self._rng.bytes(100_000))
+
+    def _make_empty(self, path: Path) -> None:
+        path.write_bytes(b"")
+
+    def _make_header_only(self, path: Path) -> None:
+        self._edit(path, lambda d, o: d.__delitem__(slice(o, None)))
+
+    def _make_directory(self, path: Path) -> None:
+        path.mkdir()
+
+    def _make_nested_header(self, path: Path) -> None:
+        _write_raw_file(path, b"[" * 200_000, b"")
+
+    def _make_huge_header(self, path: Path) -> None:
+        """A 200 MB header, sparse on the disk (the readers must refuse it unread)."""
+        length = 200 * 1000 * 1000
+        with path.open("wb") as f:
+            f.write(PREAMBLE.pack(MAGIC, 1, length) + b'{"notes": "')
+            f.seek(PREAMBLE.size + length - 2)
+            f.write(b'"}')
+
+    def _make_huge_length(self, path: Path) -> None:
+        _write_raw_file(path, b"{}", b"", length=0xFFFFFFFF)
+
+    def _make_header_not_json(self, path: Path) -> None:
+        _write_raw_file(path, b"\xff\xfe not json {{{", self._body())
+
+    def _make_header_not_object(self, path: Path) -> None:
+        _write_raw_file(path, b"[1, 2, 3]", self._body())
+
+    def _make_newer_version(self, path: Path) -> None:
+        _write_raw_file(path, self._header_json(), self._body(), version=999)
+
+    def _make_header_absurd_values(self, path: Path) -> None:
+        header = dict(self.header)
+        cal = [list(row) for row in header["calibration"]]
+        cal[4][0] = 1e-300  # Gravity of IMU 4
+        header["calibration"] = cal
+        header["options"] = {"filter": {"kp_rollpitch": 1e300}}
+        header["frame_rate_hz"] = "fast"
+        header["notes"] = 5
+        _write_raw_file(path, self._header_json(header), self._body())
+
+    def _make_header_wrong_types(self, path: Path) -> None:
+        header = dict(self.header)
+        header["calibration"] = "all of them"
+        header["options"] = [1, 2]
+        header["start_time"] = "yesterday"
+        _write_raw_file(path, self._header_json(header), self._body())
+
+    def _header_json(self, header: dict | None = None) -> bytes:
+        import json
+
+        return json.dumps(header or self.header).encode()
+
+    def _body(self) -> bytes:
+        return self.intact.read_bytes()[self._intact_bytes()[1]:]
+
+    # -- legacy pickles ------------------------------------------------------------------
+    def _legacy_records(self, n: int, protocol: int = 0) -> bytes:
+        return b"".join(pickle.dumps([float(self.times[k]), self.frames[k].decode("latin1")],
+                                     protocol=protocol) for k in range(n))
+
+    def _evil(self, path: Path) -> _Reduce:
+        target = path.parent / MARKER
+        return _Reduce(exec, f"open({str(target)!r}, 'w').close()")
+
+    def _make_legacy_intact(self, path: Path) -> None:
+        path.write_bytes(self._legacy_records(40))
+
+    def _make_legacy_reduce_exec(self, path: Path) -> None:
+        path.write_bytes(pickle.dumps(self._evil(path), protocol=0))
+
+    def _make_legacy_reduce_system(self, path: Path) -> None:
+        target = path.parent / MARKER
+        path.write_bytes(pickle.dumps(_Reduce(os.system, f"echo > {str(target)!r}"), 0))
+
+    def _make_legacy_reduce_in_record(self, path: Path) -> None:
+        path.write_bytes(pickle.dumps([1.7e9, self._evil(path)], protocol=0))
+
+    def _make_legacy_reduce_after_good(self, path: Path) -> None:
+        path.write_bytes(self._legacy_records(10)
+                         + pickle.dumps([1.7e9, self._evil(path)], protocol=0))
+
+    def _make_legacy_reduce_protocol_2(self, path: Path) -> None:
+        path.write_bytes(pickle.dumps([1.7e9, self._evil(path)], protocol=2))
+
+    def _make_legacy_random(self, path: Path) -> None:
+        path.write_bytes(b"(lp0\n" + self._rng.bytes(5000))
+
+    def _make_legacy_empty(self, path: Path) -> None:
+        path.write_bytes(b"")
+
+    # -- calibration files ---------------------------------------------------------------
+    def _calib_rows(self) -> list[list[float]]:
+        return [list(map(float, row)) for row in self.header["calibration"]]
+
+    def _write_calib(self, path: Path, rows: list[list[float]]) -> None:
+        path.write_text(";\n".join(",".join(repr(v) for v in row) for row in rows) + "\n")
+
+    def _make_calib_gravity_tiny(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[4][0] = 1e-300
+        self._write_calib(path, rows)
+
+    def _make_calib_gyro_huge(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[9][13] = 30000.0
+        self._write_calib(path, rows)
+
+    def _make_calib_nan(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[2][4] = float("nan")
+        self._write_calib(path, rows)
+
+    def _make_calib_min_above_max(self, path: Path) -> None:
+        rows = self._calib_rows()
+        rows[5][7], rows[5][8] = 400.0, -400.0
+        self._write_calib(path, rows)
+
+    def _make_calib_17_records(self, path: Path) -> None:
+        self._write_calib(path, self._calib_rows()[:17])
+
+    def _make_calib_random(self, path: Path) -> None:
+        path.write_bytes(self._rng.bytes(3000).replace(b";", b"."))
+
+    def _make_calib_empty(self, path: Path) -> None:
+        path.write_bytes(b"")
+
+    def _make_calib_directory(self, path: Path) -> None:
+        path.mkdir()
+
+    def _make_calib_huge(self, path: Path) -> None:
+        self._write_calib(path, self._calib_rows())
+        with path.open("a") as f:
+            f.write("#" * (2 * 1024 * 1024))
+
+    def _make_calib_json_nested(self, path: Path) -> None:
+        """A good Calib.cfg whose modern companion Calib.json nests 200,000 levels."""
+        self._write_calib(path, self._calib_rows())
+        path.with_suffix(".json").write_text("[" * 200_000)
+
+    # -- options files -------------------------------------------------------------------
+    def _make_options_gain_huge(self, path: Path) -> None:
+        path.write_text("[filter]\nkp_rollpitch = 1e300\n")
+
+    def _make_options_gain_nan(self, path: Path) -> None:
+        path.write_text("[filter]\nkp_yaw = nan\n")
+
+    def _make_options_wrong_types(self, path: Path) -> None:
+        path.write_text('display = 5\n[filter]\nkp_rollpitch = "fast"\n')
+
+    def _make_options_nested(self, path: Path) -> None:
+        path.write_text("a = " + "[" * 100_000 + "]" * 100_000 + "\n")
+
+    def _make_options_huge(self, path: Path) -> None:
+        path.write_text("[filter]\nkp_yaw = 1.2\n" + "#" * (2 * 1024 * 1024) + "\n")
+
+    def _make_options_random(self, path: Path) -> None:
+        path.write_bytes(b"\xff\xfe" + self._rng.bytes(3000))
+
+    def _make_options_directory(self, path: Path) -> None:
+        path.mkdir()
