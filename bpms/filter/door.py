@@ -33,7 +33,7 @@ from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.result import Result
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
-from bpms.io.options import Options, load_options, options_from_dict
+from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
 from bpms.io.rawfile import MAGIC, RECORD_DTYPE, RECORD_SIZE, RawFileError, RawRecording
 
 log = logging.getLogger(__name__)
@@ -406,6 +406,12 @@ def _count_rows(path: Path) -> int:
 FLAG_GROUPS = ("reinitialised", "mag_disturbed", "acc_disturbed")
 #: Column groups of the filters' estimates (``bpms filter --estimates``).
 ESTIMATE_GROUPS = ("gyro_bias", "body_acc")
+
+
+def heading_header(options: Options) -> dict[str, str]:
+    """The ``heading:`` header line every output carries: the heading reference in force
+    (``FilterOptions.heading``; ``relative`` is the 6D mode, docs/filters.md)."""
+    return {"heading": HEADING_TEXT.get(options.filter.heading, options.filter.heading)}
 
 
 def filtered_convention(convention: str) -> str:
