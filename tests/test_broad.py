@@ -44,8 +44,12 @@ def test_broad_bench_on_one_trial(capsys):
     assert bench.main(["--data", str(DATA), "--trials", TRIAL, "--max-s", "50"]) == 0
     out = capsys.readouterr().out
     table = [line for line in out.splitlines() if line.startswith(f"| {TRIAL}")]
-    assert len(table) == 2 and all(line.count(" / ") == 8 for line in table)
+    main_rows = [line for line in table if " Hz |" in line]
+    assert len(main_rows) == 2 and all(line.count(" / ") == 8 for line in main_rows)
     assert "Madgwick" in out and "| **average** |" in out
+    # the 6D table: the whole (shortened) trial, the adaptive filter beside VQF, degrees
+    six_d = [line for line in table if " Hz |" not in line]
+    assert len(six_d) == 1 and six_d[0].count("°") == 2
 
 
 def test_adaptive_filter_generalises_to_held_out_trials():

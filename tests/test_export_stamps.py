@@ -11,6 +11,7 @@ import pytest
 from bpms.cli import main
 from bpms.filter.joints import CONVENTION_TEXT
 from bpms.firmware.sim.session import simulate
+from bpms.io.options import HEADING_TEXT
 from bpms.io.rawfile import new_header, write_raw
 
 T0 = 1_700_000_000.25  # the first frame's receive time, s since 1970
@@ -37,6 +38,7 @@ def test_opensim_header_states_start_and_convention(trial, capsys):
     header = dict(ln.split("=", 1) for ln in text.split("endheader")[0].splitlines())
     assert header["utc_start"] == UTC
     assert header["joint_angle_convention"] == CONVENTION_TEXT["original"]
+    assert header["heading"] == HEADING_TEXT["magnetic"]
     err = capsys.readouterr().err
     assert f"recording started {UTC} UTC" in err
 
@@ -47,7 +49,8 @@ def test_matlab_csv_comment_lines(trial, tmp_path):
     lines = out.read_text().splitlines()
     assert lines[0] == f"% utc_start: {UTC}"
     assert lines[1] == f"% joint_angle_convention: {CONVENTION_TEXT['original']}"
-    assert lines[2].startswith("time_s,")
+    assert lines[2] == f"% heading: {HEADING_TEXT['magnetic']}"
+    assert lines[3].startswith("time_s,")
 
 
 def test_bvh_states_them_on_stderr(trial, tmp_path, capsys):
@@ -60,7 +63,7 @@ def test_rom_csv_and_markdown(trial, tmp_path):
     assert main(["rom", str(trial), "-o", str(tmp_path), "--no-figures"]) == 0
     csv = (tmp_path / "rom.csv").read_text().splitlines()
     assert csv[0] == (f"# Raw_stamp_001: utc_start {UTC}; joint_angle_convention "
-                      f"{CONVENTION_TEXT['original']}")
+                      f"{CONVENTION_TEXT['original']}; heading {HEADING_TEXT['magnetic']}")
     assert csv[1].startswith("joint_angle,")
     md = (tmp_path / "rom.md").read_text()
     assert f"- Raw_stamp_001: recording started {UTC} UTC" in md

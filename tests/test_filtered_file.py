@@ -139,8 +139,8 @@ def test_newer_versions_and_foreign_files_are_one_line_errors(tmp_path):
 
 
 def test_flag_columns_are_written_as_the_row_format_writes_them(tmp_path):
-    # The trailing 0/1 flag columns take a shortcut (their bytes); the text must be what the
-    # row's printf format gives, and any other value (NaN, -0.0, 2) must fall back to it.
+    # The 0/1 flag columns, and any other value in them (NaN, -0.0, 2): the text must be what
+    # the row's printf format gives.
     import io
 
     from bpms.io.filtered_file.writer import FilteredWriter
@@ -167,4 +167,3 @@ def test_flag_columns_are_written_as_the_row_format_writes_them(tmp_path):
         fmt = ",".join(["%.10g", "%.6f", "%d"] + ["%.10g"] * 54 + ["%.0f"] + ["%.10g"] * 28
                        + ["%.0f"] * 36)  # the columns' formats (docs/filtered-file.md)
         assert rows == [fmt % tuple(r) for r in block.tolist()]
-    assert writer._rows._tail == 36

@@ -30,7 +30,10 @@ from bpms.io.udp.codec import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-LEGS_AND_PELVIS = [0, 1, 2, 6, 12, 13, 14]
+#: the feet and shanks, where the simulated magnet's field stays under 4 % of the earth's (the
+#: thighs and the hip, beside the hanging right hand, see it turn the field by more than 5 %
+#: of the earth's: they are flagged, rightly)
+FAR_FROM_IT = [1, 2, 13, 14]
 
 
 @pytest.fixture(scope="module")
@@ -73,7 +76,7 @@ def test_pose_datagrams_carry_the_disturbance_masks(magnet):
     np.testing.assert_array_equal(mag, _masks(dist.mag[frames]))
     np.testing.assert_array_equal(acc, _masks(dist.acc[frames]))
     assert (mag & (1 << 5)).any() and not (mag & _masks(np.isin(np.arange(18),
-                                                                LEGS_AND_PELVIS))).any()
+                                                                FAR_FROM_IT))).any()
 
 
 def test_a_reader_that_knows_only_tags_1_and_2_skips_tag_3():

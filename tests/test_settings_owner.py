@@ -148,7 +148,7 @@ def test_algorithm_settings_cover_the_filter_section():
     grouped = {k for keys in ALGORITHM_SETTINGS.values() for k in keys}
     filter_keys = {f.name for f in dataclasses.fields(FilterOptions)}
     assert grouped <= filter_keys
-    assert filter_keys - grouped == {"algorithm", "dt", "failed_sensor"}
+    assert filter_keys - grouped == {"algorithm", "dt", "failed_sensor", "heading"}
 
 
 def test_body_height_scales_lengths_not_given_one_by_one():

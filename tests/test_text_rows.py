@@ -1,7 +1,7 @@
 """The one writer of numeric text rows (bpms.io.text_rows) against Python's own % formatting:
 the same text, byte for byte, and so the same numbers read back, on hand-chosen tricky values
-and on random values of every magnitude, through both its paths (vectorised for blocks, row by
-row for small batches such as the live filtered file's ten rows)."""
+and on random values of every magnitude, in blocks of one row to thousands (the live filtered
+file writes a few rows at a time, a recording thousands)."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def finite_for(spec: str, values: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("spec", FORMATS)
-@pytest.mark.parametrize("rows", [1, 3, 2000])  # Python's path, then the vectorised one
+@pytest.mark.parametrize("rows", [1, 3, 2000])  # a live batch to a recording's block
 def test_tricky_values_are_written_as_python_writes_them(spec, rows):
     values = finite_for(spec, np.array(TRICKY))
     data = np.resize(values, (rows, len(values)))

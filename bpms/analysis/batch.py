@@ -96,14 +96,15 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
         stem = target / job.trial
         filtered = None
         if "filter" in outputs:
-            from bpms.filter.door import filtered_convention, filtered_layout
+            from bpms.filter.door import filtered_convention, filtered_layout, heading_header
             from bpms.io.filtered_file.writer import FilteredWriter
 
             path = stem.with_name(f"{job.trial}_filtered.csv")
             path.unlink(missing_ok=True)
             groups, kind = filtered_layout()  # as bpms filter and the live recording write
             filtered = FilteredWriter(path, degrees=True, groups=groups, euler=kind,
-                                      convention=filtered_convention(opened.meta.convention))
+                                      convention=filtered_convention(opened.meta.convention),
+                                      meta=heading_header(opened.door.processor.options))
             writers.append(filtered)
             outcome.written.append(str(path))
         for kind in ("mat", "parquet"):

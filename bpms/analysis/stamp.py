@@ -26,6 +26,8 @@ class Stamp:
 
     utc_start: float
     convention: str
+    #: the heading reference's header text (``FilterOptions.heading``; 6D: ``relative``)
+    heading: str = ""
 
     @property
     def utc_text(self) -> str:
@@ -37,8 +39,10 @@ class Stamp:
         return CONVENTION_TEXT.get(self.convention, self.convention)
 
     def items(self) -> list[tuple[str, str]]:
-        """``[("utc_start", ...), ("joint_angle_convention", ...)]`` for header lines."""
-        return [("utc_start", self.utc_text), ("joint_angle_convention", self.convention_text)]
+        """``[("utc_start", ...), ("joint_angle_convention", ...), ("heading", ...)]`` for
+        header lines."""
+        items = [("utc_start", self.utc_text), ("joint_angle_convention", self.convention_text)]
+        return items + ([("heading", self.heading)] if self.heading else [])
 
     def line(self) -> str:
         """One sentence for stderr."""
@@ -71,4 +75,8 @@ def recording_utc_start(recording) -> float:
 def recording_stamp(opened) -> Stamp:
     """The :class:`Stamp` of a recording opened by :func:`bpms.filter.door.
     open_for_processing`."""
-    return Stamp(recording_utc_start(opened), opened.processor.options.joints.convention)
+    from bpms.filter.door import heading_header
+
+    options = opened.processor.options
+    return Stamp(recording_utc_start(opened), options.joints.convention,
+                 heading_header(options)["heading"])

@@ -56,6 +56,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | None = None,
     """Open a raw recording through the one door (:func:`bpms.filter.door.open_for_processing`:
     the given calibration / options, else the recording's, else the user's default, else
     factory). Raises RawFileError for an unreadable file or a filtered file."""
+    from bpms.filter.door import heading_header
     from bpms.filter.door import open_for_processing as door_open
     from bpms.io.rawfile import RawFileError
 
@@ -65,7 +66,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | None = None,
     proc = door.processor
     start = recording_utc_start(door)
     meta = ExportMeta(start if math.isfinite(start) else 0.0, proc.options.joints.convention,
-                      1.0 / proc.options.filter.dt, str(path), n_frames=door.n_frames)
+                      1.0 / proc.options.filter.dt, str(path), extra=heading_header(proc.options),
+                      n_frames=door.n_frames)
     return Opened(door, meta)
 
 

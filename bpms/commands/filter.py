@@ -59,7 +59,12 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.commands._analysis import open_recording_for, stream
-    from bpms.filter.door import filtered_arrays, filtered_convention, filtered_layout
+    from bpms.filter.door import (
+        filtered_arrays,
+        filtered_convention,
+        filtered_layout,
+        heading_header,
+    )
     from bpms.io.filtered_file.writer import FilteredWriter, default_output_path
 
     t_start = time.perf_counter()
@@ -85,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
                 writer = FilteredWriter(out_path, degrees=args.degrees, groups=groups,
                                         euler=kind, convention=filtered_convention(
                                             res.convention),
-                                        meta={"source": Path(args.raw_file).name})
+                                        meta={"source": Path(args.raw_file).name,
+                                              **heading_header(opened.processor.options)})
             writer.write_block(res.t, host_time=chunk.host_time, hole=chunk.hole,
                                **filtered_arrays(res, writer.groups))
             n += len(res)

@@ -28,7 +28,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bpms.filter.bank import BankOutput, FilterBank, MahonyBank
+from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, FilterBank, MahonyBank
 from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
 from bpms.filter.observer import run_batch as observer_batch
 from bpms.filter.rotations import dcm_to_euler
@@ -113,11 +113,20 @@ class _PhysicalBank(FilterBank):
         self.options = dataclasses.replace(options or FilterOptions())
         self._acc_factor = (-G_MS2 / self.gravity)[:, None]
 
+    @property
+    def relative(self) -> bool:
+        """The 6D mode (``FilterOptions.heading = "relative"``): heading relative to the
+        start, the magnetometer not read."""
+        return self.options.heading == "relative"
+
     def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Suite units → (specific force m/s², mag ≈ unit, gyro rad/s), float64 contiguous."""
         f = np.ascontiguousarray(np.asarray(acc, dtype=np.float64) * self._acc_factor)
-        m = np.ascontiguousarray(np.asarray(mag, dtype=np.float64) / MAG_UNIT)
+        if self.relative:  # 6D: the magnetometer is not read
+            m = np.ascontiguousarray(np.broadcast_to(HEADING_FREE_FIELD, f.shape))
+        else:
+            m = np.ascontiguousarray(np.asarray(mag, dtype=np.float64) / MAG_UNIT)
         g = np.ascontiguousarray(gyr, dtype=np.float64)
         return f, m, g
 
@@ -153,19 +162,25 @@ class ObserverBank(_PhysicalBank):
         self.params = self.gains_from(self.options).params()
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-                errors: np.ndarray | None = None,
-                resets: np.ndarray | None = None) -> BankOutput:
-        """Filter N frames in one kernel call (errors ``[N, n, 3]``, resets ``[N, n]``)."""
+                errors: np.ndarray | None = None, resets: np.ndarray | None = None,
+                mag_trust: np.ndarray | None = None) -> BankOutput:
+        """Filter N frames in one kernel call (errors ``[N, n, 3]``, resets ``[N, n]``,
+        mag_trust ``[N, n]`` the heading trust 0–1, :mod:`bpms.filter.observer`)."""
         f, m, g = self.physical(acc, mag, gyr)
         n = f.shape[0]
         err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
                else np.ascontiguousarray(errors, dtype=np.bool_))
+        if self.relative:  # 6D: no heading correction at all
+            trust = np.zeros((n, self.n))
+        else:
+            trust = (np.ones((0, self.n)) if mag_trust is None
+                     else np.ascontiguousarray(mag_trust, dtype=np.float64))
         rs = self._resets(n, resets)
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
         body_acc = np.empty((n, self.n, 3))
-        observer_batch(f, m, g, err, rs, self.params, *self.state.arrays(), out_R, out_e,
+        observer_batch(f, m, g, err, rs, trust, self.params, *self.state.arrays(), out_R, out_e,
                        np.empty((0, self.n, 4)), bias, body_acc, np.empty((0, self.n), np.bool_))
         return BankOutput(out_R, out_e, gyro_bias=bias, body_acc=body_acc)
 
@@ -265,7 +280,7 @@ class VqfBank(_PhysicalBank):
                 if err is not None:
                     self._held_count[i] += err[first:b, i].sum(axis=0)
                 quat, bias[start:b, i] = self.vqf.process_imu(
-                    i, f[start:b], m[start:b], g[start:b])
+                    i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
                 q[:, start:b, i] = quat.T
         R = ned_dcm_of_enu(*q)
         return BankOutput(R, dcm_to_euler(R), gyro_bias=bias)

@@ -41,6 +41,12 @@ def checked_gravity(gravity: np.ndarray) -> np.ndarray:
     return g
 
 
+#: The field a bank is handed in the 6D mode (``FilterOptions.heading = "relative"``): the
+#: earth's norm along the sensor's forward axis, in units of the earth's field. It aligns the
+#: heading of the sensor's forward axis at 0 and, with no heading correction, says nothing after.
+HEADING_FREE_FIELD = np.array([1.0, 0.0, 0.0])
+
+
 def params_from_options(options: FilterOptions) -> np.ndarray:
     """``[kp_rollpitch, ki_rollpitch, kp_yaw, ki_yaw, dt]`` as the kernels take them."""
     return np.array([options.kp_rollpitch, options.ki_rollpitch, options.kp_yaw,
@@ -107,6 +113,8 @@ class MahonyBank(FilterBank):
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
         super().__init__(gravity)
         self.params = params_from_options(options or FilterOptions())
+        #: the 6D mode: no yaw correction, the heading-free field (:data:`HEADING_FREE_FIELD`)
+        self.relative = (options or FilterOptions()).heading == "relative"
         self.state = MahonyState(self.n)
         self._no_errors = np.zeros((0, self.n, 3), np.bool_)
         self._no_terms = np.empty((0, self.n, 3))  # ωI, ωP not stored
@@ -122,6 +130,7 @@ class MahonyBank(FilterBank):
 
     def set_options(self, options: FilterOptions) -> None:
         self.params[:] = params_from_options(options)
+        self.relative = options.heading == "relative"
 
     # -- running ------------------------------------------------------------------------
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
@@ -133,6 +142,9 @@ class MahonyBank(FilterBank):
         at frame k; params: ``[N, 5]`` per-frame gains (default: :attr:`params` for all).
         """
         acc = np.ascontiguousarray(acc, dtype=np.float64)
+        if self.relative:  # 6D: the magnetometer is not read (units: ±100 = the earth's)
+            mag = np.ascontiguousarray(np.broadcast_to(100.0 * HEADING_FREE_FIELD,
+                                                       np.shape(acc)))
         mag = np.ascontiguousarray(mag, dtype=np.float64)
         gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         n = acc.shape[0]
@@ -143,6 +155,9 @@ class MahonyBank(FilterBank):
                else np.ascontiguousarray(np.atleast_2d(params), dtype=np.float64))
         if prm.shape[1] != N_PARAMS or prm.shape[0] not in (1, n):
             raise ValueError(f"params must be [1, {N_PARAMS}] or [N, {N_PARAMS}]")
+        if self.relative:  # 6D: no yaw correction (kp_yaw, ki_yaw)
+            prm = prm.copy()
+            prm[:, 2:4] = 0.0
         out_R = np.empty((n, self.n, 3, 3))
         out_e = np.empty((n, self.n, 3))
         out_wi = np.empty((n, self.n, 3)) if store_terms else self._no_terms
@@ -153,4 +168,5 @@ class MahonyBank(FilterBank):
                           out_wp if store_terms else None)
 
 
-__all__ = ["N_IMUS", "BankOutput", "FilterBank", "MahonyBank", "params_from_options"]
+__all__ = ["HEADING_FREE_FIELD", "N_IMUS", "BankOutput", "FilterBank", "MahonyBank",
+           "params_from_options"]

@@ -1,33 +1,33 @@
-"""Per-IMU disturbance indicators, whichever attitude filter runs (one numba kernel: its state
-recurs from frame to frame).
+"""Per-IMU disturbance flags from the calibrated sensors alone, whichever filter runs (one numba
+kernel: its state recurs from frame to frame).
 
-Two questions an investigator asks of every sensor and frame:
+Per IMU the detector carries two world-fixed directions in sensor axes, turned by the gyro
+every sample: the gravity direction ``ĝ`` (pulled towards the accelerometer with a 2 s time
+constant while the sensor is not accelerating) and the horizontal direction of the earth's
+field ``ĥ`` (pulled towards the measured one with 10 s while the field is clean). It knows
+nothing of the attitude filter, so a filter's own errors cannot raise a flag. From them:
 
-- **Is the magnetometer disturbed?** The field's norm and dip (angle below the horizontal)
-  are compared with the values learnt while the sensor was still at the start (the calibration
-  pause): ``|m| / ref − 1`` beyond ``mag_norm_th`` or ``|dip − ref|`` beyond
-  ``mag_dip_th_deg``. Ferromagnetic material or a magnet nearby changes both; a clean room
-  changes neither whatever the sensor's attitude. The dip needs the down direction: it comes
-  from the running filter's attitude (``R[2, :]`` in body axes), and is only judged while the
-  sensor turns slower than ``dip_max_rate`` (rad/s) — at fast rates the sensors' sampling skew
-  and the filter's lag make it unreliable. Both quantities are low-passed over ``tau_s`` to
-  average out the magnetometer noise (≈ 1.5 % of the norm per sample on real sensors).
-  Limitation: a disturbance that only turns the field about the vertical (a weak field added
-  at right angles in the horizontal plane) changes neither norm nor dip much and stays unseen;
-  the filters' heading then follows it as far as their magnetic rejection lets it.
-- **Is the acceleration far from gravity for long?** The mean of ``||a| − 1 g|`` over
-  ``acc_tau_s`` (exponential) above ``acc_th_g``: the accelerometer is then no gravity
-  reference, and a filter that trusts it (the original Mahony) tilts.
+- **mag**: the field that should be measured, ``m̂ = N_ref (cos δ_ref ĥ + sin δ_ref ĝ)``
+  (norm ``N_ref`` and dip ``δ_ref`` learnt in the first still period, the calibration pause),
+  against the measured ``m``: ``|m − m̂| / N_ref`` (low-passed 0.1 s) above ``mag_th`` = 0.10
+  of the earth's field, plus ``skew_s`` × |ω| (15 ms × the rate: the magnetometer's and the
+  gyro's samples are not simultaneous and 50 Hz integration errs, so a fast turn alone shows
+  a deviation). It sees a magnet whichever way it bends the field: norm, dip, or only the
+  heading.
+- **acc**: the linear acceleration ``|ĝ − a|`` (g), RMS over 0.25 s, above ``acc_th_g`` =
+  0.2 g: the accelerometer is then no gravity reference.
 
-The reference is learnt during the first still period of each IMU (|ω| < ``rest_gyr`` rad/s
-and ``||a| − 1 g|`` < ``rest_acc_g`` for ``rest_time_s``), averaged over up to
-``rest_learn_s``; before that the magnetic indicator is False and ``ready`` False.
-:meth:`DisturbanceTracker.reset` forgets it (a new stream or sensor).
+Each flag comes with its strength (:attr:`Disturbance.mag_dev`, fraction of the earth's field;
+:attr:`Disturbance.mag_heading_deg`, the heading error a filter trusting the field would take;
+:attr:`Disturbance.acc_lin_g`, g) and the time it has been up (``mag_up_s``, ``acc_up_s``). The
+rule, thresholds and measured precision and recall: docs/filters.md, "Disturbance flags".
 
-Inputs: calibrated vectors as the filters get them — accelerometer in any unit with
-``gravity[n]`` units per g (the suite: counts of 1 g pointing down; only the norm is used),
-magnetometer in any unit, gyro rad/s, R ``[N, n, 3, 3]`` body → NED (NaN allowed: then the
-accelerometer direction stands in for down).
+Inputs: calibrated filter-frame vectors as the filters get them — accelerometer in
+``gravity[n]`` units per g pointing down (the suite's counts of 1 g), magnetometer in any
+unit, gyro rad/s.
+
+:meth:`DisturbanceTracker.reset` forgets what was learnt (a new stream). The kernel calls only
+kernels of this module (numba's cache is keyed by this file).
 """
 
 from __future__ import annotations
@@ -35,118 +35,287 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from numba import njit
 
 from bpms.filter.bank import checked_gravity
 
-#: per-IMU state columns
-(S_REST_T, S_LEARN_T, S_REF_NORM, S_REF_DIP, S_READY, S_NORM_LP, S_DIP_LP, S_ACC_LP,
- S_MAG_FLAG) = range(9)
-N_STATE = 9
+#: Indices into the detector's parameters (:meth:`DisturbanceSettings.params`).
+(P_MAG_TH, P_ACC_TH, P_TAU_M, P_TAU_A, P_TAU_G, P_TAU_H, P_SKEW, P_ACC_GATE, P_REST_GYR,
+ P_REST_ACC, P_REST_TIME, P_LEARN_S, P_BIAS_TAU, P_RECOVER_S, P_DT, P_HEAD_TH) = range(16)
+N_FLAG_PARAMS = 16
+#: Per-IMU state columns of the detector.
+(F_G0, F_G1, F_G2, F_H0, F_H1, F_H2, F_B0, F_B1, F_B2, F_W0, F_W1, F_W2, F_INIT, F_REST_T,
+ F_LEARN_T, F_REF_NORM, F_REF_DIP, F_READY, F_NORM_LP, F_DIP_LP, F_ACC_MEAN, F_ACC_MS,
+ F_DEV_LP, F_HEAD_LP, F_MAG_UP, F_ACC_UP, F_MAG_FLAG, F_OK_T, F_M0, F_M1, F_M2) = range(31)
+N_FLAG_STATE = 31
+#: Columns of the detector's value output ``[N, n, N_VALUES]``.
+(V_NORM_RATIO, V_DIP_DEV, V_ACC_MEAN, V_MAG_DEV, V_MAG_HEADING, V_ACC_LIN, V_MAG_UP,
+ V_ACC_UP) = range(8)
+N_VALUES = 8
+#: Averaging time (s) of ``acc_dev_g``, the mean ||a| − 1 g| kept from the older indicators.
+ACC_MEAN_TAU_S = 1.0
+#: rad/s (≈ 1700 °/s): a gyro reading beyond is no body's motion but a fault (the suit's
+#: ITG-3200 ends at ±2000 °/s); the detector holds and aligns anew after it.
+RATE_MAX = 30.0
 
 
 @dataclass
 class DisturbanceSettings:
-    """Thresholds (physical units) of the indicators. The defaults stay quiet on all six
-    BROAD trials without a magnet attached (largest low-passed deviations there: norm 6.8 %,
-    dip 3.4°) and fire on the attached-magnet trial (norm 53 %, dip 26°)."""
+    """The detector's thresholds and time constants (physical units; docs/filters.md).
 
-    mag_norm_th: float = 0.08      # fraction of the learnt norm
-    mag_dip_th_deg: float = 4.0    # degrees from the learnt dip
-    dip_max_rate: float = 1.0      # rad/s: the dip is judged only below this rate
-    tau_s: float = 0.5             # s, low-pass of norm and dip
-    acc_th_g: float = 0.15         # g, mean |‖a‖ − 1 g| that counts as far from gravity
-    acc_tau_s: float = 1.0         # s, averaging time of that mean
-    rest_gyr: float = 0.1          # rad/s
-    rest_acc_g: float = 0.05       # g
-    rest_time_s: float = 1.0       # s still before learning starts
-    rest_learn_s: float = 5.0      # s of stillness averaged into the reference
+    Fixed before the precision and recall were measured (bench/disturbance.py): ``mag_th``
+    and ``acc_th`` are the truth's thresholds, the rest follow from the sensors and the body."""
+
+    mag_th: float = 0.10        # |m − m̂| / N_ref: fraction of the earth's field
+    mag_turn_th: float = 0.05   # the horizontal field turned by this fraction of the earth's
+    acc_th_g: float = 0.20      # g, RMS linear acceleration
+    tau_mag_s: float = 0.1      # s, low-pass of the field's deviation (noise ≈ 1 % per sample)
+    tau_acc_s: float = 0.25     # s, RMS window of the linear acceleration
+    tau_gravity_s: float = 2.0  # s, ĝ follows the accelerometer
+    tau_heading_s: float = 10.0  # s, ĥ follows the measured field while it is clean
+    skew_s: float = 0.015       # s, × |ω| added to mag_th (sampling skew, 50 Hz integration)
+    acc_gate_g: float = 0.2     # g, no gravity correction above this linear acceleration
+    rest_gyr: float = 0.1       # rad/s, still: below this rate ...
+    rest_acc_g: float = 0.05    # g, ... and |a| within this of 1 g ...
+    rest_time_s: float = 1.0    # s, ... for this long
+    rest_learn_s: float = 5.0   # s of the first still period averaged into N_ref, δ_ref
+    bias_tau_s: float = 2.0     # s, gyro bias follows a still gyro
+    recover_s: float = 20.0     # s flagged with norm and dip back: ĥ taken from the field
 
     def params(self, dt: float) -> np.ndarray:
-        return np.array([self.mag_norm_th, math.radians(self.mag_dip_th_deg), self.dip_max_rate,
-                         self.tau_s, self.acc_th_g, self.acc_tau_s, self.rest_gyr,
-                         self.rest_acc_g, self.rest_time_s, self.rest_learn_s, dt])
+        return np.array([self.mag_th, self.acc_th_g, self.tau_mag_s, self.tau_acc_s,
+                         self.tau_gravity_s, self.tau_heading_s, self.skew_s, self.acc_gate_g,
+                         self.rest_gyr, self.rest_acc_g, self.rest_time_s, self.rest_learn_s,
+                         self.bias_tau_s, self.recover_s, dt,
+                         self.mag_turn_th])
 
 
-@njit(cache=True)
-def run_disturbance(acc, mag, gyr, R, gravity, valid, p, state, mag_dist, acc_dist, norm_ratio,
-                    dip_dev, acc_mean):
-    """N frames × n IMUs. acc/mag/gyr ``[N, n, 3]``, R ``[N, n, 3, 3]``, gravity ``[n]``,
-    valid ``[N, n]`` (False: a failed sensor, state held), params, state ``[n, N_STATE]``.
-    Writes mag_dist, acc_dist ``[N, n]`` bool, norm_ratio ``[N, n]`` (|m| / learnt − 1,
-    low-passed, NaN before learnt), dip_dev ``[N, n]`` rad (dip − learnt dip, low-passed),
-    acc_mean ``[N, n]`` g (mean ||a| − 1 g|)."""
-    norm_th, dip_th, dip_rate, tau, acc_th, acc_tau = p[0], p[1], p[2], p[3], p[4], p[5]
-    rest_gyr, rest_acc, rest_time, learn_s, dt = p[6], p[7], p[8], p[9], p[10]
-    k = 1.0 - math.exp(-dt / tau) if tau > 0.0 else 1.0
-    ka = 1.0 - math.exp(-dt / acc_tau) if acc_tau > 0.0 else 1.0
+@numba.njit(cache=True)
+def _turn(vx, vy, vz, x, y, z):
+    """(x, y, z) turned by the rotation vector v (rad), Rodrigues."""
+    ang = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if ang < 1e-15:
+        return x, y, z
+    kx, ky, kz = vx / ang, vy / ang, vz / ang
+    c, s = math.cos(ang), math.sin(ang)
+    d = (kx * x + ky * y + kz * z) * (1.0 - c)
+    return (x * c + (ky * z - kz * y) * s + kx * d, y * c + (kz * x - kx * z) * s + ky * d,
+            z * c + (kx * y - ky * x) * s + kz * d)
+
+
+@numba.njit(cache=True)
+def _hold(s, t, i, acc_th, flags, values):
+    """Outputs of a frame whose sensor failed: the state's."""
+    ready = s[F_READY] > 0.0
+    flags[t, i, 0] = s[F_MAG_FLAG] > 0.0
+    flags[t, i, 1] = math.sqrt(s[F_ACC_MS]) > acc_th
+    values[t, i, V_NORM_RATIO] = s[F_NORM_LP] - 1.0 if ready else np.nan
+    values[t, i, V_DIP_DEV] = s[F_DIP_LP] - s[F_REF_DIP] if ready else np.nan
+    values[t, i, V_ACC_MEAN] = s[F_ACC_MEAN]
+    values[t, i, V_MAG_DEV] = s[F_DEV_LP] if ready else np.nan
+    values[t, i, V_MAG_HEADING] = s[F_HEAD_LP] if ready else np.nan
+    values[t, i, V_ACC_LIN] = math.sqrt(s[F_ACC_MS])
+    values[t, i, V_MAG_UP] = s[F_MAG_UP]
+    values[t, i, V_ACC_UP] = s[F_ACC_UP]
+
+
+@numba.njit(cache=True)
+def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
+    """N frames × n IMUs. acc ``[N, n, 3]`` (``gravity[n]`` units per g, pointing down),
+    mag ``[N, n, 3]`` any unit, gyr ``[N, n, 3]`` rad/s; valid ``[N, n, 3]`` bool per sensor
+    (False: failed, its last good value is used, as the filters do); p
+    ``[N_FLAG_PARAMS]``; state ``[n, N_FLAG_STATE]`` (zeros: a new stream). Writes flags
+    ``[N, n, 2]`` (mag, acc) and values ``[N, n, N_VALUES]`` (columns ``V_*``; NaN where the
+    field reference is not learnt yet)."""
+    mag_th, acc_th, skew, gate = p[P_MAG_TH], p[P_ACC_TH], p[P_SKEW], p[P_ACC_GATE]
+    dt = p[P_DT]
+    km = 1.0 - math.exp(-dt / p[P_TAU_M])
+    ka = 1.0 - math.exp(-dt / p[P_TAU_A])
+    kg = 1.0 - math.exp(-dt / p[P_TAU_G])
+    kh = 1.0 - math.exp(-dt / p[P_TAU_H])
+    kb = 1.0 - math.exp(-dt / p[P_BIAS_TAU])
+    kmean = 1.0 - math.exp(-dt / ACC_MEAN_TAU_S)
+    c12 = dt * dt / 12.0
     for t in range(acc.shape[0]):
         for i in range(acc.shape[1]):
             s = state[i]
-            if not valid[t, i]:
-                mag_dist[t, i] = s[S_MAG_FLAG] > 0.0
-                acc_dist[t, i] = s[S_ACC_LP] > acc_th
-                acc_mean[t, i] = s[S_ACC_LP]
-                norm_ratio[t, i] = s[S_NORM_LP] - 1.0 if s[S_READY] > 0.0 else np.nan
-                dip_dev[t, i] = s[S_DIP_LP] - s[S_REF_DIP] if s[S_READY] > 0.0 else np.nan
+            if not valid[t, i, 2]:  # gyro failed: its last good sample (held, as the banks)
+                gx, gy, gz = s[F_W0], s[F_W1], s[F_W2]
+            else:
+                gx, gy, gz = gyr[t, i, 0], gyr[t, i, 1], gyr[t, i, 2]
+            if gx * gx + gy * gy + gz * gz > RATE_MAX * RATE_MAX:
+                # no limb turns this fast: a pinned or broken gyro reading, which would turn
+                # ĝ and ĥ anywhere. Hold, and align anew from the next sane sample.
+                s[F_INIT] = 0.0
+                _hold(s, t, i, acc_th, flags, values)
                 continue
-            a0, a1, a2 = acc[t, i, 0], acc[t, i, 1], acc[t, i, 2]
-            an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) / gravity[i]
-            w = math.sqrt(gyr[t, i, 0] ** 2 + gyr[t, i, 1] ** 2 + gyr[t, i, 2] ** 2)
-            # acceleration far from gravity (mean absolute deviation, g)
-            s[S_ACC_LP] += ka * (abs(an - 1.0) - s[S_ACC_LP])
-            acc_dist[t, i] = s[S_ACC_LP] > acc_th
-            acc_mean[t, i] = s[S_ACC_LP]
-            # field norm and dip
+            snap = s[F_INIT] == 0.0  # (re-)aligned: ĝ from the accelerometer, ĥ from the field
+            if snap:
+                if not valid[t, i, 0]:
+                    _hold(s, t, i, acc_th, flags, values)
+                    continue
+                an = math.sqrt(acc[t, i, 0] ** 2 + acc[t, i, 1] ** 2 + acc[t, i, 2] ** 2)
+                if an > 0.0:
+                    s[F_G0], s[F_G1], s[F_G2] = (acc[t, i, 0] / an, acc[t, i, 1] / an,
+                                                 acc[t, i, 2] / an)
+                else:
+                    s[F_G0], s[F_G1], s[F_G2] = 0.0, 0.0, 1.0
+                s[F_H0], s[F_H1], s[F_H2] = 1.0, 0.0, 0.0
+                s[F_W0], s[F_W1], s[F_W2] = gx, gy, gz
+                s[F_INIT] = 1.0
+            # 1. turn ĝ and ĥ (world-fixed, sensor axes) by −(rotation over the step):
+            #    trapezoid of the bias-corrected rates plus the coning term
+            ax, ay, az = s[F_W0], s[F_W1], s[F_W2]
+            vx = (0.5 * (ax + gx) - s[F_B0]) * dt + c12 * (ay * gz - az * gy)
+            vy = (0.5 * (ay + gy) - s[F_B1]) * dt + c12 * (az * gx - ax * gz)
+            vz = (0.5 * (az + gz) - s[F_B2]) * dt + c12 * (ax * gy - ay * gx)
+            s[F_W0], s[F_W1], s[F_W2] = gx, gy, gz
+            g0, g1, g2 = _turn(-vx, -vy, -vz, s[F_G0], s[F_G1], s[F_G2])
+            h0, h1, h2 = _turn(-vx, -vy, -vz, s[F_H0], s[F_H1], s[F_H2])
+            rate = math.sqrt(gx * gx + gy * gy + gz * gz)
+            # 2. acceleration: a (g) against ĝ
+            if valid[t, i, 0]:
+                a0, a1, a2 = (acc[t, i, 0] / gravity[i], acc[t, i, 1] / gravity[i],
+                              acc[t, i, 2] / gravity[i])
+                an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+                l0, l1, l2 = g0 - a0, g1 - a1, g2 - a2
+                lin = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+                s[F_ACC_MS] += ka * (lin * lin - s[F_ACC_MS])
+                s[F_ACC_MEAN] += kmean * (abs(an - 1.0) - s[F_ACC_MEAN])
+                if an > 0.0 and lin < gate:  # ĝ towards the accelerometer, not while shaken
+                    g0 += kg * (a0 / an - g0)
+                    g1 += kg * (a1 / an - g1)
+                    g2 += kg * (a2 / an - g2)
+                    gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+                    g0, g1, g2 = g0 / gn, g1 / gn, g2 / gn
+                still = rate < p[P_REST_GYR] and abs(an - 1.0) < p[P_REST_ACC]
+            else:
+                still = False
+            s[F_G0], s[F_G1], s[F_G2] = g0, g1, g2
+            lin_rms = math.sqrt(s[F_ACC_MS])
+            aflag = lin_rms > acc_th
+            s[F_ACC_UP] = s[F_ACC_UP] + dt if aflag else 0.0
+            # ĥ stays horizontal (perpendicular to ĝ), unit
+            hd = h0 * g0 + h1 * g1 + h2 * g2
+            h0, h1, h2 = h0 - hd * g0, h1 - hd * g1, h2 - hd * g2
+            hn = math.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+            if hn > 1e-9:
+                h0, h1, h2 = h0 / hn, h1 / hn, h2 / hn
+            # 3. rest: the gyro bias; the first still period: the field's norm and dip
+            s[F_REST_T] = s[F_REST_T] + dt if still else 0.0
+            rested = still and s[F_REST_T] >= p[P_REST_TIME]
+            if rested and math.sqrt(s[F_ACC_MS]) > gate and an > 0.0:
+                # still for a second, yet ĝ far from the accelerometer (a sensor fault turned
+                # it): what a still accelerometer reads is gravity; the field's direction anew
+                g0, g1, g2 = a0 / an, a1 / an, a2 / an
+                s[F_G0], s[F_G1], s[F_G2] = g0, g1, g2
+                s[F_ACC_MS] = 0.0
+                snap = True
+            if rested and valid[t, i, 2]:
+                s[F_B0] += kb * (gx - s[F_B0])
+                s[F_B1] += kb * (gy - s[F_B1])
+                s[F_B2] += kb * (gz - s[F_B2])
+            mok = valid[t, i, 1]
             m0, m1, m2 = mag[t, i, 0], mag[t, i, 1], mag[t, i, 2]
             mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-            d0, d1, d2 = R[t, i, 2, 0], R[t, i, 2, 1], R[t, i, 2, 2]
-            if not (math.isfinite(d0) and math.isfinite(d1) and math.isfinite(d2)):
-                dn = an * gravity[i]
-                d0, d1, d2 = (a0 / dn, a1 / dn, a2 / dn) if dn > 0.0 else (0.0, 0.0, 1.0)
-            dip = math.asin(min(1.0, max(-1.0, (m0 * d0 + m1 * d1 + m2 * d2) / mn))) \
-                if mn > 0.0 else 0.0
-            still = w < rest_gyr and abs(an - 1.0) < rest_acc
-            s[S_REST_T] = s[S_REST_T] + dt if still else 0.0
-            if still and s[S_REST_T] >= rest_time and s[S_LEARN_T] < learn_s and mn > 0.0:
-                # learning: the running mean over the first still period (≤ learn_s)
-                n_prev = s[S_LEARN_T] / dt
-                s[S_REF_NORM] = (s[S_REF_NORM] * n_prev + mn) / (n_prev + 1.0)
-                s[S_REF_DIP] = (s[S_REF_DIP] * n_prev + dip) / (n_prev + 1.0)
-                s[S_LEARN_T] += dt
-                if s[S_READY] == 0.0:
-                    s[S_NORM_LP], s[S_DIP_LP] = 1.0, dip
-                s[S_READY] = 1.0
-            elif not still and s[S_LEARN_T] > 0.0:
-                s[S_LEARN_T] = learn_s  # the first still period is over: reference frozen
-            if s[S_READY] == 0.0:
-                mag_dist[t, i] = False
-                norm_ratio[t, i] = np.nan
-                dip_dev[t, i] = np.nan
-                continue
-            s[S_NORM_LP] += k * (mn / s[S_REF_NORM] - s[S_NORM_LP])
-            if w < dip_rate:
-                s[S_DIP_LP] += k * (dip - s[S_DIP_LP])
-            flag = abs(s[S_NORM_LP] - 1.0) > norm_th or abs(s[S_DIP_LP] - s[S_REF_DIP]) > dip_th
-            s[S_MAG_FLAG] = 1.0 if flag else 0.0
-            mag_dist[t, i] = flag
-            norm_ratio[t, i] = s[S_NORM_LP] - 1.0
-            dip_dev[t, i] = s[S_DIP_LP] - s[S_REF_DIP]
+            mok = mok and mn > 0.0
+            if mok:
+                md = m0 * g0 + m1 * g1 + m2 * g2
+                dip = math.asin(min(1.0, max(-1.0, md / mn)))
+                x0, x1, x2 = m0 - md * g0, m1 - md * g1, m2 - md * g2
+                xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+                if xn > 0.0:
+                    x0, x1, x2 = x0 / xn, x1 / xn, x2 / xn
+                if rested and s[F_LEARN_T] > 0.0 and s[F_LEARN_T] < p[P_LEARN_S]:
+                    # still, so the field in sensor axes must stay put: a change is a magnet
+                    # coming (or going) while learning, which ends the learning here
+                    c0, c1, c2 = m0 - s[F_M0], m1 - s[F_M1], m2 - s[F_M2]
+                    if (math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+                            > 0.5 * mag_th * s[F_REF_NORM]):
+                        s[F_LEARN_T] = p[P_LEARN_S]
+                if rested and s[F_LEARN_T] < p[P_LEARN_S]:
+                    n_prev = s[F_LEARN_T] / dt
+                    s[F_REF_NORM] = (s[F_REF_NORM] * n_prev + mn) / (n_prev + 1.0)
+                    s[F_REF_DIP] = (s[F_REF_DIP] * n_prev + dip) / (n_prev + 1.0)
+                    s[F_M0] = (s[F_M0] * n_prev + m0) / (n_prev + 1.0)
+                    s[F_M1] = (s[F_M1] * n_prev + m1) / (n_prev + 1.0)
+                    s[F_M2] = (s[F_M2] * n_prev + m2) / (n_prev + 1.0)
+                    s[F_LEARN_T] += dt
+                    if xn > 0.0:
+                        h0, h1, h2 = x0, x1, x2
+                    if s[F_READY] == 0.0:
+                        s[F_NORM_LP], s[F_DIP_LP] = mn / s[F_REF_NORM], dip
+                        s[F_DEV_LP], s[F_HEAD_LP] = 0.0, 0.0
+                    s[F_READY] = 1.0
+                elif not still and s[F_LEARN_T] > 0.0:
+                    s[F_LEARN_T] = p[P_LEARN_S]  # the first still period is over: frozen
+            if snap and mok and s[F_READY] > 0.0 and xn > 0.0:
+                h0, h1, h2 = x0, x1, x2
+                s[F_DEV_LP], s[F_HEAD_LP], s[F_OK_T] = 0.0, 0.0, 0.0
+            if mok and s[F_READY] > 0.0:
+                # 4. the field against the one expected
+                rn, rd = s[F_REF_NORM], s[F_REF_DIP]
+                ch, sd = math.cos(rd), math.sin(rd)
+                e0 = m0 / rn - (ch * h0 + sd * g0)
+                e1 = m1 / rn - (ch * h1 + sd * g1)
+                e2 = m2 / rn - (ch * h2 + sd * g2)
+                dev = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+                head = 0.0  # signed angle ĥ → measured horizontal field, about ĝ
+                if xn > 0.0:
+                    cr = ((h1 * x2 - h2 * x1) * g0 + (h2 * x0 - h0 * x2) * g1
+                          + (h0 * x1 - h1 * x0) * g2)
+                    head = math.atan2(cr, h0 * x0 + h1 * x1 + h2 * x2)
+                s[F_DEV_LP] += km * (dev - s[F_DEV_LP])
+                s[F_HEAD_LP] += km * (head - s[F_HEAD_LP])
+                s[F_NORM_LP] += km * (mn / rn - s[F_NORM_LP])
+                s[F_DIP_LP] += km * (dip - s[F_DIP_LP])
+                # the horizontal field turned: by more than mag_turn_th of the earth's field
+                turn_th = math.asin(min(1.0, p[P_HEAD_TH] / max(ch, 0.1)))
+                mflag = (s[F_DEV_LP] > mag_th + skew * rate
+                         or abs(s[F_HEAD_LP]) > turn_th + skew * rate)
+                if mflag:
+                    # norm and dip back for long: the gyro's ĥ is no longer to be trusted
+                    back = (abs(s[F_NORM_LP] - 1.0) < 0.5 * mag_th
+                            and abs(s[F_DIP_LP] - rd) < 0.5 * mag_th)
+                    s[F_OK_T] = s[F_OK_T] + dt if back else 0.0
+                    if s[F_OK_T] >= p[P_RECOVER_S] and xn > 0.0:
+                        h0, h1, h2 = x0, x1, x2
+                        s[F_OK_T] = 0.0
+                elif xn > 0.0:
+                    s[F_OK_T] = 0.0
+                    h0 += kh * (x0 - h0)
+                    h1 += kh * (x1 - h1)
+                    h2 += kh * (x2 - h2)
+                s[F_MAG_FLAG] = 1.0 if mflag else 0.0
+                s[F_MAG_UP] = s[F_MAG_UP] + dt if mflag else 0.0
+            s[F_H0], s[F_H1], s[F_H2] = h0, h1, h2
+            _hold(s, t, i, acc_th, flags, values)
+            flags[t, i, 1] = aflag
 
 
 @dataclass
 class Disturbance:
-    """Indicators of N frames × n IMUs.
+    """The detector's flags and their strengths, N frames × n IMUs.
 
-    mag: ``[N, n]`` bool magnetometer disturbed; acc: ``[N, n]`` bool acceleration far from
-    gravity for long; mag_norm_ratio: ``[N, n]`` |m| / learnt − 1 (low-passed; NaN before the
-    reference is learnt); mag_dip_dev_deg: ``[N, n]`` dip − learnt dip, degrees; acc_dev_g:
-    ``[N, n]`` the mean ||a| − 1 g| in g. ``mag_count`` / ``acc_count``: ``[n]`` frames
-    flagged in this batch (the processor's running totals are on the tracker)."""
+    mag ``[N, n]`` bool: the field deviates from the earth's by more than
+    :attr:`DisturbanceSettings.mag_th`; acc ``[N, n]`` bool: linear acceleration above
+    :attr:`DisturbanceSettings.acc_th_g`. Strengths: mag_dev ``[N, n]`` ``|m − m̂| / N_ref``
+    (fraction of the earth's field, low-passed 0.1 s); mag_heading_deg ``[N, n]`` ° the angle
+    from the expected to the measured horizontal field (the heading error a filter trusting
+    this sample would take); acc_lin_g ``[N, n]`` g RMS linear acceleration (0.25 s).
+    mag_up_s / acc_up_s ``[N, n]`` s since the flag went up (0 while down). Also, as the older
+    indicators: mag_norm_ratio ``|m| / N_ref − 1``, mag_dip_dev_deg ° dip − learnt dip (both
+    low-passed 0.1 s, the dip against the detector's own ĝ), acc_dev_g g mean ``||a| − 1 g|``
+    over 1 s. NaN where the field reference is not learnt yet."""
 
     mag: np.ndarray
     acc: np.ndarray
+    mag_dev: np.ndarray
+    mag_heading_deg: np.ndarray
+    acc_lin_g: np.ndarray
+    mag_up_s: np.ndarray
+    acc_up_s: np.ndarray
     mag_norm_ratio: np.ndarray
     mag_dip_dev_deg: np.ndarray
     acc_dev_g: np.ndarray
@@ -161,7 +330,8 @@ class Disturbance:
 
 
 class DisturbanceTracker:
-    """Running indicators for ``n`` IMUs (state kept between calls; batch = live)."""
+    """The detector for ``n`` IMUs, state kept between calls (a batch and frame by frame give
+    the same flags). ``gravity[n]``: accelerometer units per g; ``dt``: sample period, s."""
 
     def __init__(self, gravity: np.ndarray, dt: float,
                  settings: DisturbanceSettings | None = None) -> None:
@@ -169,39 +339,49 @@ class DisturbanceTracker:
         self.n = len(self.gravity)
         self.settings = settings or DisturbanceSettings()
         self.params = self.settings.params(dt)
-        self.state = np.zeros((self.n, N_STATE))
+        self.state = np.zeros((self.n, N_FLAG_STATE))
         #: ``[n]`` running totals of flagged frames since the last reset
         self.mag_count = np.zeros(self.n, np.int64)
         self.acc_count = np.zeros(self.n, np.int64)
 
     def reset(self) -> None:
-        """Forget the learnt references and counts (a new stream)."""
+        """Forget everything learnt (a new stream)."""
         self.state[:] = 0.0
         self.mag_count[:] = 0
         self.acc_count[:] = 0
 
+    def realign(self, imus: np.ndarray) -> None:
+        """Align ``imus`` (``[n]`` bool) anew at their next valid frame: ĝ from the
+        accelerometer, ĥ from the field (what was learnt at rest is kept). The processor does
+        it where the state guard re-initialises a filter: the reading that broke the filter's
+        state turned these directions too."""
+        self.state[np.asarray(imus, dtype=np.bool_), F_INIT] = 0.0
+
     @property
     def ready(self) -> np.ndarray:
-        """``[n]`` bool: the magnetic reference has been learnt."""
-        return self.state[:, S_READY] > 0.0
+        """``[n]`` bool: the field's norm and dip have been learnt."""
+        return self.state[:, F_READY] > 0.0
+
+    @property
+    def gyro_bias(self) -> np.ndarray:
+        """``[n, 3]`` rad/s: the gyro bias learnt at rest (sensor axes)."""
+        return self.state[:, F_B0:F_B2 + 1].copy()
 
     def update(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-               R: np.ndarray | None = None, errors: np.ndarray | None = None) -> Disturbance:
-        """Indicators of N frames (``[N, n, 3]`` inputs, R ``[N, n, 3, 3]`` or None,
-        errors ``[N, n, 3]`` failed-sensor flags: such frames hold the state)."""
+               errors: np.ndarray | None = None) -> Disturbance:
+        """Flags of N frames: ``[N, n, 3]`` calibrated inputs (units: :func:`run_disturbance`),
+        errors ``[N, n, 3]`` failed-sensor flags (accel, mag, gyro) or None."""
         acc, mag, gyr = (np.ascontiguousarray(v, dtype=np.float64) for v in (acc, mag, gyr))
         N = acc.shape[0]
-        Rm = (np.full((N, self.n, 3, 3), np.nan) if R is None
-              else np.ascontiguousarray(R, dtype=np.float64))
-        valid = (np.ones((N, self.n), np.bool_) if errors is None
-                 else ~np.asarray(errors, dtype=np.bool_).any(axis=-1))
-        out = Disturbance(np.zeros((N, self.n), np.bool_), np.zeros((N, self.n), np.bool_),
-                          np.empty((N, self.n)), np.empty((N, self.n)), np.empty((N, self.n)))
-        dip = np.empty((N, self.n))
-        run_disturbance(acc, mag, gyr, Rm, self.gravity, np.ascontiguousarray(valid),
-                        self.params, self.state, out.mag, out.acc, out.mag_norm_ratio, dip,
-                        out.acc_dev_g)
-        out.mag_dip_dev_deg = np.degrees(dip)
+        valid = (np.ones((N, self.n, 3), np.bool_) if errors is None
+                 else np.ascontiguousarray(~np.asarray(errors, dtype=np.bool_)))
+        flags = np.zeros((N, self.n, 2), np.bool_)
+        values = np.empty((N, self.n, N_VALUES))
+        run_disturbance(acc, mag, gyr, self.gravity, valid, self.params, self.state, flags, values)
+        v = np.moveaxis(values, -1, 0)
+        out = Disturbance(flags[..., 0], flags[..., 1], v[V_MAG_DEV], np.degrees(v[V_MAG_HEADING]),
+                    v[V_ACC_LIN], v[V_MAG_UP], v[V_ACC_UP], v[V_NORM_RATIO],
+                    np.degrees(v[V_DIP_DEV]), v[V_ACC_MEAN])
         self.mag_count += out.mag_count
         self.acc_count += out.acc_count
         return out

@@ -42,7 +42,7 @@ from bpms.filter.result import Result
 from bpms.filter.zero_choice import ResetZeroChoice, capture_at, identity_zero
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
-from bpms.io.options import Options, load_options, options_from_dict
+from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
 from bpms.io.raw_reader import RawFile, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
 from bpms.io.session_events import SessionEvent
@@ -480,6 +480,12 @@ def _count_rows(path: Path) -> int:
 FLAG_GROUPS = ("reinitialised", "mag_disturbed", "acc_disturbed")
 #: Column groups of the filters' estimates (``bpms filter --estimates``).
 ESTIMATE_GROUPS = ("gyro_bias", "body_acc")
+
+
+def heading_header(options: Options) -> dict[str, str]:
+    """The ``heading:`` header line every output carries: the heading reference in force
+    (``FilterOptions.heading``; ``relative`` is the 6D mode, docs/filters.md)."""
+    return {"heading": HEADING_TEXT.get(options.filter.heading, options.filter.heading)}
 
 
 def filtered_convention(convention: str) -> str:

@@ -186,11 +186,17 @@ def failed_inputs(acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
     return bad if errors is None else (np.asarray(errors, dtype=np.bool_) | bad)
 
 
+def _frames(bank_options: dict[str, Any], sl: slice) -> dict[str, Any]:
+    """The bank options of the frames ``sl``: per-frame arrays (``mag_trust``) sliced."""
+    return {k: v[sl] if isinstance(v, np.ndarray) else v for k, v in bank_options.items()}
+
+
 def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
                     gyr: np.ndarray, errors: np.ndarray | None = None, **bank_options: Any
                     ) -> tuple[BankOutput, np.ndarray]:
     """``bank.process`` of N frames (``[N, n, 3]`` inputs) with the state check: (outputs,
-    ``reinitialised[N, n]`` bool). See the module docstring; a live frame is N = 1 (nothing
+    ``reinitialised[N, n]`` bool). ``bank_options`` go to ``bank.process``, arrays among
+    them per frame (``[N, ...]``). See the module docstring; a live frame is N = 1 (nothing
     to rewind)."""
     n_frames = len(acc)
     c4 = renorm_allowance(bank)
@@ -202,7 +208,7 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
         snap = bank.snapshot() if end - pos > 1 else None
         sl = slice(pos, end)
         out = bank.process(acc[sl], mag[sl], gyr[sl],
-                           None if errors is None else errors[sl], **bank_options)
+                           None if errors is None else errors[sl], **_frames(bank_options, sl))
         bad, seen = check_rotations(out.R, gyr[sl], c4, guard.expected)
         if not bad.any():
             guard.expected[:] = seen
@@ -214,7 +220,8 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
             bank.restore(snap)
             sl = slice(pos, pos + k + 1)
             out = bank.process(acc[sl], mag[sl], gyr[sl],
-                               None if errors is None else errors[sl], **bank_options)
+                               None if errors is None else errors[sl],
+                               **_frames(bank_options, sl))
         imus = bad[k]
         _mark(out, np.array([k]), imus)
         guard.accept(out.R[:k + 1])

@@ -28,8 +28,16 @@ Per sample (derivation and the equations the paper leaves out: docs/filters.md):
 5. bias ``b ← b − k_bias·dt·R(q)ᵀ e`` with ``e`` the error rotation vector (PI action),
    held while ``|e|`` > 0.2 rad (anti-windup); with ``rest_tau`` > 0 (adaptive), while
    ``|ω − b|`` < ``rest_gyr`` and ``||f| − g|`` < ``rest_acc`` for longer than ``rest_time``
-   the sensor is still and the bias follows the measured rate with time constant
-   ``rest_tau`` instead (what a still gyro reads *is* its bias).
+   the sensor is still and what it reads *is* its bias: the bias becomes the mean of the
+   still samples in blocks of :data:`REST_BLOCK_S`, each block taken only once the next one
+   is still too (a motion starts slowly, under ``rest_gyr``: its first samples are not
+   bias), over at most the last ``rest_tau`` seconds of stillness (the first block is taken
+   whole, later ones weigh by their share).
+
+A heading trust ``trust[N, n]`` (0–1, optional) scales the heading correction and the
+heading's share of the bias update per sample: the processor lowers it while the disturbance
+flags say the field is off (docs/filters.md); 0 switches heading corrections off (the 6D
+mode).
 
 Inputs (the adapters in :mod:`bpms.filter.algorithms` convert the suite's calibrated units):
 specific force ``f`` in m/s² (reads (0, 0, −9.81) level in a Z-down body frame),
@@ -60,6 +68,8 @@ MAG_REF_TAU_S = 60.0
 #: Error angle (rad) above which the bias integrator holds (anti-windup).
 BIAS_MAX_ERR = 0.2
 G_MS2 = 9.81
+#: s, the block of still samples the bias at rest is averaged over.
+REST_BLOCK_S = 0.5
 
 
 @njit(cache=True)
@@ -168,7 +178,8 @@ def _init_imu(i, f, m, q, bias, lp, acc_est, mag_state):
 
 
 @njit(cache=True)
-def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, rest, R):
+def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, rest, rest_b,
+              trust, R):
     dt = p[DT]
     # 1. prediction: trapezoid + coning correction (or the observer's rectangle rule)
     if p[TRAPEZOID] > 0.0:
@@ -242,7 +253,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, r
         ms[i, M_REF_NORM] += kr * (mn - ms[i, M_REF_NORM])
         ms[i, M_REF_DIP] += kr * (dip - ms[i, M_REF_DIP])
     mag_dist[i] = disturbed
-    hz = 0.0 if disturbed or mh == 0.0 else -psi
+    hz = 0.0 if disturbed or mh == 0.0 else -psi * trust
     # 4. correction towards the pseudo-measurement, ℓ carried along
     ci, ch = p[K_INCL] * dt, p[K_HEAD] * dt
     cx, cy, cz = ci * tx, ci * ty, ch * hz
@@ -259,16 +270,29 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, r
     fn = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
     still = (p[REST_TAU] > 0.0 and math.sqrt(rx * rx + ry * ry + rz * rz) < p[REST_GYR]
              and abs(fn - G_MS2) < p[REST_ACC])
-    if still:
-        rest[i] += dt
-    else:
-        rest[i] = 0.0
+    rest[i] = rest[i] + dt if still else 0.0
     if still and rest[i] >= p[REST_TIME]:
-        kr = 1.0 - math.exp(-dt / p[REST_TAU])
+        # at rest the gyro reads its bias: the mean of REST_BLOCK_S blocks of still samples,
+        # each taken only once the next block is still too (a motion's first samples are
+        # slow, and under the rate threshold), over at most the last rest_tau seconds
         for j in range(3):
-            v = bias[i, j] + kr * (g[j] - bias[i, j])
-            bias[i, j] = min(clip, max(-clip, v))
+            rest_b[i, j] += g[j]
+        rest_b[i, 3] += 1.0
+        if rest_b[i, 3] * dt >= REST_BLOCK_S - 0.5 * dt:
+            nb = rest_b[i, 7]
+            if nb > 0.0:
+                rest_b[i, 8] = min(rest_b[i, 8] + nb, p[REST_TAU] / dt)
+                kr = nb / rest_b[i, 8]
+                for j in range(3):
+                    v = bias[i, j] + kr * (rest_b[i, 4 + j] / nb - bias[i, j])
+                    bias[i, j] = min(clip, max(-clip, v))
+            for j in range(4):
+                rest_b[i, 4 + j] = rest_b[i, j]
+                rest_b[i, j] = 0.0
     else:
+        if not still:
+            for j in range(8):
+                rest_b[i, j] = 0.0
         kb = p[K_BIAS] * dt
         if kb > 0.0 and tx * tx + ty * ty + hz * hz < BIAS_MAX_ERR * BIAS_MAX_ERR:
             for j in range(3):
@@ -280,7 +304,7 @@ def _step_imu(i, f, m, g, p, q, bias, lp, acc_est, mag_state, mag_dist, gprev, r
 
 @njit(cache=True)
 def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag_state,
-           mag_dist, gprev, rest, initialised, held, held_count, R):
+           mag_dist, gprev, rest, rest_b, trust, use_trust, initialised, held, held_count, R):
     for i in range(f.shape[0]):
         if use_reset and reset[i]:
             initialised[i] = False
@@ -299,6 +323,8 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
                 for k in range(3):
                     gprev[i, k] = held[i, 2, k]
                 rest[i] = 0.0
+                for k in range(9):
+                    rest_b[i, k] = 0.0
                 mag_dist[i] = False
                 initialised[i] = True
             continue
@@ -307,17 +333,18 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
                 if err[i, s]:
                     held_count[i, s] += 1
         _step_imu(i, held[i, 0], held[i, 1], held[i, 2], p, q, bias, lp, acc_est, mag_state,
-                  mag_dist, gprev, rest, R)
+                  mag_dist, gprev, rest, rest_b, trust[i] if use_trust else 1.0, R)
 
 
 @njit(cache=True)
-def run_batch(f, m, g, errors, resets, params, q, bias, lp, acc_est, mag_state, mag_dist,
-              gprev, rest, initialised, held, held_count, R, out_R, out_euler, out_q,
-              out_bias, out_acc, out_mag_dist):
+def run_batch(f, m, g, errors, resets, trust, params, q, bias, lp, acc_est, mag_state,
+              mag_dist, gprev, rest, rest_b, initialised, held, held_count, R, out_R,
+              out_euler, out_q, out_bias, out_acc, out_mag_dist):
     """Filter N samples × n IMUs, updating the state arrays in place.
 
     f (m/s²), m (any unit), g (rad/s): float64 ``[N, n, 3]``; errors bool ``[N, n, 3]`` or
-    ``[0, n, 3]``; resets bool ``[N, n]`` or ``[0, n]``; params ``[N_PARAMS]``. Outputs
+    ``[0, n, 3]``; resets bool ``[N, n]`` or ``[0, n]``; trust float ``[N, n]`` (heading trust
+    0–1) or ``[0, n]`` (1 everywhere); params ``[N_PARAMS]``. Outputs
     (NaN while an IMU is not initialised): out_R ``[N, n, 3, 3]`` body → NED, out_euler
     ``[N, n, 3]`` rad; optional (``[0, …]`` to skip, each on its own): out_q ``[N, n, 4]``,
     out_bias ``[N, n, 3]`` rad/s, out_acc ``[N, n, 3]`` body acceleration m/s² (NED),
@@ -325,14 +352,18 @@ def run_batch(f, m, g, errors, resets, params, q, bias, lp, acc_est, mag_state, 
     """
     use_err = errors.shape[0] > 0
     use_reset = resets.shape[0] > 0
+    use_trust = trust.shape[0] > 0
     no_err = np.zeros((f.shape[1], 3), dtype=np.bool_)
     no_reset = np.zeros(f.shape[1], dtype=np.bool_)
+    no_trust = np.ones(f.shape[1])
     nan = np.nan
     for k in range(f.shape[0]):
         e = errors[k] if use_err else no_err
         z = resets[k] if use_reset else no_reset
+        w = trust[k] if use_trust else no_trust
         _frame(f[k], m[k], g[k], e, use_err, z, use_reset, params, q, bias, lp, acc_est,
-               mag_state, mag_dist, gprev, rest, initialised, held, held_count, R)
+               mag_state, mag_dist, gprev, rest, rest_b, w, use_trust, initialised, held,
+               held_count, R)
         for i in range(f.shape[1]):
             ok = initialised[i]
             if ok:
@@ -375,7 +406,7 @@ class ObserverGains:
     rest_gyr: float = math.radians(2.0)  # rad/s
     rest_acc: float = 0.3        # m/s²
     rest_time: float = 1.0       # s
-    rest_tau: float = 0.0        # s, bias time constant at rest (0 = off, the observer)
+    rest_tau: float = 0.0        # s, longest memory of the bias at rest (0 = off, the observer)
     trapezoid: bool = False      # trapezoidal rate integration with coning correction
 
     def params(self) -> np.ndarray:
@@ -387,7 +418,7 @@ class ObserverGains:
 
 
 #: The ``adaptive`` setting's defaults (what differs from the observer's).
-ADAPTIVE = {"mag_norm_th": 0.03, "mag_dip_th_deg": 3.0, "rest_tau": 2.0, "trapezoid": True}
+ADAPTIVE = {"mag_norm_th": 0.03, "mag_dip_th_deg": 3.0, "rest_tau": 10.0, "trapezoid": True}
 
 
 @dataclass
@@ -399,7 +430,9 @@ class ObserverState:
     frame, NED, m/s²); mag_state ``[n, 6]`` reference / candidate field norm and dip (rad),
     candidate and rejection times (s); mag_dist ``[n]`` the last sample was rejected;
     gprev ``[n, 3]`` the previous gyro sample (rad/s); rest ``[n]`` time (s) the sensor has
-    been still; initialised ``[n]``; held ``[n, 3 sensors, 3]`` last good inputs;
+    been still; rest_b ``[n, 9]`` the bias at rest: sums of the block being filled (x, y, z,
+    samples), of the block waiting for the next one, the samples averaged so far;
+    initialised ``[n]``; held ``[n, 3 sensors, 3]`` last good inputs;
     held_count ``[n, 3]``; R ``[n, 3, 3]`` the DCM of q.
     """
 
@@ -412,6 +445,7 @@ class ObserverState:
     mag_dist: np.ndarray = field(init=False)
     gprev: np.ndarray = field(init=False)
     rest: np.ndarray = field(init=False)
+    rest_b: np.ndarray = field(init=False)
     initialised: np.ndarray = field(init=False)
     held: np.ndarray = field(init=False)
     held_count: np.ndarray = field(init=False)
@@ -427,6 +461,7 @@ class ObserverState:
         self.mag_dist = np.zeros(n, dtype=np.bool_)
         self.gprev = np.zeros((n, 3))
         self.rest = np.zeros(n)
+        self.rest_b = np.zeros((n, 9))
         self.initialised = np.zeros(n, dtype=np.bool_)
         self.held = np.zeros((n, 3, 3))
         self.held_count = np.zeros((n, 3), dtype=np.int64)
@@ -435,7 +470,8 @@ class ObserverState:
     def arrays(self) -> tuple[np.ndarray, ...]:
         """The state arrays in kernel argument order."""
         return (self.q, self.bias, self.lp, self.acc_est, self.mag_state, self.mag_dist,
-                self.gprev, self.rest, self.initialised, self.held, self.held_count, self.R)
+                self.gprev, self.rest, self.rest_b, self.initialised, self.held,
+                self.held_count, self.R)
 
     def set_attitude(self, imu: int, q: np.ndarray) -> None:
         """Force IMU ``imu``'s attitude (body → NED quaternion); it must be initialised.
@@ -469,8 +505,9 @@ class Observer:
 
     def process(self, f: np.ndarray, m: np.ndarray, g: np.ndarray,
                 errors: np.ndarray | None = None, resets: np.ndarray | None = None,
-                store_q: bool = False) -> ObserverOutput:
-        """Filter ``[N, n, 3]`` inputs (units: module docstring), continuing the state."""
+                store_q: bool = False, trust: np.ndarray | None = None) -> ObserverOutput:
+        """Filter ``[N, n, 3]`` inputs (units: module docstring), continuing the state;
+        ``trust`` ``[N, n]`` the heading trust (module docstring; None: 1)."""
         f, m, g = (np.ascontiguousarray(v, dtype=np.float64) for v in (f, m, g))
         N = f.shape[0]
         err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
@@ -481,12 +518,14 @@ class Observer:
         out = ObserverOutput(np.empty((N, self.n, 3, 3)), np.empty((N, self.n, 3)),
                              np.empty((kq, self.n, 4)), np.empty((kq, self.n, 3)),
                              np.empty((kq, self.n, 3)))
-        run_batch(f, m, g, err, rs, self.gains.params(), *self.state.arrays(), out.R,
+        tr = (np.ones((0, self.n)) if trust is None
+              else np.ascontiguousarray(trust, dtype=np.float64))
+        run_batch(f, m, g, err, rs, tr, self.gains.params(), *self.state.arrays(), out.R,
                   out.euler, out.q, out.bias, out.acc, np.empty((0, self.n), np.bool_))
         if not store_q:
             out.q = out.bias = out.acc = None
         return out
 
 
-__all__ = ["ADAPTIVE", "N_PARAMS", "Observer", "ObserverGains", "ObserverOutput",
+__all__ = ["ADAPTIVE", "N_PARAMS", "REST_BLOCK_S", "Observer", "ObserverGains", "ObserverOutput",
            "ObserverState", "run_batch"]

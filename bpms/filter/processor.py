@@ -25,6 +25,9 @@ and a live frame is N = 1 of the same call (:meth:`~BodyPoseProcessor.step`,
 What happens, frame by frame (details in docs/filter.md):
 
 - raw counts → calibrated filter units (:class:`bpms.filter.calibration.SensorCalibration`);
+- the disturbance flags (:mod:`bpms.filter.disturbance`), from the calibrated sensors alone;
+  the observer's and the adaptive observer's heading gain drops to
+  :data:`MAG_TRUST_FLAGGED` of itself while an IMU's magnetometer is flagged;
 - 18 attitude filters of the kind ``Options.filter.algorithm`` selects
   (:mod:`bpms.filter.algorithms`; default the DCM Mahony :class:`bpms.filter.bank.MahonyBank`):
   the first frame of a stream only initialises; failed sensors hold their last good value;
@@ -32,6 +35,9 @@ What happens, frame by frame (details in docs/filter.md):
   first frame where all 18 IMUs are initialised, the automatic capture 1.0 s into the stream
   (0.5 s settling + the ``Options.pose.reset_window_s`` window, averaged), and one on each
   request; segment orientations ``C = R R0^T Rz(ψ0)``;
+- the knees' and elbows' heading constraint (:mod:`bpms.filter.hinge`): a segment whose
+  heading is uncertain (its magnetometer flagged, or the 6D mode) is turned about the
+  vertical to agree with its hinge partner (``R`` and ``C`` alike);
 - joint angles and stick-figure joint positions (per-subject lengths ``Options.body``);
 - the state guard (:mod:`bpms.filter.guard`): an IMU whose filter state stops being a rotation
   gives NaN for that one frame, is re-initialised from its next valid frame and counted
@@ -54,13 +60,15 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.filter.algorithms import make_bank
+from bpms.filter.algorithms import ObserverBank, make_bank
 from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import SensorCalibration
-from bpms.filter.disturbance import DisturbanceTracker
+from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process
+from bpms.filter.hinge import HingeConstraint, vertical_turn
 from bpms.filter.pose import PoseCalibrator, zero_values
 from bpms.filter.result import Result
+from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.warmup import ensure_kernels
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
@@ -70,6 +78,12 @@ from bpms.io.timebase import stream_times
 
 #: Seconds the filters settle after the stream starts before the automatic Reset Zero window.
 SETTLE_S = 0.5
+#: The observer's and the adaptive observer's heading gain (and the heading's share of their
+#: bias update) while an IMU's magnetometer is flagged, as a fraction of their own: a short
+#: disturbance costs a tenth of the heading error it would, a steady new field is still
+#: followed, ten times slower (docs/filters.md). The original Mahony filter is left as it was;
+#: VQF has its own magnetic rejection.
+MAG_TRUST_FLAGGED = 0.1
 
 
 def _default_path() -> Path:
@@ -135,6 +149,9 @@ class BodyPoseProcessor:
                                    heading=self.options.pose.heading_reference)
         self.frames = 0
         self.disturbance = DisturbanceTracker(self.sensor_calibration.gravity, dt)
+        #: the knees' and elbows' heading constraint (bpms.filter.hinge), after Reset Zero
+        #: (None: off, to compare with and without it)
+        self.hinge: HingeConstraint | None = HingeConstraint(dt)
         self.guard = StateGuard(N_IMUS)
         self.corrected_output = self.options.pose.corrected_output
         self.problems = [str(p) for p in (*self.table.problems, *self.options.problems)]
@@ -165,6 +182,8 @@ class BodyPoseProcessor:
         self.bank.reset()
         self.guard.forget()
         self.disturbance.reset()
+        if self.hinge is not None:
+            self.hinge.reset()
 
     def reset_filter(self, imu: int | None = None) -> None:
         """Re-initialise one IMU's filter (all when None) at its next valid frame."""
@@ -254,6 +273,8 @@ class BodyPoseProcessor:
         options = dataclasses.replace(self.options.filter, algorithm=algorithm)
         self.bank = make_bank(self.sensor_calibration.gravity, options)
         self.guard.forget()
+        if self.hinge is not None:
+            self.hinge.reset()
         self.options.filter = options
 
     # -- running ------------------------------------------------------------------------
@@ -272,7 +293,9 @@ class BodyPoseProcessor:
                 events: Sequence[tuple[int, SessionEvent]] = ()) -> Result:
         """Filter N frames (``raw[N, 18, 9]`` counts, ``errors[N, 18, 3]`` bool), continuing
         the stream of earlier calls: calibration, the 18 filters with the state guard, Reset
-        Zero, the disturbance indicators; the body's numbers follow from the Result when read.
+        Zero, the disturbance flags (computed first: the observer's heading trusts a flagged
+        field less), the knees' and elbows' heading constraint; the body's numbers follow from
+        the Result when read.
         ``events``: ``(k, SessionEvent)``, each applied (:meth:`apply_event`) just before
         frame k of this batch (k ≥ N: after the last), e.g. a recording's events on replay.
         A live frame is N = 1."""
@@ -302,11 +325,21 @@ class BodyPoseProcessor:
             errors = np.asarray(errors, dtype=np.bool_)
         if raw.dtype.kind == "f":  # integer counts always calibrate to finite values
             errors = failed_inputs(acc, mag, gyr, errors)
-        terms = {"store_terms": True} if isinstance(self.bank, MahonyBank) else {}
+        # the disturbance flags come from the sensors alone, before the filters use them
+        disturbance = self.disturbance.update(acc, mag, gyr, errors)
+        if isinstance(self.bank, MahonyBank):
+            terms = {"store_terms": True}
+        elif isinstance(self.bank, ObserverBank):  # the heading trusts a flagged field less
+            terms = {"mag_trust": np.where(disturbance.mag, MAG_TRUST_FLAGGED, 1.0)}
+        else:
+            terms = {}
         out, reinitialised = guarded_process(self.bank, self.guard, acc, mag, gyr, errors,
                                              **terms)
+        if reinitialised.any():  # what broke a filter's state turned the flags' directions too
+            self.disturbance.realign(reinitialised.any(axis=0))
         before = len(self.pose.captures)
         C = self.pose.apply(out.R)
+        R, euler, C = self._hinge(out.R, out.euler, C, gyr, disturbance)
         n = len(raw)
         t = stream_times(self.frames, n, self.options.filter.dt)
         self.frames += n
@@ -316,12 +349,38 @@ class BodyPoseProcessor:
         # corrected from the first Reset Zero capture on (C is all NaN before it; a segment
         # orientation is finite or NaN as a whole)
         corrected = self.corrected_output & np.isfinite(C[..., 0, 0]).any(axis=1)
-        return Result(t=t, R=out.R, euler=out.euler, C=C, body=self.options.body,
+        return Result(t=t, R=R, euler=euler, C=C, body=self.options.body,
                       held_count=self.bank.held_count, zeros=self.pose.captures[before:],
                       gyro_bias=bias, body_acc=out.body_acc,
-                      disturbance=self.disturbance.update(acc, mag, gyr, out.R, errors),
+                      disturbance=disturbance,
                       reinitialised=reinitialised, reinit_count=self.guard.count.copy(),
                       corrected=corrected, convention=self.options.joints.convention)
+
+    def _hinge(self, R: np.ndarray, euler: np.ndarray, C: np.ndarray, gyr: np.ndarray,
+               disturbance: Disturbance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The knees' and elbows' heading constraint: (R, euler, C) with the segments it turns
+        turned about the vertical. A segment's heading is uncertain while its magnetometer is
+        flagged, by as much as this filter follows a flagged field (its heading gain, or the
+        gyro's drift for the observers, which coast); in the 6D mode every heading is, by its
+        drift alone."""
+        f = self.options.filter
+        if self.hinge is None:
+            return R, euler, C
+        if f.heading == "relative":
+            flagged, deviation = np.ones_like(disturbance.mag), np.zeros(disturbance.mag.shape)
+            rate = 0.0
+        else:
+            flagged, deviation = disturbance.mag, disturbance.mag_heading_deg
+            # the original and VQF turn with a flagged field at their heading gain; the
+            # observers coast on the gyro (a tenth of their gain, and their own rejection)
+            rate = {"mahony": f.kp_yaw, "vqf": 1.0 / f.vqf_tau_mag_s}.get(f.algorithm, 0.0)
+        self.hinge.set_follow_rate(rate)
+        turn = self.hinge.turns(R, C, gyr, flagged, deviation)
+        if not turn.any():
+            return R, euler, C
+        Rz = vertical_turn(turn)
+        R = Rz @ R
+        return R, dcm_to_euler(R), Rz @ C
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``): :meth:`process` of a
@@ -339,4 +398,4 @@ class BodyPoseProcessor:
         return self.process(decoded.raw, decoded.errors, events), decoded.raw, decoded.errors
 
 
-__all__ = ["SETTLE_S", "BodyPoseProcessor", "Result"]
+__all__ = ["MAG_TRUST_FLAGGED", "SETTLE_S", "BodyPoseProcessor", "Result"]

@@ -93,15 +93,16 @@ class VqfFilters:
             for f in self.filters:
                 f.setTauMag(self.tau_mag)
 
-    def process_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
+    def process_imu(self, imu: int, f: np.ndarray, m: np.ndarray, g: np.ndarray,
+                    six_d: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Filter ``[N, 3]`` samples of one IMU (batch API): (body → **ENU** quaternions
         ``[N, 4]``, VQF's own frame — :func:`ned_dcm_of_enu` gives their NED DCMs; gyro-bias
-        estimate ``[N, 3]`` rad/s in sensor axes, rate = gyro − bias)."""
+        estimate ``[N, 3]`` rad/s in sensor axes, rate = gyro − bias). ``six_d``: VQF's
+        magnetometer-free estimate (heading relative to the start) instead of the 9D one."""
         out = self.filters[imu].updateBatch(
             np.ascontiguousarray(g, dtype=np.float64), np.ascontiguousarray(f, dtype=np.float64),
             np.ascontiguousarray(m, dtype=np.float64))
-        return out["quat9D"], out["bias"]
+        return out["quat6D" if six_d else "quat9D"], out["bias"]
 
 
 __all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned",

@@ -151,10 +151,9 @@ def _run_kernels(algorithm: str) -> None:
     errors[1, 0, 1] = True
     resets = np.zeros((n, N_IMUS), np.bool_)
     resets[2, 3] = True
-    R = None
     if algorithm != "vqf":  # the vqf package's own code needs no compiling
         bank = make_bank(gravity, FilterOptions(algorithm=algorithm))
         terms = {"store_terms": True} if algorithm == "mahony" else {}
-        R = bank.process(acc, mag, gyr, errors, resets, **terms).R
+        bank.process(acc, mag, gyr, errors, resets, **terms)
         guarded_process(bank, StateGuard(N_IMUS), acc, mag, gyr, errors, **terms)
-    DisturbanceTracker(gravity, 0.02).update(acc, mag, gyr, R, errors)
+    DisturbanceTracker(gravity, 0.02).update(acc, mag, gyr, errors)

@@ -204,8 +204,8 @@ class HealthPanel(QGroupBox):
         self.labels["skipped"].setToolTip(
             "Processed samples the display did not take (nothing is missing from any file)")
         self.labels["disturbance"].setToolTip(
-            "IMUs whose magnetometer (mag: field norm or dip off) or acceleration (acc: far "
-            "from 1 g for long) is disturbed now (docs/filters.md)")
+            "IMUs whose magnetometer (mag: field off the earth's or turned) or acceleration "
+            "(acc: over 0.2 g) is disturbed now (docs/filters.md)")
         self.listening_label = QLabel(listening or "")
         self.listening_label.setWordWrap(True)
         self.listening_label.setTextInteractionFlags(

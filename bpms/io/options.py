@@ -55,6 +55,13 @@ MAHONY_DT_S = 0.02
 MAHONY_GRAVITY_MAX = 275.0
 
 #: The one table of valid values, by section then key.
+#: ``FilterOptions.heading``: what every output's header says about the heading reference.
+HEADING_TEXT: dict[str, str] = {
+    "magnetic": "magnetic (9D: the magnetometer corrects heading)",
+    "relative": "relative to the start (6D: no magnetometer)",
+}
+HEADINGS = tuple(HEADING_TEXT)
+
 VALID_RANGES: dict[str, dict[str, Range]] = {
     "filter": {
         "algorithm": Range(choices=("mahony", "observer", "vqf", "adaptive")),
@@ -65,6 +72,7 @@ VALID_RANGES: dict[str, dict[str, Range]] = {
         "ki_yaw": Range(0.0, 0.1, why="PI loop stable while ki ≪ kp_yaw"),
         "dt": Range(1e-4, 1.0, why="the suit runs at 50 Hz (0.02 s)"),
         "failed_sensor": Range(choices=("hold",)),
+        "heading": Range(choices=HEADINGS, why="6D mode: docs/filters.md"),
         "observer_k_incl": Range(0.0, 50.0, why="first-order correction: k·dt ≤ 1 (dt 0.02 s)"),
         "observer_k_head": Range(0.0, 50.0, why="first-order correction: k·dt ≤ 1 (dt 0.02 s)"),
         "observer_k_bias": Range(0.0, 1.0, why="bias loop slower than the attitude loop"),
@@ -166,6 +174,10 @@ class FilterOptions:
     failed_sensor: str = _opt(
         "hold", "a sensor flagged failed: 'hold' its last good value"
     )
+    heading: str = _opt(
+        "magnetic", "heading reference: 'magnetic' (the magnetometer corrects heading) or "
+        "'relative' (6D: no magnetometer, heading relative to the start, for places without a "
+        "usable field); docs/filters.md")
     observer_k_incl: float = _opt(0.5, "observer: inclination correction gain, 1/s")
     observer_k_head: float = _opt(0.2, "observer: heading (magnetometer) correction gain, 1/s")
     observer_k_bias: float = _opt(0.01, "observer: gyro-bias estimation gain, 1/s²")
@@ -192,7 +204,8 @@ class FilterOptions:
     adaptive_rest_time_s: float = _opt(1.0, "adaptive: still for this long before the gyro "
                                        "bias follows the rate, s")
     adaptive_rest_tau_s: float = _opt(
-        2.0, "adaptive: gyro-bias time constant at rest, s (0 = off)")
+        10.0, "adaptive: the gyro bias at rest is the mean of the still samples over at most "
+        "this many seconds of stillness, s (0 = off)")
 
 
 @dataclass

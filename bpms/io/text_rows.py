@@ -15,9 +15,10 @@ block at a time with numpy instead of one value at a time:
   the trailing zeros of ``F``. Every value fills a fixed cell of 32-bit words, blank bytes (0)
   where a shorter value has no character, and the blanks are dropped from the whole block at
   the end.
-- What that path does not cover (ties, infinities, numbers beyond 2**52, ``%g`` of numbers
-  below 1e-13 or from 1e5 up, small batches of rows) is written by Python one value at a
-  time, so the text is always what ``%`` writes.
+- The values that way does not cover (ties, infinities, numbers beyond 2**52, ``%g`` of
+  numbers below 1e-13 or from 1e5 up) are written by Python's ``%`` one value at a time, in
+  their cells, so the text is always what ``%`` writes. Every block, the live filtered file's
+  few rows as a whole recording's, takes this one way.
 
 Conversions: ``%.Pg`` (vectorised for P ≤ 10), ``%.Nf`` (N ≤ 13), ``%d``/``%i``; one
 single-character separator between fields, ``\\n`` after each row.
@@ -41,10 +42,6 @@ _G_MAX_PRECISION = 10  # %g: I < 10**P and F × 10**k < 10**13 stay exact
 _F_MAX_DECIMALS = 13  # %f: the fraction digits the vectorised path writes
 #: Values formatted together (rows × columns): the work arrays stay in the processor's cache.
 _CHUNK_VALUES = 1 << 16
-#: Blocks of fewer values than this are written by Python row by row: the vectorised path's
-#: fixed cost (a few hundred numpy calls) is larger than its gain there (the live filtered
-#: file writes 10 rows at a time).
-_PYTHON_BELOW = 4096
 _SPEC = re.compile(r"%(?:\.(\d+))?([gfdi])")
 _BYTES_7F = _U(0x7F7F7F7F7F7F7F7F)
 _BYTES_80 = _U(0x8080808080808080)
@@ -96,20 +93,6 @@ class RowFormat:
             by_spec.setdefault(spec, []).append(col)
         self._groups = [_Group(spec, np.array(cols), seps[cols])
                         for spec, cols in by_spec.items()]
-        # Python's path: one % per row, then trailing 0/1 flags from their bytes
-        tail = 0
-        while tail < len(specs) and self.specs[-1 - tail] in (_Spec("d", 0, "%d"),
-                                                               _Spec("f", 0, "%.0f")):
-            tail += 1
-        head = len(specs) - tail
-        self._tail = tail
-        self._row = "".join(s + sp.text for s, sp in zip(["", *separators], self.specs,
-                                                            strict=True))
-        self._head_row = "".join(s + sp.text for s, sp in zip(["", *separators][:head],
-                                                                 self.specs[:head],
-                                                                 strict=True))
-        self._tail_seps = np.array([ord(s) for s in (["", *separators])[head:]][:tail]
-                                   if head else [], np.uint8)
 
     @classmethod
     def parse(cls, fmt: str | Sequence[str], delimiter: str, columns: int) -> RowFormat:
@@ -143,31 +126,11 @@ class RowFormat:
             raise ValueError(f"{ncols} columns for a row format of {self.columns}")
         if n == 0:
             return b""
-        if data.size < _PYTHON_BELOW:
-            return self._python_text(data).encode("ascii")
         step = max(1, _CHUNK_VALUES // ncols)
         chunks = [self._chunk_bytes(data[lo:lo + step], first=lo == 0)
                   for lo in range(0, n, step)]
         chunks.append(b"\n")
         return b"".join(chunks)
-
-    def _python_text(self, data: np.ndarray) -> str:
-        """Python's % row by row; trailing 0/1 flags are written from their bytes (a sixth of
-        a live row's cost otherwise)."""
-        tail = self._tail
-        if tail and len(self._tail_seps) == tail:
-            values = data[:, data.shape[1] - tail:]
-            if ((values == 1.0) | ((values == 0.0) & ~np.signbit(values))).all():
-                chars = np.empty((len(data), 2 * tail), np.uint8)
-                chars[:, 0::2] = self._tail_seps
-                chars[:, 1::2] = values.astype(np.uint8) + ord("0")
-                tails = chars.view(f"S{2 * tail}").ravel().tolist()
-                head = self._head_row
-                rows = data[:, :data.shape[1] - tail].tolist()
-                return "\n".join([(head % tuple(r)) + t.decode("ascii")
-                                  for r, t in zip(rows, tails, strict=True)]) + "\n"
-        row = self._row
-        return "\n".join([row % tuple(r) for r in data.tolist()]) + "\n"
 
     def _chunk_bytes(self, data: np.ndarray, first: bool) -> bytes:
         """The chunk's rows, each row starting with the newline that ends the one before

@@ -11,8 +11,8 @@ Streams (docs/lsl.md lists every channel):
   magnetometer gauss, gyroscope rad/s per IMU in signed board axes (the numbers of the GUI's
   table and ``bpms extract``);
 - ``BPMS Disturbance`` (type ``Misc``, 36 int8 channels, 50 Hz): per IMU 1 when its
-  magnetometer is disturbed, then per IMU 1 when its acceleration has been far from gravity
-  for long (:mod:`bpms.filter.disturbance`); -1 when not computed;
+  magnetometer is disturbed, then per IMU 1 when it accelerates (the accelerometer is then no
+  gravity reference; :mod:`bpms.filter.disturbance`); -1 when not computed;
 - ``BPMS Events`` (type ``Markers``, one string channel, irregular): the session's events
   (:mod:`bpms.pipeline.events`, the lines of the event log and of the raw recording), each
   stamped at the frame it applies at: ``Reset Zero (manual) at 12.30 s, window 0.50 s, moved
@@ -164,9 +164,9 @@ class LslOutlets:
         info = pylsl.StreamInfo(STREAM_NAMES["disturbance"], "Misc", len(channels), rate,
                                 pylsl.cf_int8, f"{base}:disturbance")
         _describe(info, channels, {
-            "meaning": "1: the IMU's magnetometer is disturbed (field norm or dip away from "
-                       "the values learnt at rest) / its acceleration has been far from 1 g "
-                       "for long; 0: not; -1: not computed",
+            "meaning": "1: the IMU's magnetometer is disturbed (the field off the earth's "
+                       "learnt at rest by more than 10 %, or its horizontal part turned) / it "
+                       "accelerates by over 0.2 g RMS; 0: not; -1: not computed",
             "order": "18 mag flags then 18 acc flags, IMU order", **sync})
         self.outlets["disturbance"] = pylsl.StreamOutlet(info, chunk_size=1, max_buffered=360)
         info = pylsl.StreamInfo(STREAM_NAMES["events"], "Markers", 1, pylsl.IRREGULAR_RATE,

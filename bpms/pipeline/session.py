@@ -240,13 +240,18 @@ class LiveSession:
             self._raw_logger = logger
             self.events.sinks.append(logger.queue.put)
         if filtered:
-            from bpms.filter.door import filtered_convention, filtered_layout  # not the GUI
+            from bpms.filter.door import (  # not the GUI
+                filtered_convention,
+                filtered_layout,
+                heading_header,
+            )
 
             try:
                 groups, kind = filtered_layout()
                 writer = FilteredWriter(filtered_path, degrees=degrees, groups=groups,
                                         euler=kind, convention=filtered_convention(
-                                            self.processor.options.joints.convention))
+                                            self.processor.options.joints.convention),
+                                        meta=heading_header(self.processor.options))
             except OSError as exc:
                 self.note(f"filtered recording not started: cannot create {filtered_path}: {exc}")
             else:

@@ -109,6 +109,9 @@ class SensorModel:
     mag_noise: float = 0.5  # mag white noise, rms, calibrated units (full field = 100)
     gyro_noise_dps: float = 0.3  # gyro white noise, rms, °/s
     gyro_bias_dps: float = 0.0  # residual bias magnitude per IMU (random direction), °/s
+    #: A further gyro bias of this size on every axis (°/s, board axes), its sign drawn per
+    #: IMU and axis from the seed: 0.2 gives each IMU a different (±0.2, ±0.2, ±0.2) °/s.
+    gyro_bias_axis_dps: float = 0.0
     mounting_error_deg: float = 3.0  # rms per axis of the IMU mounting misalignment, °
     heel_strike_g: float = 2.5  # peak |accel| on the foot IMU at a heel strike, g
     heel_strike_frames: int = 3  # length of the impact transient, frames
@@ -247,6 +250,9 @@ def draw_noise(n: int, model: SensorModel, rng: np.random.Generator,
     bias_dir = bias_rng.normal(size=(N_IMUS, 3))
     bias_dir /= np.linalg.norm(bias_dir, axis=-1, keepdims=True)
     bias = np.deg2rad(model.gyro_bias_dps) * bias_dir
+    if model.gyro_bias_axis_dps:  # drawn after the direction: other draws stay the same
+        signs = np.where(bias_rng.random((N_IMUS, 3)) < 0.5, -1.0, 1.0)
+        bias = bias + np.deg2rad(model.gyro_bias_axis_dps) * signs
     # One draw per sample, so a shorter recording is a prefix of a longer one (same seed).
     white = rng.standard_normal((n, N_IMUS, 3, 3))
     return Noise(acc_counts=model.acc_noise_counts * white[..., 0, :],

@@ -110,6 +110,21 @@ def default_disturbance(motion: Motion) -> MagDisturbance:
     return MagDisturbance(t0=t0, t1=t1, position=tuple(float(v) for v in pos))
 
 
+def magnet_near(motion: Motion, imu: int, t0: float, t1: float,
+                offset: tuple[float, float, float] = (0.1, 0.15, 0.0), strength: float = 60.0,
+                direction: tuple[float, float, float] = (0.0, 1.0, 0.0),
+                radius: float = 0.2) -> MagDisturbance:
+    """A magnet standing still from ``t0`` to ``t1`` s at ``offset`` (m, world NED) from where
+    IMU ``imu`` is at ``t0``: ``strength`` (earth's field = 100) along ``direction`` (world),
+    falling off over ``radius`` m (:class:`MagDisturbance`). :func:`default_disturbance` is
+    ``magnet_near(motion, 5, <elbow flexion>, <arms relaxed>)``."""
+    k = min(max(int(t0 / DT), 0), len(motion.t) - 1)
+    pos = motion.imu_pos[k, imu] + np.asarray(offset, dtype=np.float64)
+    return MagDisturbance(t0=t0, t1=t1, position=tuple(float(v) for v in pos),
+                          strength=strength, radius=radius,
+                          direction=tuple(float(v) for v in direction))
+
+
 def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance: bool = False,
              mounting_errors: bool = True, noise: bool = True, error_rate: float = 0.0,
              calibration: CalibrationTable | None = None,

@@ -108,10 +108,10 @@ register_column_group(ColumnGroup(
     description="1 where the state guard re-initialised IMU i's filter at that frame"))
 register_column_group(ColumnGroup(
     "mag_disturbed", _imu_names(["mag_disturbed"]), (N_IMUS,), fmt=FLAG_FMT,
-    description="1 where IMU i's magnetometer is disturbed (field norm or dip off)"))
+    description="1 where IMU i's magnetometer is disturbed (field off the earth's or turned)"))
 register_column_group(ColumnGroup(
     "acc_disturbed", _imu_names(["acc_disturbed"]), (N_IMUS,), fmt=FLAG_FMT,
-    description="1 where IMU i's acceleration has been far from gravity for long"))
+    description="1 where IMU i accelerates (over 0.2 g RMS)"))
 register_column_group(ColumnGroup(
     "gyro_bias", _imu_names([f"gyro_bias_{a}_rad_s" for a in "xyz"]), (N_IMUS, 3),
     description="gyro-bias estimate of IMU i, rad/s, sensor (filter-frame) axes x, y, z"))
