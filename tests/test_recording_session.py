@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import signal
 import socket
 import struct
 import subprocess
@@ -56,7 +57,7 @@ class _Recorder:
     def __init__(self, out: Path) -> None:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "bpms", "record", "--sim", "--filtered", "--start-at",
-             str(START_AT), "-o", str(out), "--name", "field", "--seconds", "14"],
+             str(START_AT), "-o", str(out), "--name", "field", "--seconds", "60"],
             cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
             text=True, bufsize=1)
         self.lines: list[str] = []
@@ -90,6 +91,8 @@ def field(tmp_path_factory):
     rec.type_at(10.6, "v")
     rec.type_at(11.6, "v")
     rec.type_at(12.4, "m arm coming down")
+    assert wait_until(lambda: any("arm coming down" in ln for ln in rec.lines), 20)
+    rec.proc.send_signal(signal.SIGINT)  # Ctrl-C: the files close cleanly
     rec.proc.wait(60)
     err = rec.proc.stderr.read()
     assert rec.proc.returncode == 0, err
@@ -312,7 +315,7 @@ def test_damaged_copies_keep_every_slot_and_every_other_event(field, api, case, 
     err = capsys.readouterr().err
     assert ("damaged" in err or "inserted" in err) and "warning" in err
     rows = read_filtered(out)
-    np.testing.assert_array_equal(rows.t, np.arange(len(rec)) * 0.02)
+    np.testing.assert_allclose(rows.t, np.arange(len(rec)) * 0.02, rtol=0, atol=1e-9)
     np.testing.assert_allclose(rows.host_time, rec.times, rtol=0, atol=1e-6)
     again = process_file(damaged)
     want = [(z.source, z.frame) for z in api.zeros]
