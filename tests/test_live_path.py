@@ -17,8 +17,9 @@ from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.frames import FRAME_SIZE
 from bpms.io.rawfile import read_raw
+from bpms.pipeline.filtered_log import FILTERED_BATCH
 from bpms.pipeline.handoff import Handoff
-from bpms.pipeline.session import FILTERED_BATCH, LiveSession
+from bpms.pipeline.session import LiveSession
 
 
 def test_handoff_is_bounded_and_a_waiting_producer_gets_room():

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
 import logging
 import queue
 import sys
@@ -31,8 +30,6 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
-
-import numpy as np
 
 from bpms.io.events import FrameEvent, FrameSource
 from bpms.io.filtered_file.writer import FilteredWriter
@@ -46,13 +43,11 @@ from bpms.io.udp.auth import shared_key
 from bpms.io.udp.sender import UdpForwarder
 from bpms.pipeline.events import SessionEvents
 from bpms.pipeline.fanout import Fanout, Subscription
+from bpms.pipeline.filtered_log import FilteredLog
 from bpms.pipeline.handoff import Handoff
 from bpms.pipeline.health import (
     MAX_BACKLOG_FRAMES,
-    Hole,
     PipelineHealth,
-    write_trailing_holes,
-    write_with_holes,
 )
 from bpms.pipeline.pose_stream import ZeroForwarding, forward_poses
 from bpms.pipeline.rate import RateMeter
@@ -64,13 +59,9 @@ from bpms.pipeline.steady import prepare_live_path
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
     from bpms.filter.processor import BodyPoseProcessor
-    from bpms.filter.result import Result
 
 log = logging.getLogger(__name__)
 _STOP = object()
-#: Processed frames queued before they are written to the filtered file (0.2 s at 50 Hz; the
-#: file is flushed once per flush interval anyway).
-FILTERED_BATCH = 10
 
 
 class LiveSession:
@@ -108,7 +99,6 @@ class LiveSession:
         self._fanout: Fanout[PoseSample] = Fanout()
         self._proc_queue: Handoff[FrameEvent | object] = Handoff(max_backlog)
         self.health = PipelineHealth()
-        self._holes: list = []  # holes after the last processed frame, not yet written
         self._commands: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -124,12 +114,8 @@ class LiveSession:
         self._own_zero = False  # the user pressed Reset Zero: a sender's zero is not followed
         self._zero_forwarding = ZeroForwarding()
         self._raw_logger: RawLogger | None = None
-        self._filtered: FilteredWriter | None = None
-        self._filtered_raw: RawLogger | None = None  # the raw recording made beside it
-        self._filtered_flushed = 0.0
-        # processed rows not yet written: (their frame events, their Result)
-        self._pending: list[tuple[list[FrameEvent], Result]] = []
-        self._pending_frames = 0
+        self._filtered = FilteredLog(self.health, lambda: self.processor.options.filter.dt,
+                                     self.options.logging.flush_interval_s, self.note)
         self._recording: RecordingStatus | None = None
         self._forwarder: UdpForwarder | None = None
 
@@ -257,7 +243,7 @@ class LiveSession:
             else:
                 status.filtered_path = filtered_path
                 beside = self._raw_logger
-                self._commands.put(lambda: self._open_filtered(writer, beside))
+                self._commands.put(lambda: self._filtered.open(writer, beside))
         self._recording = status
         self.events.emit(SessionEvent("logging", data={
             "action": "start", "raw": raw_path.name if raw else None,
@@ -296,18 +282,10 @@ class LiveSession:
         done = threading.Event()
 
         def close_filtered() -> None:
-            if self._filtered is not None:
-                self._write_filtered()
-            writer, self._filtered = self._filtered, None
-            self._pending, self._pending_frames = [], 0
-            if writer is not None:
-                holes, self._holes = self._take_holes(), []
-                try:
-                    self.health.holes_marked += write_trailing_holes(
-                        writer, holes, self.processor.options.filter.dt)
-                finally:
-                    writer.close()
-            done.set()
+            try:
+                self._filtered.close(status)
+            finally:
+                done.set()
 
         if self.running:
             self._commands.put(close_filtered)
@@ -411,8 +389,8 @@ class LiveSession:
                 first = self._proc_queue.get(timeout=0.1)
             except queue.Empty:
                 self._run_commands()
-                if self._pending:  # the source went quiet: write what is waiting
-                    self._write_filtered()
+                if self._filtered.pending:  # the source went quiet: write what is waiting
+                    self._filtered.write(self._recording)
                 if self._stop.is_set():
                     break
                 continue
@@ -510,7 +488,8 @@ class LiveSession:
                 del self._latencies[:-2500]
         for sample in samples:
             self._fanout.publish(sample)
-        self._log_filtered(events, result)  # after the pose went out: off the latency path
+        # after the pose went out: off the latency path
+        self._filtered.log(events, result, self._recording)
 
     def _note_zero_wait(self, index: int) -> None:
         """The automatic Reset Zero waits for a still pose: said once, with the motion."""
@@ -535,99 +514,6 @@ class LiveSession:
                       f"{', '.join(map(str, sorted(self._reinit_imus)))}; {total} so far")
             self._reinit_noted = now
             self._reinit_imus.clear()
-
-    def _log_filtered(self, events: list[FrameEvent], result) -> None:
-        """Queue the processed rows for the filtered file; they are written every
-        :data:`FILTERED_BATCH` frames (and when the source goes quiet or logging stops), so
-        the per-write work is paid once per batch instead of once per frame."""
-        writer = self._filtered
-        if writer is None:
-            self._holes = []
-            self.health.take_holes()
-            return
-        self._pending.append((events, result))
-        self._pending_frames += len(events)
-        if self._pending_frames >= FILTERED_BATCH:
-            self._write_filtered()
-
-    def _write_filtered(self) -> None:
-        """Write the queued rows and a marked row for every frame that skipped processing,
-        in frame order (:mod:`bpms.pipeline.health`)."""
-        pending, self._pending, self._pending_frames = self._pending, [], 0
-        writer = self._filtered
-        holes = self._take_holes()
-        if writer is None or not pending:
-            self._holes = holes if writer is not None else []
-            return
-        events = [e for batch, _ in pending for e in batch]
-        indices = np.array([e.index for e in events], dtype=np.int64)
-        host_times = np.array([e.host_time for e in events])
-        # the rows' numbers computed once for the whole batch (the same functions as per frame)
-        concat, filtered_arrays = _filtered_rows()
-        arrays = filtered_arrays(concat([r for _, r in pending]), writer.groups)
-        origin = self._filtered_origin()
-        if origin:  # rows on the raw file's clock: slot × dt; frames before it are not in it
-            keep = indices >= origin
-            if not keep.all():
-                indices, host_times = indices[keep], host_times[keep]
-                arrays = {g: v[keep] for g, v in arrays.items()}
-            indices = indices - origin
-            if not len(indices):
-                self._holes = holes
-                return
-        try:
-            if self._recording is not None and self._recording.filtered_stopped:
-                raise OSError(self._recording.filtered_stopped)  # the raw file goes first
-            rows, marked, self._holes = write_with_holes(
-                writer, indices, host_times, arrays, holes, self.processor.options.filter.dt)
-            self.health.holes_marked += marked
-            if self._recording is not None:
-                self._recording.filtered_rows += rows
-            now = time.monotonic()
-            if now - self._filtered_flushed >= self.options.logging.flush_interval_s:
-                writer.flush()
-                self._filtered_flushed = now
-        except OSError as exc:
-            self._filtered = None
-            with contextlib.suppress(OSError):
-                writer.close()
-            self.note(f"filtered recording stopped: {exc}")
-
-
-    def _open_filtered(self, writer: FilteredWriter, raw: RawLogger | None) -> None:
-        self._filtered, self._filtered_raw = writer, raw
-
-    def _take_holes(self) -> list[Hole]:
-        """The holes waiting to be written: those kept from the last block and the new ones,
-        on the filtered file's clock (:meth:`_filtered_origin`)."""
-        origin = self._filtered_origin()
-        new = self.health.take_holes()
-        if origin:
-            new = [Hole(h.index - origin, h.host_time) for h in new if h.index >= origin]
-        return [*self._holes, *new]
-
-    def _filtered_origin(self) -> int:
-        """The source frame index of the raw recording's slot 0, when a raw recording is made
-        beside the filtered one (its rows then count from the raw file's first frame, as
-        ``bpms filter`` and replay of that file do); 0 without one (a played recording's
-        slots, a UDP sender's frame numbers). Before the raw file's first frame: a frame
-        index above every one processed (those frames are not in the recording)."""
-        logger = self._filtered_raw
-        if logger is None:
-            return 0
-        first = logger.first_index
-        return (1 << 62) if first is None else first
-
-
-@functools.cache
-def _filtered_rows() -> tuple[Callable, Callable]:
-    """(:meth:`bpms.filter.result.Result.concat`, :func:`bpms.filter.door.filtered_arrays`),
-    imported at the first filtered row (the filter layer is loaded with the processor, not
-    with the GUI's start-up window)."""
-    from bpms.filter.door import filtered_arrays
-    from bpms.filter.result import Result
-
-    return Result.concat, filtered_arrays
 
 
 def _options_dict(options: Options) -> dict:
