@@ -61,9 +61,10 @@ if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with t
 
 log = logging.getLogger(__name__)
 _STOP = object()
-#: Processed frames queued before they are written to the filtered file (0.2 s at 50 Hz; the
-#: file is flushed once per flush interval anyway).
-FILTERED_BATCH = 10
+#: Processed frames queued before they are written to the filtered file (1 s at 50 Hz, the
+#: flush interval's default): the rows' numbers and their text are made once per batch, whose
+#: fixed cost would otherwise be a large part of each frame's.
+FILTERED_BATCH = 50
 
 
 class LiveSession:
