@@ -144,3 +144,24 @@ def test_ctrl_and_shift_click_select_several_cells(qtbot):
     assert table.selected_cells() == [(0, 13), (3, 0), (4, 0), (5, 0)]
     click(8, 3, Qt.KeyboardModifier.ControlModifier)  # error flags: not plottable
     assert (8, 3) not in table.selected_cells()
+
+
+def test_a_flag_shows_its_kind_since_when_and_how_strong(qtbot):
+    # the strengths as the detector gives them (bpms.filter.disturbance): the field 35 % of the
+    # earth's away from it with a 14° heading error, 0.3 g of linear acceleration
+    model = ImuTableModel(SensorCalibration.from_table(load_factory_calibration()))
+    base = _sample()
+    up = np.zeros(18, bool)
+    up[5] = True
+    strength = np.zeros(18)
+    strength[5] = 0.35
+    heading = np.full(18, 14.0)
+    lin = np.full(18, 0.3)
+    for k in (0, 600):  # 12 s later: 601 frames up
+        model.update(PoseSample(base.index + k, 0.0, b"", base.raw, base.errors, base.euler,
+                                mag_disturbed=up, acc_disturbed=up, mag_strength=strength,
+                                mag_heading_deg=heading, acc_strength=lin))
+    assert model.data(model.index(5, DISTURBANCE_COLUMN)) == "mag 12 s 35 %, acc 12 s 0.3 g"
+    tip = model.data(model.index(5, DISTURBANCE_COLUMN), Qt.ItemDataRole.ToolTipRole)
+    assert "35 % of the earth's field" in tip and "14°" in tip and "0.3 g RMS" in tip
+    assert model.data(model.index(4, DISTURBANCE_COLUMN)) == ""

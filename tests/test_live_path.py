@@ -70,7 +70,7 @@ class BurstThenQuiet:
 
 @pytest.mark.parametrize("n", [3, 2 * FILTERED_BATCH + 3])
 def test_rows_reach_the_filtered_file_when_the_source_goes_quiet(tmp_path, n):
-    rec = simulate(duration_s=1.0, seed=5)
+    rec = simulate(duration_s=n / 50 + 1.0, seed=5)
     frames = rec.frames[:n * FRAME_SIZE]
     session = LiveSession(BurstThenQuiet(frames), recording_dir=tmp_path)
     status = session.start_logging(raw=True, filtered=True, name="quiet")

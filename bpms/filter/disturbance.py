@@ -49,7 +49,9 @@ N_FLAG_PARAMS = 16
  F_LEARN_T, F_REF_NORM, F_REF_DIP, F_READY, F_NORM_LP, F_DIP_LP, F_ACC_MEAN, F_ACC_MS,
  F_DEV_LP, F_HEAD_LP, F_MAG_UP, F_ACC_UP, F_MAG_FLAG, F_OK_T, F_M0, F_M1, F_M2) = range(31)
 N_FLAG_STATE = 31
-#: Columns of the detector's value output ``[N, n, N_VALUES]``.
+#: Degrees per radian (the detector's value output gives its angles in degrees).
+DEG = 180.0 / math.pi
+#: Columns of the detector's value output ``[N, n, N_VALUES]`` (angles in degrees).
 (V_NORM_RATIO, V_DIP_DEV, V_ACC_MEAN, V_MAG_DEV, V_MAG_HEADING, V_ACC_LIN, V_MAG_UP,
  V_ACC_UP) = range(8)
 N_VALUES = 8
@@ -111,10 +113,10 @@ def _hold(s, t, i, acc_th, flags, values):
     flags[t, i, 0] = s[F_MAG_FLAG] > 0.0
     flags[t, i, 1] = math.sqrt(s[F_ACC_MS]) > acc_th
     values[t, i, V_NORM_RATIO] = s[F_NORM_LP] - 1.0 if ready else np.nan
-    values[t, i, V_DIP_DEV] = s[F_DIP_LP] - s[F_REF_DIP] if ready else np.nan
+    values[t, i, V_DIP_DEV] = (s[F_DIP_LP] - s[F_REF_DIP]) * DEG if ready else np.nan
     values[t, i, V_ACC_MEAN] = s[F_ACC_MEAN]
     values[t, i, V_MAG_DEV] = s[F_DEV_LP] if ready else np.nan
-    values[t, i, V_MAG_HEADING] = s[F_HEAD_LP] if ready else np.nan
+    values[t, i, V_MAG_HEADING] = s[F_HEAD_LP] * DEG if ready else np.nan
     values[t, i, V_ACC_LIN] = math.sqrt(s[F_ACC_MS])
     values[t, i, V_MAG_UP] = s[F_MAG_UP]
     values[t, i, V_ACC_UP] = s[F_ACC_UP]
@@ -340,22 +342,22 @@ class DisturbanceTracker:
         self.settings = settings or DisturbanceSettings()
         self.params = self.settings.params(dt)
         self.state = np.zeros((self.n, N_FLAG_STATE))
-        #: ``[n]`` running totals of flagged frames since the last reset
-        self.mag_count = np.zeros(self.n, np.int64)
-        self.acc_count = np.zeros(self.n, np.int64)
+        self._counts = np.zeros((self.n, 2), np.int64)  # flagged frames: mag, acc
+
+    @property
+    def mag_count(self) -> np.ndarray:
+        """``[n]`` frames with the magnetometer flag up since the last reset."""
+        return self._counts[:, 0]
+
+    @property
+    def acc_count(self) -> np.ndarray:
+        """``[n]`` frames with the acceleration flag up since the last reset."""
+        return self._counts[:, 1]
 
     def reset(self) -> None:
         """Forget everything learnt (a new stream)."""
         self.state[:] = 0.0
-        self.mag_count[:] = 0
-        self.acc_count[:] = 0
-
-    def realign(self, imus: np.ndarray) -> None:
-        """Align ``imus`` (``[n]`` bool) anew at their next valid frame: ĝ from the
-        accelerometer, ĥ from the field (what was learnt at rest is kept). The processor does
-        it where the state guard re-initialises a filter: the reading that broke the filter's
-        state turned these directions too."""
-        self.state[np.asarray(imus, dtype=np.bool_), F_INIT] = 0.0
+        self._counts[:] = 0
 
     @property
     def ready(self) -> np.ndarray:
@@ -371,20 +373,20 @@ class DisturbanceTracker:
                errors: np.ndarray | None = None) -> Disturbance:
         """Flags of N frames: ``[N, n, 3]`` calibrated inputs (units: :func:`run_disturbance`),
         errors ``[N, n, 3]`` failed-sensor flags (accel, mag, gyro) or None."""
-        acc, mag, gyr = (np.ascontiguousarray(v, dtype=np.float64) for v in (acc, mag, gyr))
+        acc = np.ascontiguousarray(acc, dtype=np.float64)
+        mag = np.ascontiguousarray(mag, dtype=np.float64)
+        gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         N = acc.shape[0]
         valid = (np.ones((N, self.n, 3), np.bool_) if errors is None
                  else np.ascontiguousarray(~np.asarray(errors, dtype=np.bool_)))
         flags = np.zeros((N, self.n, 2), np.bool_)
         values = np.empty((N, self.n, N_VALUES))
         run_disturbance(acc, mag, gyr, self.gravity, valid, self.params, self.state, flags, values)
-        v = np.moveaxis(values, -1, 0)
-        out = Disturbance(flags[..., 0], flags[..., 1], v[V_MAG_DEV], np.degrees(v[V_MAG_HEADING]),
-                    v[V_ACC_LIN], v[V_MAG_UP], v[V_ACC_UP], v[V_NORM_RATIO],
-                    np.degrees(v[V_DIP_DEV]), v[V_ACC_MEAN])
-        self.mag_count += out.mag_count
-        self.acc_count += out.acc_count
-        return out
+        self._counts += flags.sum(axis=0)
+        v = values.transpose(2, 0, 1)
+        return Disturbance(flags[..., 0], flags[..., 1], v[V_MAG_DEV], v[V_MAG_HEADING],
+                           v[V_ACC_LIN], v[V_MAG_UP], v[V_ACC_UP], v[V_NORM_RATIO],
+                           v[V_DIP_DEV], v[V_ACC_MEAN])
 
 
 __all__ = ["Disturbance", "DisturbanceSettings", "DisturbanceTracker", "run_disturbance"]

@@ -200,6 +200,16 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
     to rewind)."""
     n_frames = len(acc)
     c4 = renorm_allowance(bank)
+    if n_frames == 1:  # a live frame: nothing to rewind, no parts to join
+        out = bank.process(acc, mag, gyr, errors, **bank_options)
+        bad, seen = check_rotations(out.R, gyr, c4, guard.expected)
+        if not bad.any():
+            guard.expected[:] = seen
+        else:  # as the loop below at k = 0
+            _mark(out, np.array([0]), bad[0])
+            guard.accept(out.R)
+            _reinit(bank, guard, bad[0])
+        return out, bad
     flags = np.zeros((n_frames, guard.n), dtype=np.bool_)
     parts: list[BankOutput] = []
     pos, chunk = 0, max(n_frames, 1)

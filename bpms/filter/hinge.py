@@ -257,7 +257,9 @@ class HingeConstraint:
         ``[N, 18, 3, 3]``, gyr ``[N, 18, 3]`` rad/s, the flags' mag ``[N, 18]`` bool and
         mag_heading_deg ``[N, 18]``)."""
         out = np.zeros(np.shape(R)[:2])
-        run_hinges(*(np.ascontiguousarray(v, dtype=np.float64) for v in (R, C, gyr)),
+        run_hinges(np.ascontiguousarray(R, dtype=np.float64),
+                   np.ascontiguousarray(C, dtype=np.float64),
+                   np.ascontiguousarray(gyr, dtype=np.float64),
                    np.ascontiguousarray(mag_flag, dtype=np.bool_),
                    np.ascontiguousarray(np.radians(mag_heading_deg), dtype=np.float64),
                    HINGES, self.params, self.state.hinges, self.state.sigma, out)

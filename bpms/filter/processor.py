@@ -69,7 +69,7 @@ from bpms.filter.hinge import HingeConstraint, vertical_turn
 from bpms.filter.pose import PoseCalibrator, zero_values
 from bpms.filter.result import Result
 from bpms.filter.rotations import dcm_to_euler
-from bpms.filter.warmup import ensure_kernels
+from bpms.filter.warmup import ensure_kernels, kernels_ready
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
 from bpms.io.options import Options, check_option, load_options
@@ -319,7 +319,8 @@ class BodyPoseProcessor:
         raw = np.asarray(raw)
         if raw.ndim != 3 or raw.shape[1:] != (N_IMUS, N_CHANNELS):
             raise ValueError(f"raw must be [N, {N_IMUS}, {N_CHANNELS}], got {raw.shape}")
-        ensure_kernels(self.options.filter.algorithm)  # a set lookup once they are loaded
+        if not kernels_ready(self.options.filter.algorithm):  # once per process and filter
+            ensure_kernels(self.options.filter.algorithm)
         acc, mag, gyr = self.sensor_calibration.calibrate(raw)
         if errors is not None:
             errors = np.asarray(errors, dtype=np.bool_)
@@ -335,8 +336,6 @@ class BodyPoseProcessor:
             terms = {}
         out, reinitialised = guarded_process(self.bank, self.guard, acc, mag, gyr, errors,
                                              **terms)
-        if reinitialised.any():  # what broke a filter's state turned the flags' directions too
-            self.disturbance.realign(reinitialised.any(axis=0))
         before = len(self.pose.captures)
         C = self.pose.apply(out.R)
         R, euler, C = self._hinge(out.R, out.euler, C, gyr, disturbance)

@@ -63,7 +63,7 @@ _ROLL_YAW = {k for k, c in enumerate(COLUMNS) if c.group == "euler" and c.k in (
 #: angles pass ±180°, accelerations reach ±16 g, raw counts ±32768, hours-long flags).
 WIDEST = {"euler": ("-9999.99", "-99.999"), "raw": ("-32768",), "cal": ("-156.906",),
           "est": ("-156.9060",), "errors": ("accel mag gyro",),
-          "disturbance": ("mag 59 min, acc 59 min",)}
+          "disturbance": ("mag 59 min 999 %, acc 59 min 9.9 g",)}
 
 
 class ImuTableModel(QAbstractTableModel):
@@ -116,7 +116,9 @@ class ImuTableModel(QAbstractTableModel):
                     else sample.estimates)
         self.mag_disturbed = none if sample.mag_disturbed is None else sample.mag_disturbed
         self.acc_disturbed = none if sample.acc_disturbed is None else sample.acc_disturbed
-        self.flag_ages.update(sample.index, self.mag_disturbed, self.acc_disturbed)
+        self.flag_ages.update(sample.index, self.mag_disturbed, self.acc_disturbed,
+                              sample.mag_strength, sample.mag_heading_deg,
+                              sample.acc_strength)
         self.errors = self.error_until > now
         self.has_data = True
         self._format()

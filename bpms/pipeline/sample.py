@@ -45,8 +45,11 @@ class PoseSample:
     ``time.perf_counter()`` when the host took the frame in; euler_output ``[18, 3]``: the
     per-IMU angles to show / write / stream (segment angles after Reset Zero when the
     corrected output is on, else = ``euler``); reinitialised ``[18]`` bool: the state guard
-    re-initialised that IMU in this frame; mag_disturbed / acc_disturbed ``[18]`` bool
-    (:mod:`bpms.filter.disturbance`); estimates ``[18, 6]``: gyro bias x, y, z (rad/s, sensor
+    re-initialised that IMU in this frame; mag_disturbed / acc_disturbed ``[18]`` bool and
+    their strengths (:mod:`bpms.filter.disturbance`): mag_strength ``[18]`` the field's
+    distance from the earth's as a fraction of it, mag_heading_deg ``[18]`` ° the heading error
+    a filter trusting it would take, acc_strength ``[18]`` g RMS linear acceleration;
+    estimates ``[18, 6]``: gyro bias x, y, z (rad/s, sensor
     axes) and body acceleration north, east, down (m/s²), NaN where the filter has none.
 
     The session's samples are rows of the processed batch's Result (``result``, row ``k``):
@@ -76,6 +79,9 @@ class PoseSample:
     reinitialised = _Row("reinitialised")
     mag_disturbed = _Row("disturbance", "mag")
     acc_disturbed = _Row("disturbance", "acc")
+    mag_strength = _Row("disturbance", "mag_dev")
+    mag_heading_deg = _Row("disturbance", "mag_heading_deg")
+    acc_strength = _Row("disturbance", "acc_lin_g")
     estimates = _Row("estimates")
 
     def __init__(self, index: int, host_time: float, frame: bytes, raw: np.ndarray,
@@ -88,13 +94,17 @@ class PoseSample:
                  mag_disturbed: np.ndarray | None = None,
                  acc_disturbed: np.ndarray | None = None,
                  estimates: np.ndarray | None = None, *, result: Result | None = None,
-                 k: int = 0) -> None:
+                 k: int = 0, mag_strength: np.ndarray | None = None,
+                 mag_heading_deg: np.ndarray | None = None,
+                 acc_strength: np.ndarray | None = None) -> None:
         self.index, self.host_time, self.frame = index, host_time, frame
         self.raw, self.errors, self.latency_s, self.arrival = raw, errors, latency_s, arrival
         given = {"euler": euler, "R": R, "C": C, "joint_angles": joint_angles,
                  "joint_positions": joint_positions, "euler_output": euler_output,
                  "reinitialised": reinitialised, "mag_disturbed": mag_disturbed,
-                 "acc_disturbed": acc_disturbed, "estimates": estimates}
+                 "acc_disturbed": acc_disturbed, "estimates": estimates,
+                 "mag_strength": mag_strength, "mag_heading_deg": mag_heading_deg,
+                 "acc_strength": acc_strength}
         self._given = {name: value for name, value in given.items() if value is not None}
         self._result, self._k = result, k
 
