@@ -33,8 +33,8 @@ def test_frame_by_frame_equals_one_batch(hard, algorithm):
     if algorithm == "mahony":
         assert batch.reinit_count.sum() >= 1  # the guard had something to do
     assert batch.disturbance.mag.any()  # and the detector
-    for name in ("R", "C", "euler_output", "joint_angles", "joint_positions", "reinitialised",
-                 "corrected", "estimates"):
+    for name in ("R", "euler", "C", "euler_output", "joint_angles", "joint_positions",
+                 "reinitialised", "corrected", "estimates"):
         one_by_one = np.concatenate([getattr(r, name) for r in frames])
         np.testing.assert_array_equal(one_by_one, getattr(batch, name), err_msg=name)
     for name in ("mag", "acc", "mag_dev", "mag_heading_deg"):

@@ -80,3 +80,30 @@ def test_bpms_warmup_command_says_the_filters_are_ready():
     assert done.returncode == 0, done.stderr
     assert done.stderr.strip().splitlines()[-1].startswith("bpms warmup: the filters (mahony)")
     assert "\r" not in done.stderr
+
+
+LIVE_PATH_COMPILES = """
+import sys
+from numba.core import event
+from bpms.filter.warmup import ensure_kernels
+from bpms.filter.processor import BodyPoseProcessor
+from bpms.pipeline.steady import warm_up
+
+ensure_kernels(sys.argv[1])  # what 'bpms warmup --filter NAME' and a live session do first
+processor = BodyPoseProcessor()
+processor.select_filter(sys.argv[1])
+with event.install_recorder("numba:compile") as compiles:
+    warm_up(processor)  # every call of the live path: batch, wire frames, Reset Zero, joints
+print(len(compiles.buffer))
+"""
+
+
+def test_after_the_warm_up_nothing_on_the_live_path_compiles(tmp_path):
+    # a fresh numba cache, as on a machine that never ran BPMS Suite: whatever the warm-up
+    # leaves out is compiled while a live session waits for its first frame
+    env = {**__import__("os").environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    for algorithm in ("mahony", "adaptive"):
+        done = subprocess.run([sys.executable, "-c", LIVE_PATH_COMPILES, algorithm], cwd=ROOT,
+                              env=env, capture_output=True, text=True, timeout=900)
+        assert done.returncode == 0, done.stderr[-3000:]
+        assert done.stdout.split()[-1] == "0", (algorithm, done.stdout)

@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
         filtered_layout,
         heading_header,
     )
+    from bpms.io.background import InBackground
     from bpms.io.filtered_file.writer import FilteredWriter, default_output_path
 
     t_start = time.perf_counter()
@@ -79,22 +80,29 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{args.raw_file}: is a filtered file already; give a raw recording")
     n = 0
     writer = None
+
+    def write(chunk) -> None:  # in the background: a chunk's rows while the next is filtered
+        res = chunk.result
+        writer.write_block(res.t, host_time=chunk.host_time, hole=chunk.hole,
+                           **filtered_arrays(res, writer.groups))
+
     try:
         if args.force:
             out_path.unlink(missing_ok=True)
-        for chunk in stream("filter", opened):
-            res = chunk.result
-            if writer is None:
-                groups, kind = filtered_layout(res, args.joints, getattr(args, "flags", True),
-                                               getattr(args, "estimates", False))
-                writer = FilteredWriter(out_path, degrees=args.degrees, groups=groups,
-                                        euler=kind, convention=filtered_convention(
-                                            res.convention),
-                                        meta={"source": Path(args.raw_file).name,
-                                              **heading_header(opened.processor.options)})
-            writer.write_block(res.t, host_time=chunk.host_time, hole=chunk.hole,
-                               **filtered_arrays(res, writer.groups))
-            n += len(res)
+        with InBackground(name="bpms-filtered-rows") as later:
+            for chunk in stream("filter", opened):
+                res = chunk.result
+                if writer is None:
+                    groups, kind = filtered_layout(res, args.joints,
+                                                   getattr(args, "flags", True),
+                                                   getattr(args, "estimates", False))
+                    writer = FilteredWriter(out_path, degrees=args.degrees, groups=groups,
+                                            euler=kind, convention=filtered_convention(
+                                                res.convention),
+                                            meta={"source": Path(args.raw_file).name,
+                                                  **heading_header(opened.processor.options)})
+                later.submit(write, chunk)
+                n += len(res)
     except OSError as exc:
         raise CliError(f"cannot write {out_path}: {exc.strerror or exc}") from exc
     finally:

@@ -122,7 +122,7 @@ def _hold(s, t, i, acc_th, flags, values):
     values[t, i, V_ACC_UP] = s[F_ACC_UP]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
     """N frames × n IMUs. acc ``[N, n, 3]`` (``gravity[n]`` units per g, pointing down),
     mag ``[N, n, 3]`` any unit, gyr ``[N, n, 3]`` rad/s; valid ``[N, n, 3]`` bool per sensor

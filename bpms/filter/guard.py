@@ -53,7 +53,7 @@ def so3_error(R: np.ndarray) -> np.ndarray:
         return np.sqrt(((gram - np.eye(3)) ** 2).sum(axis=(-1, -2)))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _check(R, gyr, c4, tol, expected, bad, seen):
     """The loop of :func:`check_rotations` (``gyr`` may be ``[0, n, 3]``: no allowance)."""
     use_rate = c4 > 0.0 and gyr.shape[0] > 0

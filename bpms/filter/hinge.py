@@ -145,18 +145,32 @@ def _world_xy(R, t, i, s, col):
 
 
 @numba.njit(cache=True)
-def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn):
+def _turn_about_vertical(M, t, i, angle):
+    """``M[t, i] ← Rz(angle) · M[t, i]`` (NED z: the first two rows mix)."""
+    c, s = math.cos(angle), math.sin(angle)
+    for b in range(3):
+        x, y = M[t, i, 0, b], M[t, i, 1, b]
+        M[t, i, 0, b] = c * x - s * y
+        M[t, i, 1, b] = s * x + c * y
+
+
+@numba.njit(cache=True, nogil=True)
+def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn, euler, apply):
     """N frames: R ``[N, n, 3, 3]`` sensor → NED, C ``[N, n, 3, 3]`` segment orientations
     (Reset Zero; only their first finite frame is used, for the starting axis), gyr
     ``[N, n, 3]`` rad/s sensor axes, mag_flag ``[N, n]`` bool and mag_heading ``[N, n]`` rad
     (:class:`bpms.filter.disturbance.Disturbance` ``mag``, ``mag_heading_deg``), hinges
     ``[h, 2]`` (proximal, distal), p (:meth:`HingeSettings.params`), state hs
     ``[h, N_HINGE_STATE]`` / sigma ``[n]`` updated in place. Writes turn ``[N, n]`` rad: the
-    rotation about the world vertical (NED z) to apply to each segment (0 elsewhere)."""
+    rotation about the world vertical (NED z) to apply to each segment (0 elsewhere); with
+    ``apply``, also turns R and C of those segments and writes their Euler angles
+    ``euler[N, n, 3]`` (roll, pitch, yaw rad) anew, in place, frame by frame (a frame's turn
+    depends only on that frame's and earlier attitudes)."""
     tau, recover, dt, prior, min_rate = p[0], p[1], p[2], p[3], p[4]
     follow, drift, floor, clean = p[5], p[6], p[7], p[8]
     k = 1.0 - math.exp(-dt / tau)
     decay = math.exp(-dt / recover) if recover > 0.0 else 0.0
+    q = np.empty((3, 3))
     for t in range(R.shape[0]):
         for i in range(R.shape[1]):
             turn[t, i] = 0.0
@@ -196,7 +210,6 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn):
                 s[H_BASE] = 0.0
                 s[H_INIT] = 1.0
             # Q = R_pᵀ R_d: distal sensor axes → proximal sensor axes
-            q = np.empty((3, 3))
             for a in range(3):
                 for b in range(3):
                     q[a, b] = (R[t, ip, 0, a] * R[t, id_, 0, b] + R[t, ip, 1, a] * R[t, id_, 1, b]
@@ -233,6 +246,15 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn):
             e = math.atan2(math.sin(e), math.cos(e)) / (vp + vd + floor * floor)
             turn[t, id_] += e * vd
             turn[t, ip] -= e * vp
+        if apply:
+            for i in range(R.shape[1]):
+                if turn[t, i] != 0.0:
+                    _turn_about_vertical(R, t, i, turn[t, i])
+                    _turn_about_vertical(C, t, i, turn[t, i])
+                    r20 = min(1.0, max(-1.0, R[t, i, 2, 0]))
+                    euler[t, i, 0] = math.atan2(R[t, i, 2, 1], R[t, i, 2, 2])
+                    euler[t, i, 1] = -math.asin(r20)
+                    euler[t, i, 2] = math.atan2(R[t, i, 1, 0], R[t, i, 0, 0])
 
 
 class HingeConstraint:
@@ -255,21 +277,39 @@ class HingeConstraint:
               mag_heading_deg: np.ndarray) -> np.ndarray:
         """``[N, 18]`` rad: the turn about the vertical for each segment (R, C
         ``[N, 18, 3, 3]``, gyr ``[N, 18, 3]`` rad/s, the flags' mag ``[N, 18]`` bool and
-        mag_heading_deg ``[N, 18]``)."""
+        mag_heading_deg ``[N, 18]``); R and C are left as they are."""
+        return self._run(R, C, np.empty((0, 0, 3)), gyr, mag_flag, mag_heading_deg, False)
+
+    def apply_in_place(self, R: np.ndarray, C: np.ndarray, euler: np.ndarray,
+                       gyr: np.ndarray, mag_flag: np.ndarray, mag_heading_deg: np.ndarray
+                       ) -> np.ndarray:
+        """Turn the segments of ``R``, ``C`` (C-contiguous float64 ``[N, 18, 3, 3]``) by
+        :meth:`turns`, in place, and write the turned ones' ``euler[N, 18, 3]`` anew; the
+        turns."""
+        for a in (R, C, euler):
+            if a.dtype != np.float64 or not a.flags.c_contiguous or not a.flags.writeable:
+                raise ValueError("apply_in_place needs writeable C-contiguous float64 arrays")
+        return self._run(R, C, euler, gyr, mag_flag, mag_heading_deg, True)
+
+    def apply(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray,
+              mag_heading_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(R', C'): copies of sensor attitudes and segment orientations turned by
+        :meth:`turns`."""
+        R2 = np.array(R, dtype=np.float64)
+        C2 = np.array(C, dtype=np.float64)
+        self.apply_in_place(R2, C2, np.empty((*R2.shape[:2], 3)), gyr, mag_flag,
+                            mag_heading_deg)
+        return R2, C2
+
+    def _run(self, R, C, euler, gyr, mag_flag, mag_heading_deg, apply: bool) -> np.ndarray:
         out = np.zeros(np.shape(R)[:2])
         run_hinges(np.ascontiguousarray(R, dtype=np.float64),
                    np.ascontiguousarray(C, dtype=np.float64),
                    np.ascontiguousarray(gyr, dtype=np.float64),
                    np.ascontiguousarray(mag_flag, dtype=np.bool_),
                    np.ascontiguousarray(np.radians(mag_heading_deg), dtype=np.float64),
-                   HINGES, self.params, self.state.hinges, self.state.sigma, out)
+                   HINGES, self.params, self.state.hinges, self.state.sigma, out, euler, apply)
         return out
-
-    def apply(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray,
-              mag_heading_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(R', C'): sensor attitudes and segment orientations turned by :meth:`turns`."""
-        Rz = vertical_turn(self.turns(R, C, gyr, mag_flag, mag_heading_deg))
-        return Rz @ R, Rz @ C
 
 
 def vertical_turn(angle: np.ndarray) -> np.ndarray:

@@ -219,7 +219,7 @@ def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
                 out_wp[k, i, r] = w_p[i, r] if ok else nan
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_batch(acc, mag, gyr, errors, resets, params, gravity,
               R, w_i, w_p, euler, trig, initialised, held, seen, held_count,
               out_R, out_euler, out_wi, out_wp):

@@ -336,7 +336,7 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
                   mag_dist, gprev, rest, rest_b, trust[i] if use_trust else 1.0, R)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_batch(f, m, g, errors, resets, trust, params, q, bias, lp, acc_est, mag_state,
               mag_dist, gprev, rest, rest_b, initialised, held, held_count, R, out_R,
               out_euler, out_q, out_bias, out_acc, out_mag_dist):

@@ -65,10 +65,9 @@ from bpms.filter.bank import MahonyBank
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process
-from bpms.filter.hinge import HingeConstraint, vertical_turn
+from bpms.filter.hinge import HingeConstraint
 from bpms.filter.pose import PoseCalibrator, zero_values
 from bpms.filter.result import Result
-from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.warmup import ensure_kernels, kernels_ready
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
@@ -374,12 +373,9 @@ class BodyPoseProcessor:
             # observers coast on the gyro (a tenth of their gain, and their own rejection)
             rate = {"mahony": f.kp_yaw, "vqf": 1.0 / f.vqf_tau_mag_s}.get(f.algorithm, 0.0)
         self.hinge.set_follow_rate(rate)
-        turn = self.hinge.turns(R, C, gyr, flagged, deviation)
-        if not turn.any():
-            return R, euler, C
-        Rz = vertical_turn(turn)
-        R = Rz @ R
-        return R, dcm_to_euler(R), Rz @ C
+        # R, euler (the bank's) and C (Reset Zero's) are this batch's own arrays
+        self.hinge.apply_in_place(R, C, euler, gyr, flagged, deviation)
+        return R, euler, C
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``): :meth:`process` of a

@@ -1,7 +1,8 @@
 """The filters' compiled kernels, made ready before they are needed.
 
-The loops that carry state from frame to frame — each attitude filter's step and the
-disturbance indicators — are numba kernels (``numba.njit(cache=True)``). The first time on a
+The loops that carry state from frame to frame — each attitude filter's step, the state
+guard, the disturbance indicators and the knees' and elbows' heading constraint — are numba
+kernels (``numba.njit(cache=True)``). The first time on a
 machine (or after an update of numba or of the kernel's file) numba compiles them, which takes
 a few seconds; later runs load the compiled code from numba's on-disk cache in a fraction of a
 second. :func:`ensure_kernels` runs the kernels one filter needs once on a few synthetic
@@ -27,8 +28,8 @@ import numpy as np
 
 from bpms.io.frames import N_IMUS
 
-#: Every selectable filter (``vqf`` runs in the vqf package's own code; its warm-up only
-#: compiles the disturbance indicators' kernel).
+#: Every selectable filter (``vqf`` runs in the vqf package's own code; its warm-up
+#: compiles the disturbance indicators' and the hinge constraint's kernels).
 FILTERS = ("mahony", "observer", "adaptive", "vqf")
 #: Say something when getting the kernels ready takes longer than this, s.
 NOTICE_AFTER_S = 2.0
@@ -132,12 +133,14 @@ def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
 
 
 def _run_kernels(algorithm: str) -> None:
-    """Run ``algorithm``'s bank and the disturbance indicators on a few synthetic frames of a
-    still, level suit, with a failed magnetometer and a reset (the argument types are those of
-    every later call, so nothing compiles again)."""
+    """Run ``algorithm``'s bank, the state guard, the disturbance indicators and the hinge
+    constraint on a few synthetic frames of a still, level suit, with a failed magnetometer
+    and a reset (the argument types are those of every later call, so nothing compiles
+    again: tests/test_warmup.py watches numba's compile events on the live path)."""
     from bpms.filter.algorithms import make_bank
     from bpms.filter.disturbance import DisturbanceTracker
     from bpms.filter.guard import StateGuard, guarded_process
+    from bpms.filter.hinge import HingeConstraint
     from bpms.io.options import FilterOptions
 
     n = 4
@@ -156,4 +159,7 @@ def _run_kernels(algorithm: str) -> None:
         terms = {"store_terms": True} if algorithm == "mahony" else {}
         bank.process(acc, mag, gyr, errors, resets, **terms)
         guarded_process(bank, StateGuard(N_IMUS), acc, mag, gyr, errors, **terms)
-    DisturbanceTracker(gravity, 0.02).update(acc, mag, gyr, errors)
+    flags = DisturbanceTracker(gravity, 0.02).update(acc, mag, gyr, errors)
+    level = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, N_IMUS, 3, 3)))
+    HingeConstraint(0.02).apply_in_place(level.copy(), level.copy(), np.zeros((n, N_IMUS, 3)),
+                                         gyr, flags.mag, flags.mag_heading_deg)
