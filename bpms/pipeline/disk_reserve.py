@@ -41,19 +41,22 @@ class DiskReserve:
         self.free_bytes: int | None = None
         self.reason = ""
 
-    def low(self) -> bool:
-        """True once the free space has been seen below the reserve (then for good)."""
+    def low(self, about_to_write: float = 0.0) -> bool:
+        """True once the free space has been seen below the reserve (then for good).
+        ``about_to_write``: bytes a writer other than the raw file is about to take; with it,
+        the file system is asked now (not at the cadence) whether the reserve would still be
+        free after them."""
         if self.reason or self.reserve_bytes <= 0:
             return bool(self.reason)
         now = self._clock()
-        if now < self._next:
+        if now < self._next and not about_to_write:
             return False
         self._next = now + self.check_every_s
         try:
             self.free_bytes = shutil.disk_usage(self.folder).free
         except OSError:
             return False  # the raw writer reports a folder that has gone
-        if self.free_bytes >= self.reserve_bytes:
+        if self.free_bytes - about_to_write >= self.reserve_bytes:
             return False
         self.reason = (f"free disk space {_mb(self.free_bytes)} is below the "
                        f"{_mb(self.reserve_bytes)} kept for the raw recording "

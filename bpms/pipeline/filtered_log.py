@@ -50,6 +50,7 @@ class FilteredLog:
         self._pending: list[tuple[list[FrameEvent], Result]] = []
         self._pending_frames = 0
         self._flushed = 0.0
+        self._batch_bytes = 0  # bytes the last batch took: the next one is about as large
 
     @property
     def pending(self) -> bool:
@@ -58,6 +59,7 @@ class FilteredLog:
     def open(self, writer: FilteredWriter, raw: RawLogger | None) -> None:
         """Start writing to ``writer``; ``raw``: the raw logger of the recording beside it."""
         self.writer, self._raw = writer, raw
+        self._batch_bytes = 0
 
     def log(self, events: list[FrameEvent], result: Result, recording: Any) -> None:
         """Queue the processed rows of ``events``; write them once a batch is full."""
@@ -99,8 +101,13 @@ class FilteredLog:
         try:
             if recording is not None and recording.filtered_stopped:
                 raise OSError(recording.filtered_stopped)  # the raw file goes first
+            reserve = self._raw.reserve if self._raw is not None else None
+            if reserve is not None and reserve.low(about_to_write=self._batch_bytes):
+                raise OSError(reserve.reason)  # a batch must not eat the raw file's reserve
+            before = writer.bytes_written
             rows, marked, self._holes = write_with_holes(writer, indices, host_times, arrays,
                                                          holes, self.dt())
+            self._batch_bytes = writer.bytes_written - before
             self.health.holes_marked += marked
             if recording is not None:
                 recording.filtered_rows += rows

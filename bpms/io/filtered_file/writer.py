@@ -48,6 +48,8 @@ class FilteredWriter:
         self.columns = filtered_columns(degrees, groups=self.groups)
         self.rows = 0
         self.holes = 0
+        #: characters handed to the file so far (its size once flushed), bytes
+        self.bytes_written = 0
         unit = "deg" if degrees else "rad"
         known = column_groups()
         fmts = [VALUE_FMT, HOST_TIME_FMT, "%d"]
@@ -78,6 +80,7 @@ class FilteredWriter:
         self._write("\n".join(lines) + "\n" + ",".join(self.columns) + "\n")
 
     def _write(self, text: str | bytes) -> None:
+        self.bytes_written += len(text)
         if self._binary:
             self._file.write(text.encode("utf-8") if isinstance(text, str) else text)
         else:
