@@ -22,6 +22,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.io.timebase import stream_time
 
 #: format → the endings of the files it writes after the stem (docs/analysis.md).
 ENDINGS: dict[str, tuple[str, ...]] = {
@@ -116,8 +117,9 @@ def run(args: argparse.Namespace) -> int:
                 if a < b:
                     calib.write(res.t[a:b], q[a:b])
                 n += len(res)
+            span = f"{stream_time(lo, dt):.2f}–{stream_time(hi, dt):.2f} s"
             written += [f"{whole_path} ({whole.rows} rows)",
-                        f"{calib_path} ({calib.rows} rows, {lo * dt:.2f}–{hi * dt:.2f} s)"]
+                        f"{calib_path} ({calib.rows} rows, {span})"]
         elif args.format == "bvh":
             from bpms.analysis.bvh import BvhWriter
             from bpms.filter.body_model import POINT_INDEX

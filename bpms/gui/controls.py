@@ -30,9 +30,9 @@ from PyQt6.QtWidgets import (
 
 from bpms.gui.modes import SessionRunner
 from bpms.gui.safety import BackgroundTask, debounce, guard_wheel, set_enabled_keeping_focus
-from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, check_option, option_range
 from bpms.io.rawfile import RecordingError
+from bpms.io.timebase import stream_time
 from bpms.io.udp.addresses import UdpConfigError
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not the window
@@ -405,7 +405,7 @@ class PlaybackPanel(QGroupBox):
         self.tick_labels: list[QLabel] = []
         n_ticks = 5
         for k in range(n_ticks):
-            label = QLabel(_mmss(k / (n_ticks - 1) * len(self.replay) * FRAME_PERIOD_S))
+            label = QLabel(_mmss(stream_time(round(k / (n_ticks - 1) * len(self.replay)))))
             label.setStyleSheet("color: #666; font-size: 9pt")
             self.tick_labels.append(label)
             ticks.addWidget(label)
@@ -496,8 +496,8 @@ class PlaybackPanel(QGroupBox):
 
     def _update_label(self, index: int) -> None:
         total = len(self.replay)
-        self.position_label.setText(f"{_mmss(index * FRAME_PERIOD_S, 2)} / "
-                                    f"{_mmss(total * FRAME_PERIOD_S, 2)} "
+        self.position_label.setText(f"{_mmss(stream_time(index), 2)} / "
+                                    f"{_mmss(stream_time(total), 2)} "
                                     f"(frame {index} of {total})")
 
     def show_status(self, st: LiveStatus | None = None) -> None:

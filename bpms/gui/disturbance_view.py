@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bpms.io.frames import FRAME_PERIOD_S, N_IMUS
+from bpms.io.frames import N_IMUS
+from bpms.io.timebase import stream_time
 
 KINDS = ("mag", "acc")
 MEANINGS = {"mag": "magnetometer disturbed: the field is more than 10 % of the earth's field "
@@ -69,7 +70,7 @@ class FlagAges:
     def seconds(self, imu: int, kind: int) -> float | None:
         """How long flag ``kind`` of ``imu`` has been up, s (None: down)."""
         since = self.up_since[imu, kind]
-        return None if since < 0 else (self.index - since + 1) * FRAME_PERIOD_S
+        return None if since < 0 else stream_time(self.index - since + 1)
 
     def strength(self, imu: int, kind: int) -> str:
         """"35 %" (mag, of the earth's field) or "0.3 g" (acc); "" when not known."""
@@ -110,4 +111,4 @@ class FlagAges:
     def longest(self, kind: int) -> float | None:
         """The longest time any IMU's flag ``kind`` has been up, s (None: none up)."""
         up = self.up_since[:, kind]
-        return None if (up < 0).all() else (self.index - up[up >= 0].min() + 1) * FRAME_PERIOD_S
+        return None if (up < 0).all() else stream_time(self.index - up[up >= 0].min() + 1)

@@ -15,6 +15,7 @@ from bpms.filter.calibration import SensorCalibration
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.gui.columns import COLUMNS, calibrated, column_values, human_joint_name, shown_angles
 from bpms.io.frames import FRAME_PERIOD_S, IMU_NAMES
+from bpms.io.timebase import stream_time_of
 from bpms.pipeline.session import PoseSample
 
 
@@ -40,7 +41,7 @@ class TickBlock:
         :mod:`bpms.gui.angle_readout`)."""
         raw = np.array([s.raw for s in samples])
         return cls(
-            t=np.array([s.index for s in samples], np.float64) * FRAME_PERIOD_S,
+            t=stream_time_of(np.array([s.index for s in samples]), FRAME_PERIOD_S),
             raw=raw,
             cal=calibrated(calibration, raw),
             euler=np.array([shown_angles(s, output)[0] for s in samples]) if euler is None

@@ -35,6 +35,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from bpms.io.timebase import stream_time
+
 #: Kinds whose events change derived numbers (re-analysis applies them at their frames).
 CHANGE_KINDS = frozenset({"reset_zero", "alignment", "filter", "gains", "filters"})
 KINDS = (*sorted(CHANGE_KINDS), "marker", "logging", "note")
@@ -90,7 +92,7 @@ class SessionEvent:
 
     def describe(self, dt: float = 0.02) -> str:
         """One line for the event log, the record command and the LSL marker text."""
-        at = f"{max(self.frame, 0) * dt:.2f} s" if self.frame >= 0 else ""
+        at = f"{stream_time(self.frame, dt):.2f} s" if self.frame >= 0 else ""
         d = self.data
         if self.kind == "reset_zero":
             line = f"Reset Zero ({d.get('source', '?')})" + (f" at {at}" if at else "")
