@@ -124,8 +124,10 @@ def api_figures(tmp: Path, minutes: float, env: dict[str, str], reference: str) 
     trees = [("this tree", ROOT)]
     if reference != "none":
         sys.path.insert(0, str(ROOT / "bench"))
-        from reference import reference_tree
+        from reference import as_version_1, reference_tree
 
+        for path in (raw, small):  # the reference reads raw format version 1 only
+            as_version_1(path)
         try:
             trees.append(("before issue 24", reference_tree()))
         except RuntimeError as exc:

@@ -44,6 +44,9 @@ from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import new_header, read_raw, write_raw
 from bpms.io.text_rows import RowFormat
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from reference import as_version_1
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -65,19 +68,6 @@ def run_process(tree: Path, argv: list[str]) -> tuple[float, float]:
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-
-
-def as_version_1(path: Path) -> None:
-    """Mark a raw recording without event records as format version 1 (docs/raw-format.md:
-    the same bytes but the version, in the preamble and the header), in place, so that the
-    tree before version 2 reads it too."""
-    data = bytearray(path.read_bytes())
-    length = int.from_bytes(data[10:14], "little")
-    header = bytes(data[14:14 + length])
-    assert data[8:10] == (2).to_bytes(2, "little") and b'"format_version": 2' in header
-    data[8:10] = (1).to_bytes(2, "little")
-    data[14:14 + length] = header.replace(b'"format_version": 2', b'"format_version": 1')
-    path.write_bytes(bytes(data))
 
 
 def best_of(fn, repeat: int) -> float:

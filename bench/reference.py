@@ -43,3 +43,16 @@ def run_in(tree: Path, code: str, *args: str, timeout: float = 3600.0
     """Run ``python -c code args`` on ``tree``'s bpms (cwd: the tree)."""
     return subprocess.run([sys.executable, "-c", code, *args], cwd=tree, env=python_in(tree),
                           capture_output=True, text=True, timeout=timeout)
+
+
+def as_version_1(path: Path) -> None:
+    """Mark a raw recording without event records as format version 1 (docs/raw-format.md:
+    the same bytes but the version, in the preamble and the header), in place, so that the
+    tree before version 2 reads it too."""
+    data = bytearray(path.read_bytes())
+    length = int.from_bytes(data[10:14], "little")
+    header = bytes(data[14:14 + length])
+    assert data[8:10] == (2).to_bytes(2, "little") and b'"format_version": 2' in header
+    data[8:10] = (1).to_bytes(2, "little")
+    data[14:14 + length] = header.replace(b'"format_version": 2', b'"format_version": 1')
+    path.write_bytes(bytes(data))
