@@ -89,8 +89,13 @@ class FilteredLog:
         concat, filtered_arrays = _filtered_rows()
         arrays = filtered_arrays(concat([r for _, r in pending]), writer.groups)
         origin = self._origin()
-        if origin:  # rows on the raw file's clock: slot × dt; frames before it are not in it
+        end = self._end()
+        if origin or end is not None:
+            # rows on the raw file's clock (slot × dt): frames before its first and, once it
+            # has ended, after its last are not in it
             keep = indices >= origin
+            if end is not None:
+                keep &= indices <= end
             if not keep.all():
                 indices, host_times = indices[keep], host_times[keep]
                 arrays = {g: v[keep] for g, v in arrays.items()}
@@ -140,9 +145,21 @@ class FilteredLog:
         on the filtered file's clock (:meth:`_origin`)."""
         origin = self._origin()
         new = self.health.take_holes()
+        end = self._end()
+        if end is not None:
+            new = [h for h in new if h.index <= end]
         if origin:
             new = [Hole(h.index - origin, h.host_time) for h in new if h.index >= origin]
         return [*self._holes, *new]
+
+    def _end(self) -> int | None:
+        """The source frame index of the raw recording's last frame once it has ended (the
+        session stopped handing it frames; −1 when it got none); None while it goes on or
+        without one."""
+        raw = self._raw
+        if raw is None or not raw.fed_done:
+            return None
+        return -1 if raw.last_index is None else raw.last_index
 
     def _origin(self) -> int:
         """The source frame index of the raw recording's slot 0 when one is made beside it; 0

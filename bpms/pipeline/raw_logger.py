@@ -87,6 +87,11 @@ class RawLogger(threading.Thread):
         self.slots = SlotMap()
         #: the source frame index of the file's first frame (set by the acquisition thread)
         self.first_index: int | None = None
+        #: the source frame index of the last frame handed to the file (acquisition thread)
+        self.last_index: int | None = None
+        #: True once no more frames are handed to it (the session stopped logging): the
+        #: file ends at :attr:`last_index`
+        self.fed_done = False
         self._wake = threading.Event()
         # a fifth of the flush interval at most: flush_if_due flushes at 0.8 of it
         self.batch_s = min(BATCH_S, writer.flush_interval_s / 5)

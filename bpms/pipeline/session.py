@@ -103,6 +103,7 @@ class LiveSession:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._lock = threading.Lock()
+        self._feed_lock = threading.Lock()  # the raw logger in force, for each frame handed over
         self._rate = RateMeter()
         self._frames = 0
         self._processed = 0
@@ -273,7 +274,10 @@ class LiveSession:
         status, self._recording = self._recording, None
         if status is not None:
             self.events.emit(SessionEvent("logging", data={"action": "stop"}))
-        logger, self._raw_logger = self._raw_logger, None
+        with self._feed_lock:  # no frame is handed to the raw file after this
+            logger, self._raw_logger = self._raw_logger, None
+            if logger is not None:
+                logger.fed_done = True  # the filtered file writes no row past its last frame
         if logger is not None:
             with contextlib.suppress(ValueError):
                 self.events.sinks.remove(logger.queue.put)
@@ -352,15 +356,18 @@ class LiveSession:
             if not events:
                 continue
             self._rate.mark(len(events))
-            forwarder, logger = self._forwarder, self._raw_logger
+            forwarder = self._forwarder
             for event in events:
                 self._frames += 1
                 if forwarder is not None:
                     forwarder.send_frame(event.frame, stream_time(event.index))
-                if logger is not None:
-                    if logger.first_index is None:
-                        logger.first_index = event.index  # the file's slot 0
-                    logger.queue.put(event)
+                with self._feed_lock:  # stop_logging ends the raw file between two frames
+                    logger = self._raw_logger
+                    if logger is not None:
+                        if logger.first_index is None:
+                            logger.first_index = event.index  # the file's slot 0
+                        logger.queue.put(event)
+                        logger.last_index = event.index
                 self._enqueue(event)
         self._proc_queue.put(_STOP)
 
