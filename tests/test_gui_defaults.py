@@ -6,6 +6,7 @@ panel showing the selected filter's own settings with their valid ranges."""
 from __future__ import annotations
 
 import numpy as np
+from gui_start import open_main_window
 
 from bpms.gui.options_dialog import OptionsDialog
 from bpms.gui.settings_store import SettingsStore, settings_path
@@ -17,13 +18,6 @@ from bpms.io.userdirs import config_dir, default_calibration_path, default_optio
 
 MX_MIN, MX_MAX = FIELDS.index("MxMin"), FIELDS.index("MxMax")
 
-
-def _go(qtbot, startup: StartupWindow):
-    with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
-        startup.go_button.click()
-    window = blocker.args[0]
-    qtbot.addWidget(window)
-    return window
 
 
 def test_save_as_default_then_restart_records_with_it(qtbot, tmp_path):
@@ -47,7 +41,7 @@ def test_save_as_default_then_restart_records_with_it(qtbot, tmp_path):
     assert second.options_label.text() == f"user default ({default_options_path()})"
     assert second.options.filter.kp_yaw == 1.7
     second.select_mode("sim")
-    window = _go(qtbot, second)
+    window = open_main_window(qtbot, second)
     if not window.runner.data_on:  # the simulated suit streams from GO on
         window.status_panel.data_button.click()
     qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)
@@ -83,7 +77,7 @@ def test_the_gui_remembers_mode_port_targets_folder_subject_and_geometry(qtbot, 
     first.select_mode("sim")
     first.resize(first.width(), 450)  # taller than it opens (420 px)
     size = (first.width(), first.height())
-    window = _go(qtbot, first)
+    window = open_main_window(qtbot, first)
     window.file_panel.name_edit.setText("subject07")
     window.udp_panel.targets_edit.setText("127.0.0.1:6100, 127.0.0.1:6101")
     window.resize(760, 560)
@@ -99,7 +93,7 @@ def test_the_gui_remembers_mode_port_targets_folder_subject_and_geometry(qtbot, 
     assert second.options.udp.forward_to == ["127.0.0.1:6100", "127.0.0.1:6101"]
     # (the offscreen screen is 800 px wide: a restored width is clamped to it)
     assert second.height() == size[1] != 420
-    window = _go(qtbot, second)
+    window = open_main_window(qtbot, second)
     assert window.height() == main_size[1]
     assert window.file_panel.name_edit.text() == "subject07"
     window.close()
@@ -118,7 +112,7 @@ def test_gains_panel_shows_the_selected_filters_own_settings(qtbot, tmp_path):
     startup = StartupWindow(recording_dir=str(tmp_path))
     qtbot.addWidget(startup)
     startup.select_mode("sim")
-    window = _go(qtbot, startup)
+    window = open_main_window(qtbot, startup)
     panel = window.gains_panel
     visible = lambda: set(panel.shown_settings())  # noqa: E731
     assert visible() == {"kp_rollpitch", "ki_rollpitch", "kp_yaw", "ki_yaw"}

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from gui_start import open_main_window
 from PyQt6.QtCore import Qt
 
 from bpms.firmware.sim.session import simulate
@@ -29,13 +30,6 @@ def recording_path(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("rec") / "Raw_sim_001.bpmsraw"
     return rec.save_raw(path, notes="simulated")
 
-
-def _go(qtbot, startup: StartupWindow) -> MainWindow:
-    with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
-        startup.go_button.click()
-    window = blocker.args[0]
-    qtbot.addWidget(window)
-    return window
 
 
 def _frames(window: MainWindow) -> int:
@@ -79,7 +73,7 @@ def test_simulated_suit_session(qtbot, tmp_path):
     startup = StartupWindow(recording_dir=str(tmp_path))
     qtbot.addWidget(startup)
     startup.select_mode("sim")
-    window = _go(qtbot, startup)
+    window = open_main_window(qtbot, startup)
     assert not startup.isVisible()
     assert window.udp_panel is not None and window.playback_panel is None
     # the simulated suit streams at once (one click on GO shows live data)
@@ -137,7 +131,7 @@ def test_file_mode_session(qtbot, tmp_path, recording_path):
     qtbot.addWidget(startup)
     startup.select_mode("file")
     startup.file_edit.setText(str(recording_path))
-    window = _go(qtbot, startup)
+    window = open_main_window(qtbot, startup)
     panel = window.playback_panel
     assert panel is not None and window.udp_panel is None
     assert not window.file_panel.raw_box.isEnabled()  # raw recording disabled in file mode
@@ -197,7 +191,7 @@ def _udp_client_window(qtbot, tmp_path) -> tuple[int, MainWindow]:
     qtbot.addWidget(startup)
     startup.select_mode("udp")
     startup.listen_edit.setText(f"127.0.0.1:{port}")
-    window = _go(qtbot, startup)
+    window = open_main_window(qtbot, startup)
     window.status_panel.data_button.click()
     return port, window
 
@@ -258,7 +252,7 @@ def test_each_filter_is_selectable_in_the_gui(qtbot, tmp_path, recording_path):
     qtbot.addWidget(startup)
     startup.select_mode("file")
     startup.file_edit.setText(str(recording_path))
-    window = _go(qtbot, startup)
+    window = open_main_window(qtbot, startup)
     processor = window.runner.session.processor
     assert processor.options.filter.algorithm == "observer"
     combo = window.gains_panel.filter_combo

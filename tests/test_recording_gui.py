@@ -7,6 +7,7 @@ come from the processor that made them."""
 from __future__ import annotations
 
 import numpy as np
+from gui_start import open_main_window
 from waiting import wait_until
 
 from bpms.gui.main_window import MainWindow
@@ -16,13 +17,6 @@ from bpms.io.rawfile import read_raw
 
 TOL = 1e-9  # rad: the two files hold the same numbers to their 10 significant digits
 
-
-def _go(qtbot, startup: StartupWindow) -> MainWindow:
-    with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
-        startup.go_button.click()
-    window = blocker.args[0]
-    qtbot.addWidget(window)
-    return window
 
 
 def _rows(window: MainWindow) -> int:
@@ -58,7 +52,7 @@ def test_gui_playback_records_the_filtered_file_written_live(qtbot, tmp_path):
     startup = StartupWindow(recording_dir=str(tmp_path))
     qtbot.addWidget(startup)
     startup.select_mode("sim")
-    window = _go(qtbot, startup)  # the simulated suit streams at once
+    window = open_main_window(qtbot, startup)  # the simulated suit streams at once
     session = window.runner.session
     qtbot.waitUntil(lambda: session.status().processed > 60, timeout=15000)
     # labels from the processor: the calibration, options and filter it runs with
@@ -100,7 +94,7 @@ def test_gui_playback_records_the_filtered_file_written_live(qtbot, tmp_path):
     # playback of that recording, recording the filtered file as it plays
     startup.select_mode("file")
     startup.file_edit.setText(str(live_rec.raw_path))
-    player = _go(qtbot, startup)
+    player = open_main_window(qtbot, startup)
     assert player.status_panel.labels["calibration"].text() == "recording header"
     replay = player.runner.replay
     player.playback_panel.speed_combo.setCurrentIndex(6)  # as fast as possible

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from udp_docs_reader import docs_reader
 from waiting import receive_until_exit, wait_until
 
 from bpms.cli import main
@@ -42,13 +43,6 @@ START_AT = 69.6  # s into the script: the turn back to the start heading
 STREAMS = ("BPMS Segments", "BPMS Joint Angles", "BPMS Sensors", "BPMS Disturbance",
            "BPMS Events")
 
-
-def _docs_reader():
-    text = (ROOT / "docs" / "udp.md").read_text(encoding="utf-8")
-    start = text.index("# bpms-udp-reader")
-    namespace: dict = {"__name__": "docs_example"}
-    exec(compile(text[start:text.index("```", start)], "docs/udp.md", "exec"), namespace)
-    return namespace["parse"]
 
 
 class _Recorder:
@@ -220,7 +214,7 @@ def test_replay_streams_one_pose_per_frame_equal_to_the_api(field, api, tmp_path
     """``bpms replay --speed 0`` with UDP, MVN and LSL at once: every frame's pose on every
     stream, decoded by readers written from the docs alone (docs/udp.md's script, docs/mvn.md's
     layout, pylsl), equal to the API's segment quaternions."""
-    parse = _docs_reader()
+    parse = docs_reader()
     raw = field[0]
     udp, mvn = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
     for s in (udp, mvn):

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from udp_docs_reader import docs_reader
 from waiting import receive_until_exit, wait_until
 
 from bpms.filter.door import process_file
@@ -26,13 +27,6 @@ from bpms.pipeline.sources import UdpFrameSource
 
 ROOT = Path(__file__).resolve().parents[1]
 
-
-def _docs_reader():
-    text = (ROOT / "docs" / "udp.md").read_text(encoding="utf-8")
-    start = text.index("# bpms-udp-reader")
-    namespace: dict = {"__name__": "docs_example"}
-    exec(compile(text[start:text.index("```", start)], "docs/udp.md", "exec"), namespace)
-    return namespace["parse"]
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +56,7 @@ def test_replayed_pose_datagrams_are_the_segment_orientations(trial, tmp_path):
     datagrams = receive_until_exit(sock, proc)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err.decode()
-    parse = _docs_reader()
+    parse = docs_reader()
     poses = [m for m in map(parse, datagrams) if m is not None and m["type"] == 2]
     assert [round(m["suit_time"] / 0.02) for m in poses] == list(range(n))
     q = np.array([m["quaternions"] for m in poses])

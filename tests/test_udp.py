@@ -18,6 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from udp_docs_reader import docs_reader
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.filter.rotations import euler_to_dcm
@@ -578,19 +579,9 @@ def test_header_helper_wraps_sequence_numbers():
     assert struct.unpack_from(">I", head, 12)[0] == 5
 
 
-def _docs_reader():
-    from pathlib import Path
-
-    text = (Path(__file__).parents[1] / "docs" / "udp.md").read_text(encoding="utf-8")
-    start = text.index("# bpms-udp-reader")
-    code = text[start : text.index("```", start)]
-    namespace: dict = {"__name__": "docs_example"}
-    exec(compile(code, "docs/udp.md", "exec"), namespace)
-    return namespace["parse"]
-
 
 def test_docs_third_party_reader_agrees_with_the_codec():
-    parse = _docs_reader()
+    parse = docs_reader()
     raw = np.arange(162, dtype=np.int16).reshape(18, 9) - 81
     errors = np.zeros((18, 3), bool)
     errors[16, 2] = True

@@ -8,15 +8,21 @@ from bpms.io.raw_reader import RawFrames, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording, read_raw
 
 
+def _head(path: Path) -> bytes:
+    """The first bytes of ``path``, as many as the native format's magic. Raises
+    :class:`RawFileError` with a one-line reason when the file cannot be read."""
+    try:
+        with path.open("rb") as f:
+            return f.read(len(MAGIC))
+    except OSError as exc:
+        raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
 def open_recording(path: str | Path) -> RawRecording:
     """Read a native ``.bpmsraw`` recording or a legacy pickled raw file (read-only, through
     the restricted unpickler). Raises :class:`RawFileError` with a one-line reason."""
     path = Path(path)
-    try:
-        with path.open("rb") as f:
-            head = f.read(len(MAGIC))
-    except OSError as exc:
-        raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    head = _head(path)
     if head == MAGIC:
         return read_raw(path)
     from bpms.io.legacy_raw import is_legacy_raw, read_legacy_raw
@@ -33,11 +39,7 @@ def open_replay(path: str | Path) -> RawFrames | RawRecording:
     memory. Raises :class:`RawFileError` with a one-line reason, also when the recording holds
     no valid frame."""
     path = Path(path)
-    try:
-        with path.open("rb") as f:
-            head = f.read(len(MAGIC))
-    except OSError as exc:
-        raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    head = _head(path)
     recording = RawFrames(path) if head == MAGIC else open_recording(path)
     if recording.valid_frames == 0:
         raise RawFileError(no_frame_message(path, len(recording)))
