@@ -10,7 +10,7 @@ frames, so that this happens at a known moment (at the first frame a processor f
 before a live session accepts any frame) and only for what is used. When that takes longer
 than :data:`NOTICE_AFTER_S`, a notice and the progress go to stderr: on a terminal one line
 updated in place (``\\r``), in a log file or pipe plain lines. ``bpms warmup`` does it ahead
-of time for every filter.
+of time for every filter, sharing the parts out over one process per core.
 
 numba keys each kernel's cache by its own source file (and numba's version): every kernel
 calls only kernels of its own module (tests/test_structure.py checks), so the cache can never
@@ -19,6 +19,7 @@ hold machine code built from an older version of another file.
 
 from __future__ import annotations
 
+import subprocess
 import sys
 import threading
 import time
@@ -102,12 +103,25 @@ class Progress:
                 self._write(("\r" if self.tty else "") + self._line(), "\n")
 
 
+#: The compiled parts each filter needs (``adaptive`` runs the observer's kernel; ``vqf``
+#: runs in the vqf package's own code).
+PARTS = {"mahony": ("mahony", "disturbance", "hinge"),
+         "observer": ("observer", "disturbance", "hinge"),
+         "adaptive": ("observer", "disturbance", "hinge"),
+         "vqf": ("disturbance", "hinge")}
+#: Seconds each part takes to compile on the bench machine: how the parts are shared out.
+_COMPILE_S = {"mahony": 2.6, "observer": 3.3, "disturbance": 1.7, "hinge": 1.8}
+_done_parts: set[str] = set()
+
+
 def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
                    stream: TextIO | None = None,
-                   notice_after_s: float = NOTICE_AFTER_S) -> float:
+                   notice_after_s: float = NOTICE_AFTER_S, processes: int = 1) -> float:
     """Compile (first run) or load the kernels of ``algorithms`` (default: every filter), once
-    per process and filter; thread-safe. Returns the seconds it took (0 when nothing was left
-    to do)."""
+    per process and filter; thread-safe. With ``processes`` > 1 the parts are compiled in
+    that many processes at once (this one and child processes, which leave their work in
+    numba's on-disk cache; whatever a child did not leave there is compiled here after it).
+    Returns the seconds it took (0 when nothing was left to do)."""
     if algorithms is None:
         algorithms = FILTERS
     elif isinstance(algorithms, str):
@@ -119,24 +133,63 @@ def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
         todo = [a for a in todo if a not in _ready]
         if not todo:
             return 0.0
+        for algorithm in todo:
+            if algorithm not in PARTS:
+                raise ValueError(f"unknown attitude filter '{algorithm}'")
+        parts = list(dict.fromkeys(p for a in todo for p in PARTS[a] if p not in _done_parts))
         t0 = time.monotonic()
-        progress = Progress(len(todo), stream, notice_after_s)
+        progress = Progress(len(parts), stream, notice_after_s)
+        children: list[tuple[subprocess.Popen, list[str]]] = []
         try:
-            for algorithm in todo:
-                progress.step(algorithm)
-                _run_kernels(algorithm)
-                _ready.add(algorithm)
+            here, elsewhere = _share_out(parts, processes)
+            children = [(_start_child(group), group) for group in elsewhere]
+            for part in here:
+                progress.step(part)
+                _run_part(part)
                 progress.advance()
+            for child, group in children:
+                progress.step(f"{', '.join(group)} (in another process)")
+                child.wait()
+                for part in group:  # from the cache the child left (compiled here if not)
+                    _run_part(part)
+                    progress.advance()
+            _ready.update(todo)
         finally:
+            for child, _ in children:
+                if child.poll() is None:
+                    child.kill()
             progress.close()
         return time.monotonic() - t0
 
 
-def _run_kernels(algorithm: str) -> None:
-    """Run ``algorithm``'s bank, the state guard, the disturbance indicators and the hinge
-    constraint on a few synthetic frames of a still, level suit, with a failed magnetometer
-    and a reset (the argument types are those of every later call, so nothing compiles
-    again: tests/test_warmup.py watches numba's compile events on the live path)."""
+def _share_out(parts: list[str], processes: int) -> tuple[list[str], list[list[str]]]:
+    """The parts this process compiles and the groups for child processes: the longest part
+    first to the group with the least work, so the processes finish together."""
+    groups: list[list[str]] = [[] for _ in range(max(1, min(processes, len(parts))))]
+    if len(groups) > 1 and getattr(sys, "frozen", False):  # a bundle has no ``-m``
+        groups = groups[:1]
+    load = [0.0] * len(groups)
+    for part in sorted(parts, key=lambda name: -_COMPILE_S[name]):
+        k = load.index(min(load))
+        groups[k].append(part)
+        load[k] += _COMPILE_S[part]
+    return groups[0], [g for g in groups[1:] if g]
+
+
+def _start_child(parts: list[str]) -> subprocess.Popen:
+    """A child Python compiling ``parts`` into numba's on-disk cache (its output discarded:
+    whatever it fails at is compiled by this process afterwards)."""
+    return subprocess.Popen([sys.executable, "-m", "bpms.filter.warmup", *parts],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+
+
+def _run_part(part: str) -> None:
+    """Run one compiled part on a few synthetic frames of a still, level suit, with a failed
+    magnetometer and a reset (the argument types are those of every later call, so nothing
+    compiles again: tests/test_warmup.py watches numba's compile events on the live path)."""
+    if part in _done_parts:
+        return
     from bpms.filter.algorithms import make_bank
     from bpms.filter.disturbance import DisturbanceTracker
     from bpms.filter.guard import StateGuard, guarded_process
@@ -154,12 +207,20 @@ def _run_kernels(algorithm: str) -> None:
     errors[1, 0, 1] = True
     resets = np.zeros((n, N_IMUS), np.bool_)
     resets[2, 3] = True
-    if algorithm != "vqf":  # the vqf package's own code needs no compiling
-        bank = make_bank(gravity, FilterOptions(algorithm=algorithm))
-        terms = {"store_terms": True} if algorithm == "mahony" else {}
+    if part in ("mahony", "observer"):
+        bank = make_bank(gravity, FilterOptions(algorithm=part))
+        terms = {"store_terms": True} if part == "mahony" else {}
         bank.process(acc, mag, gyr, errors, resets, **terms)
         guarded_process(bank, StateGuard(N_IMUS), acc, mag, gyr, errors, **terms)
     flags = DisturbanceTracker(gravity, 0.02).update(acc, mag, gyr, errors)
-    level = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, N_IMUS, 3, 3)))
-    HingeConstraint(0.02).apply_in_place(level.copy(), level.copy(), np.zeros((n, N_IMUS, 3)),
-                                         gyr, flags.mag, flags.mag_heading_deg)
+    if part == "hinge":
+        level = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, N_IMUS, 3, 3)))
+        HingeConstraint(0.02).apply_in_place(level.copy(), level.copy(),
+                                             np.zeros((n, N_IMUS, 3)), gyr, flags.mag,
+                                             flags.mag_heading_deg)
+    _done_parts.add(part)
+
+
+if __name__ == "__main__":  # a child of ensure_kernels(processes > 1): compile these parts
+    for name in sys.argv[1:]:
+        _run_part(name)
