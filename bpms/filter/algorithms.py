@@ -119,14 +119,18 @@ class _PhysicalBank(FilterBank):
         start, the magnetometer not read."""
         return self.options.heading == "relative"
 
-    def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Suite units → (specific force m/s², mag ≈ unit, gyro rad/s), float64 contiguous."""
-        f = np.ascontiguousarray(np.asarray(acc, dtype=np.float64) * self._acc_factor)
+    def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
+                 imu: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Suite units ``[N, n, 3]`` → (specific force m/s², mag ≈ unit, gyro rad/s), float64
+        contiguous ``[N, n, 3]``, or only IMU ``imu``'s ``[N, 3]``."""
+        factor = self._acc_factor
+        if imu is not None:
+            acc, mag, gyr, factor = acc[:, imu], mag[:, imu], gyr[:, imu], factor[imu]
+        f = np.multiply(acc, factor, out=np.empty(np.shape(acc)))
         if self.relative:  # 6D: the magnetometer is not read
             m = np.ascontiguousarray(np.broadcast_to(HEADING_FREE_FIELD, f.shape))
         else:
-            m = np.ascontiguousarray(np.asarray(mag, dtype=np.float64) / MAG_UNIT)
+            m = np.divide(mag, MAG_UNIT, out=np.empty(np.shape(mag)))
         g = np.ascontiguousarray(gyr, dtype=np.float64)
         return f, m, g
 
@@ -249,17 +253,19 @@ class VqfBank(_PhysicalBank):
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None,
                 resets: np.ndarray | None = None) -> BankOutput:
-        """Filter N frames (VQF's batch API per IMU and per run between resets)."""
+        """Filter N frames (VQF's batch API per IMU and per run between resets). Each run's
+        DCMs and Euler angles are computed as soon as VQF returns, while its quaternions are
+        still in the processor's cache."""
         n = len(acc)
-        # each IMU's samples contiguous: [n, N, 3] per sensor
-        per_imu = [np.ascontiguousarray(np.swapaxes(x, 0, 1))
-                   for x in self.physical(acc, mag, gyr)]
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
+        failed = None if err is None else err.any(axis=0)  # [n, 3]: any failed sample
         rs = self._resets(n, resets)
-        q = np.full((4, n, self.n), np.nan)  # body → ENU (VQF's own frame), by component
-        bias = np.full((n, self.n, 3), np.nan)
+        R = np.empty((n, self.n, 3, 3))
+        euler = np.empty((n, self.n, 3))
+        bias = np.empty((n, self.n, 3))
         for i in range(self.n):
-            (f, m, g), valid = self._fill(i, tuple(x[i] for x in per_imu), err)
+            (f, m, g), valid = self._fill(i, self.physical(acc, mag, gyr, imu=i),
+                                          None if failed is None or not failed[i].any() else err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
             for a, b in pairwise(cuts):
                 if b <= a:
@@ -269,21 +275,23 @@ class VqfBank(_PhysicalBank):
                 start = a
                 if not self._init[i]:
                     ok = np.flatnonzero(valid[a:b])
-                    if len(ok) == 0:
+                    start = b if len(ok) == 0 else a + int(ok[0])
+                    for x in (R, euler, bias):  # no attitude before the aligning frame
+                        x[a:start, i] = np.nan
+                    if start == b:
                         continue
-                    start = a + int(ok[0])
                     self.vqf.reset(i)
                     self._init[i] = True
                     first = start + 1  # the aligning frame is not a step
                 else:
                     first = start
-                if err is not None:
+                if failed is not None and failed[i].any():
                     self._held_count[i] += err[first:b, i].sum(axis=0)
                 quat, bias[start:b, i] = self.vqf.process_imu(
                     i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
-                q[:, start:b, i] = quat.T
-        R = ned_dcm_of_enu(*q)
-        return BankOutput(R, dcm_to_euler(R), gyro_bias=bias)
+                R[start:b, i] = R_run = ned_dcm_of_enu(*quat.T)  # quat: body → ENU
+                euler[start:b, i] = dcm_to_euler(R_run)
+        return BankOutput(R, euler, gyro_bias=bias)
 
 
 __all__ = ["ALGORITHMS", "AdaptiveBank", "AttitudeBank", "ObserverBank", "VqfBank",

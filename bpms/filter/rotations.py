@@ -34,10 +34,12 @@ def euler_to_dcm(roll: np.ndarray | float, pitch: np.ndarray | float,
 def dcm_to_euler(R: np.ndarray) -> np.ndarray:
     """``[..., 3, 3]`` → ``[..., 3]`` (roll, pitch, yaw) in radians (docs/filter.md step 5)."""
     R = np.asarray(R, dtype=np.float64)
-    pitch = -np.arcsin(np.clip(R[..., 2, 0], -1.0, 1.0))
-    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
-    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
-    return np.stack([roll, pitch, yaw], axis=-1)
+    euler = np.empty(R.shape[:-1])
+    np.arctan2(R[..., 2, 1], R[..., 2, 2], out=euler[..., 0])
+    np.arcsin(np.clip(R[..., 2, 0], -1.0, 1.0), out=euler[..., 1])
+    np.negative(euler[..., 1], out=euler[..., 1])
+    np.arctan2(R[..., 1, 0], R[..., 0, 0], out=euler[..., 2])
+    return euler
 
 
 def rot_x(angle: float) -> np.ndarray:

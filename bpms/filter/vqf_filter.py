@@ -51,13 +51,16 @@ def enu_to_ned(q_enu: np.ndarray) -> np.ndarray:
 def ned_dcm_of_enu(w: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
     """Unit body → ENU quaternions, as their components ``[...]`` each (NaN allowed) → body →
     NED DCMs ``[..., 3, 3]``: ``ENU_TO_NED @ R(q)``, i.e. the rows y, x, −z of ``R(q)``,
-    written out in one pass (VQF's quaternions are unit: no normalisation)."""
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
-    rows = (xy + wz, 0.5 - (xx + zz), yz - wx,          # ENU y row
-            0.5 - (yy + zz), xy - wz, xz + wy,          # ENU x row
-            wy - xz, -(yz + wx), (xx + yy) - 0.5)       # minus the ENU z row
-    return 2.0 * np.stack(rows, axis=-1).reshape(*w.shape, 3, 3)
+    each entry written once into the result (VQF's quaternions are unit: no normalisation)."""
+    R = np.empty((*w.shape, 3, 3))
+    x2, y2, z2 = 2.0 * x, 2.0 * y, 2.0 * z
+    xx, yy, zz = x * x2, y * y2, z * z2
+    xy, xz, yz = x * y2, x * z2, y * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = xy + wz, 1.0 - xx - zz, yz - wx  # ENU y row
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = 1.0 - yy - zz, xy - wz, xz + wy  # ENU x row
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = wy - xz, -(yz + wx), xx + yy - 1.0  # −ENU z
+    return R
 
 
 class VqfFilters:
