@@ -136,12 +136,3 @@ class BvhWriter(TextWriter):
         self._file.seek(self._count_at)
         self._file.write(f"Frames: {self.frames:<{_FRAMES_FIELD}d}")
         super().close()
-
-
-def write_bvh(path: str | Path, C: np.ndarray, pelvis: np.ndarray,
-              body: BodyOptions | None = None, frame_time_s: float = 0.02) -> int:
-    """Write segment orientations ``C[N, 18, 3, 3]`` (segment → NED) and the pelvis position
-    ``pelvis[N, 3]`` (m, NED) as a BVH file. Returns the number of frames."""
-    with BvhWriter(path, body, frame_time_s) as w:
-        w.write(C, pelvis)
-        return w.frames

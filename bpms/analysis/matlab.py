@@ -54,12 +54,3 @@ class MatlabCsvWriter(TextWriter):
                               axis=1)
         write_rows(self._file, data, "%.10g", ",", "")
         self.rows += n
-
-
-def write_matlab_csv(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
-                     euler: np.ndarray, joint_angles: np.ndarray, degrees: bool = True) -> int:
-    """``t[N]`` s, ``quaternions[N, 18, 4]``, ``euler[N, 18, 3]`` rad, ``joint_angles[N, 28]``
-    rad → the CSV. Returns the number of rows."""
-    with MatlabCsvWriter(path, degrees) as w:
-        w.write(t, quaternions, euler, joint_angles)
-        return w.rows

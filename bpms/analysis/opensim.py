@@ -84,16 +84,6 @@ class OrientationsWriter(TextWriter):
         return len(times)
 
 
-def write_orientations(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
-                       rate_hz: float = 50.0, head_neck: bool = False,
-                       opensim_version: str = "4.5") -> int:
-    """Write ``quaternions[N, 18, 4]`` (w, x, y, z) at times ``t[N]`` s as an OpenSense
-    orientations file; rows where a mapped IMU has no orientation (NaN) are skipped.
-    Returns the number of rows written. Each quaternion is normalised."""
-    with OrientationsWriter(path, rate_hz, head_neck, opensim_version) as w:
-        return w.write(t, quaternions)
-
-
 def calibration_window(settle_frames: int, window_frames: int, n: int) -> tuple[int, int]:
     """Frame range ``[lo, hi)`` of the calibration pose: the averaging window of the automatic
     Reset Zero (``settle`` frames after the start, ``window`` frames long; docs/body-model.md)."""

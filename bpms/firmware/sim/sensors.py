@@ -154,11 +154,6 @@ def mounting_errors(rng: np.random.Generator, rms_deg: float) -> np.ndarray:
     return zyx(angles[:, 0], angles[:, 1], angles[:, 2])
 
 
-def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors ``[..., 3]`` (axis × angle, rad) of rotation matrices ``[..., 3, 3]``."""
-    return logm(R)
-
-
 def body_rates(R: np.ndarray, dt: float) -> np.ndarray:
     """``[N, 18, 3]`` rad/s: sample k's mean body rate over [t_{k-1}, t_k]; sample 0 reads 0."""
     out = np.zeros((*R.shape[:-2], 3))
@@ -258,12 +253,6 @@ def draw_noise(n: int, model: SensorModel, rng: np.random.Generator,
     return Noise(acc_counts=model.acc_noise_counts * white[..., 0, :],
                  mag=model.mag_noise * white[..., 1, :],
                  gyr=bias + np.deg2rad(model.gyro_noise_dps) * white[..., 2, :])
-
-
-def zero_noise(n: int) -> Noise:
-    """No noise at all."""
-    z = np.zeros((n, N_IMUS, 3))
-    return Noise(z, z, z)
 
 
 def _board(v: np.ndarray) -> np.ndarray:

@@ -76,8 +76,6 @@ POSE_COUNTS = struct.Struct("!HH")
 ZERO_HEAD = struct.Struct("!BBHdI")  # source, heading, window, ψ0, mask
 ZERO_SIZE = ZERO_HEAD.size + N_IMUS * 9 * 8
 HEADINGS = ("hip", "mean")
-N_POSE_SEGMENTS = 18
-N_POSE_ANGLES = 28
 #: Largest UDP payload over IPv4.
 MAX_DATAGRAM = 65507
 #: |‖q‖ − 1| above this makes a POSE datagram malformed (float32 rounding is ~1e-7).

@@ -106,9 +106,6 @@ class SequenceTracker:
         """Gaps still inside the reorder window (a late datagram may still fill them)."""
         return self._open
 
-    def is_retired(self, session: int) -> bool:
-        return session in self._retired
-
     def _start(self, session: int, seq: int) -> None:
         self.lost_final += self._open
         self._starts.clear()
