@@ -83,6 +83,24 @@ QUAT_NORM_TOLERANCE = 1e-3
 SEQ_MOD = 1 << 32
 
 
+class SeqRun:
+    """Consecutive sequence numbers: how many so far, and the one expected next."""
+
+    __slots__ = ("count", "next")
+
+    def __init__(self, seq: int) -> None:
+        self.count = 1
+        self.next = (seq + 1) % SEQ_MOD
+
+    def extend(self, seq: int) -> bool:
+        """Count ``seq`` when it is the one expected next (True); else False, unchanged."""
+        if seq != self.next:
+            return False
+        self.count += 1
+        self.next = (seq + 1) % SEQ_MOD
+        return True
+
+
 class MessageType(IntEnum):
     RAW_FRAME = 1
     POSE = 2
