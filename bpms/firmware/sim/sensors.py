@@ -180,10 +180,8 @@ def heel_strike_spikes(t: np.ndarray, strikes: list[tuple[float, str]], acc_lin:
         target = model.heel_strike_g * G
         # |v + m ẑ| = target → m = -v_z + sqrt(v_z² - |v|² + target²)
         m = -v[2] + np.sqrt(max(v[2] ** 2 - v @ v + target**2, 0.0))
-        for j in range(n):
-            k = k0 + j
-            if 0 <= k < len(t):
-                spikes[k, imu, 2] -= m * shape[j]  # upward = -z in NED
+        lo, hi = max(k0, 0), min(k0 + n, len(t))  # the samples inside the recording
+        spikes[lo:hi, imu, 2] -= m * shape[lo - k0:hi - k0]  # upward = -z in NED
     return spikes
 
 
