@@ -77,9 +77,8 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
                 options: str | None = None, reset_zero=None) -> Outcome:
     """Worker: filter ``job``'s recording once, write ``outputs`` into ``out_dir`` (per
     subject), reduce the range of motion. Never raises: failures become ``Outcome.error``."""
-    import numpy as np
-
     from bpms.analysis.binary_out import SUFFIX, open_writer
+    from bpms.analysis.rom import RomAccumulator
     from bpms.analysis.stream_export import open_for_processing
     from bpms.filter.joints import JOINT_ANGLE_NAMES
 
@@ -112,10 +111,8 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
                 path = stem.with_name(job.trial + SUFFIX[kind])
                 writers.append(open_writer(kind, path, opened.meta))
                 outcome.written.append(str(path))
-        lo = np.full(len(JOINT_ANGLE_NAMES), np.inf)
-        hi = np.full(len(JOINT_ANGLE_NAMES), -np.inf)
+        rom = RomAccumulator(job.trial)  # the ROM rule of bpms rom
         for result in opened.chunks():
-            angles = result.joint_angles
             if filtered is not None:
                 from bpms.filter.door import filtered_arrays
 
@@ -123,17 +120,15 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
             for w in writers:
                 if w is not filtered:
                     w.write(result)
-            ok = np.isfinite(angles).all(axis=1)  # the ROM rule of bpms rom
-            if ok.any():
-                deg = np.degrees(angles[ok])
-                lo = np.minimum(lo, deg.min(axis=0))
-                hi = np.maximum(hi, deg.max(axis=0))
+            rom.add(result.t, result.joint_angles)
             outcome.frames += len(result)
         if "rom" in outputs:
-            if not np.isfinite(lo).all():
-                raise ValueError("no frame with segment orientations (no Reset Zero)")
-            outcome.rows = [(name, float(a), float(b))
-                            for name, a, b in zip(JOINT_ANGLE_NAMES, lo, hi, strict=True)]
+            try:
+                table = rom.table()
+            except ValueError:
+                raise ValueError("no frame with segment orientations (no Reset Zero)") from None
+            outcome.rows = [(name, float(a), float(b)) for name, a, b in zip(
+                JOINT_ANGLE_NAMES, table.minimum, table.maximum, strict=True)]
         outcome.convention = opened.meta.convention
         outcome.utc_start = opened.meta.utc_iso
     except Exception as exc:  # one bad file must not stop a study

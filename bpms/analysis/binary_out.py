@@ -123,17 +123,11 @@ class MatWriter:
 
     def _small(self) -> dict:
         meta = self.meta.as_dict()
-        return {
-            "segment_names": SEGMENT_SLUGS,
-            "joint_names": [joint_column(j) for j in JOINT_ANGLE_NAMES],
-            "point_names": POINT_NAMES,
-            "units": UNITS,
-            "utc_start": meta["utc_start"],
-            "utc_start_posix": meta["utc_start_posix"],
-            "joint_angle_convention": meta["joint_angle_convention"],
-            "rate_hz": self.meta.rate_hz,
-            "source": self.meta.source,
-        }
+        return {"segment_names": SEGMENT_SLUGS,
+                "joint_names": [joint_column(j) for j in JOINT_ANGLE_NAMES],
+                "point_names": POINT_NAMES,
+                **{key: meta[key] for key in ("units", "utc_start", "utc_start_posix",
+                                              "joint_angle_convention", "rate_hz", "source")}}
 
     def _write(self, lo: int, arrays: tuple[np.ndarray, ...]) -> None:
         t, *rest = arrays

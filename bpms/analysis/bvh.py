@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.analysis.textout import write_rows
+from bpms.analysis.textout import TextWriter, write_rows
 from bpms.filter.body_model import BODY_POINTS
 from bpms.io.options import BodyOptions
 
@@ -111,16 +111,15 @@ def motion_rows(C: np.ndarray, pelvis: np.ndarray, order: list[tuple[int, int]])
 _FRAMES_FIELD = 12  # digits reserved for the frame count, patched when the file is closed
 
 
-class BvhWriter:
+class BvhWriter(TextWriter):
     """A BVH file written block by block (constant memory): the frame count is patched in
     when the file is closed."""
 
     def __init__(self, path: str | Path, body: BodyOptions | None = None,
                  frame_time_s: float = 0.02) -> None:
         lines, self.order = hierarchy(body)
-        self.path = Path(path)
+        super().__init__(path)
         self.frames = 0
-        self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
         self._file.write("\n".join(lines) + "\nMOTION\n")
         self._count_at = self._file.tell()
         self._file.write(f"Frames: {0:<{_FRAMES_FIELD}d}\nFrame Time: {frame_time_s:.6f}\n")
@@ -136,19 +135,4 @@ class BvhWriter:
             return
         self._file.seek(self._count_at)
         self._file.write(f"Frames: {self.frames:<{_FRAMES_FIELD}d}")
-        self._file.close()
-
-    def __enter__(self) -> BvhWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-def write_bvh(path: str | Path, C: np.ndarray, pelvis: np.ndarray,
-              body: BodyOptions | None = None, frame_time_s: float = 0.02) -> int:
-    """Write segment orientations ``C[N, 18, 3, 3]`` (segment → NED) and the pelvis position
-    ``pelvis[N, 3]`` (m, NED) as a BVH file. Returns the number of frames."""
-    with BvhWriter(path, body, frame_time_s) as w:
-        w.write(C, pelvis)
-        return w.frames
+        super().close()

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.body_model import POINT_NAMES
+from bpms.io.closing import Closing
 from bpms.io.names import BALL_NAMES, HINGE_NAMES, JOINT_ANGLE_NAMES
 
 #: NED → the C3D lab frame (X north, Y west, Z up).
@@ -62,7 +63,7 @@ def angle_points(joint_angles: np.ndarray) -> np.ndarray:
     return out
 
 
-class C3dWriter:
+class C3dWriter(Closing):
     """Collects chunks (:meth:`write`), writes the C3D at :meth:`close` (ezc3d).
 
     rate_hz: frames per second; meta: ``(key, value)`` pairs stated in the ``BPMS`` group
@@ -127,9 +128,3 @@ class C3dWriter:
         c3d.write(str(self.path))
         self._positions.clear()
         self._angles.clear()
-
-    def __enter__(self) -> C3dWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -24,8 +24,6 @@ class ExtractError(Exception):
     """A request that cannot be met (unknown IMU id, unknown body, ...): one line."""
 
 
-
-
 def available_imus() -> str:
     """``0 (Right Leg), 1 (Right Foot), ...`` for messages."""
     return ", ".join(f"{i} ({name})" for i, name in enumerate(IMU_NAMES))
@@ -113,14 +111,6 @@ def raw_rows(raw_path: str | Path, ids: Sequence[int], calibrated: bool = False,
     return columns, blocks(), opened
 
 
-def raw_table(raw_path: str | Path, ids: Sequence[int], calibrated: bool = False,
-              calibration: str | Path | None = None) -> tuple[list[str], np.ndarray]:
-    """:func:`raw_rows` as one array."""
-    columns, blocks, _ = raw_rows(raw_path, ids, calibrated, calibration)
-    parts = list(blocks)
-    return columns, np.concatenate(parts) if parts else np.zeros((0, len(columns)))
-
-
 def filtered_rows(filtered_path: str | Path, ids: Sequence[int], degrees: bool = False
                   ) -> tuple[list[str], Iterator[np.ndarray], list[str]]:
     """Columns, row blocks (streamed) and reader problems (filled while streaming) of ``bpms
@@ -144,14 +134,3 @@ def filtered_rows(filtered_path: str | Path, ids: Sequence[int], degrees: bool =
             yield np.concatenate([block.t[:, None], block.host_time[:, None], angles], axis=1)
 
     return columns, rows(), problems
-
-
-def filtered_table(filtered_path: str | Path, ids: Sequence[int],
-                   degrees: bool = False) -> tuple[list[str], np.ndarray, list[str]]:
-    """:func:`filtered_rows` as one array."""
-    columns, blocks, problems = filtered_rows(filtered_path, ids, degrees)
-    parts = list(blocks)
-    data = np.concatenate(parts) if parts else np.zeros((0, len(columns)))
-    if len(data) == 0:
-        raise ExtractError(f"{filtered_path}: the file holds no rows of data")
-    return columns, data, problems

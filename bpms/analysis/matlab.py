@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.analysis.textout import write_rows
+from bpms.analysis.textout import TextWriter, write_rows
 from bpms.io.frames import IMU_NAMES, N_IMUS
 from bpms.io.names import JOINT_ANGLE_NAMES, imu_column, joint_column
 
@@ -31,15 +31,14 @@ def matlab_columns(degrees: bool = True) -> list[str]:
     return cols
 
 
-class MatlabCsvWriter:
+class MatlabCsvWriter(TextWriter):
     """The MATLAB CSV written block by block (constant memory); ``rows`` written so far."""
 
     def __init__(self, path: str | Path, degrees: bool = True,
                  meta: Sequence[tuple[str, str]] = ()) -> None:
-        self.path = Path(path)
+        super().__init__(path)
         self.scale = np.degrees(1.0) if degrees else 1.0
         self.rows = 0
-        self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
         for key, value in meta:  # MATLAB comment lines (readtable 'CommentStyle', '%')
             self._file.write(f"% {key}: {str(value).replace(chr(10), ' ')}\n")
         self._file.write(",".join(matlab_columns(degrees)) + "\n")
@@ -55,21 +54,3 @@ class MatlabCsvWriter:
                               axis=1)
         write_rows(self._file, data, "%.10g", ",", "")
         self.rows += n
-
-    def close(self) -> None:
-        self._file.close()
-
-    def __enter__(self) -> MatlabCsvWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-def write_matlab_csv(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
-                     euler: np.ndarray, joint_angles: np.ndarray, degrees: bool = True) -> int:
-    """``t[N]`` s, ``quaternions[N, 18, 4]``, ``euler[N, 18, 3]`` rad, ``joint_angles[N, 28]``
-    rad → the CSV. Returns the number of rows."""
-    with MatlabCsvWriter(path, degrees) as w:
-        w.write(t, quaternions, euler, joint_angles)
-        return w.rows

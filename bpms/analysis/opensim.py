@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bpms.analysis.textout import write_rows
+from bpms.analysis.textout import TextWriter, write_rows
 
 #: IMU id → OpenSim body (Rajagopal 2015 / gait2392 names) + "_imu".
 OPENSIM_IMUS: dict[int, str] = {
@@ -48,7 +48,7 @@ def imu_columns(head_neck: bool = False) -> dict[int, str]:
     return {**OPENSIM_IMUS, **(OPENSIM_HEAD_IMUS if head_neck else {})}
 
 
-class OrientationsWriter:
+class OrientationsWriter(TextWriter):
     """An OpenSense orientations file written block by block (constant memory).
 
     ``write(t[N], quaternions[N, 18, 4])``: rows where a mapped IMU has no orientation (NaN)
@@ -61,10 +61,9 @@ class OrientationsWriter:
                  meta: Sequence[tuple[str, str]] = ()) -> None:
         cols = imu_columns(head_neck)
         self.ids = list(cols)
-        self.path = Path(path)
+        super().__init__(path)
         self.rows = 0
         self._row = "\t".join(["%.6f", *(["%.8f,%.8f,%.8f,%.8f"] * len(self.ids))])
-        self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
         self._file.write(f"DataRate={rate_hz:.6f}\nDataType=Quaternion\nversion=3\n"
                          f"OpenSimVersion={opensim_version}\n")
         for key, value in meta:
@@ -83,25 +82,6 @@ class OrientationsWriter:
                                                   axis=1), self._row, "\t", "")
         self.rows += len(times)
         return len(times)
-
-    def close(self) -> None:
-        self._file.close()
-
-    def __enter__(self) -> OrientationsWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-def write_orientations(path: str | Path, t: np.ndarray, quaternions: np.ndarray,
-                       rate_hz: float = 50.0, head_neck: bool = False,
-                       opensim_version: str = "4.5") -> int:
-    """Write ``quaternions[N, 18, 4]`` (w, x, y, z) at times ``t[N]`` s as an OpenSense
-    orientations file; rows where a mapped IMU has no orientation (NaN) are skipped.
-    Returns the number of rows written. Each quaternion is normalised."""
-    with OrientationsWriter(path, rate_hz, head_neck, opensim_version) as w:
-        return w.write(t, quaternions)
 
 
 def calibration_window(settle_frames: int, window_frames: int, n: int) -> tuple[int, int]:

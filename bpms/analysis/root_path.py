@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bpms.analysis.track import FOOT_IMUS, walked_path
-from bpms.filter.body_model import POINT_INDEX
+from bpms.analysis.track import FOOT_IMUS, TrackAccumulator
 
 
 def root_trajectory(t: np.ndarray, pelvis: np.ndarray, step_times: np.ndarray,
@@ -25,30 +24,10 @@ def root_trajectory(t: np.ndarray, pelvis: np.ndarray, step_times: np.ndarray,
     return out
 
 
-def walked_root(processed) -> np.ndarray:
-    """Root trajectory of a :class:`bpms.analysis.source.Processed` recording (pelvis only for
-    a filtered file, which has no accelerometers)."""
-    res = processed.result
-    pelvis = res.joint_positions[:, POINT_INDEX["pelvis"]]
-    if processed.raw is None:
-        return np.where(np.isfinite(pelvis), pelvis, 0.0)
-    proc = processed.processor
-    acc, _, _ = proc.calibrate(processed.raw)
-    gravity = proc.sensor_calibration.gravity
-    accel_g = {side: np.linalg.norm(acc[:, i], axis=-1) / gravity[i]
-               for side, i in FOOT_IMUS.items()}
-    opts = proc.options.track
-    track = walked_path(res.t, accel_g, res.joint_positions, opts.heel_strike_g,
-                        opts.min_step_interval_s, opts.declination_deg)
-    return root_trajectory(res.t, pelvis, track.times, track.positions)
-
-
 def walked_steps(opened, zero_at_s=()) -> tuple[np.ndarray, np.ndarray]:
     """Heel-strike times ``[K]`` s and running positions ``[K, 3]`` m of a recording opened
     through the one door (:func:`bpms.filter.door.open_for_processing`), streamed chunk by
     chunk in constant memory; empty for a filtered file (no accelerometers)."""
-    from bpms.analysis.track import TrackAccumulator
-
     if not opened.has_raw:
         return np.zeros(0), np.zeros((0, 3))
     proc = opened.processor

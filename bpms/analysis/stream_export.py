@@ -33,10 +33,6 @@ class Opened:
     meta: ExportMeta
 
     @property
-    def processor(self):
-        return self.door.processor
-
-    @property
     def problems(self) -> list[str]:
         return self.door.problems
 

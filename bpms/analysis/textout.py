@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
 from bpms.analysis.source import stderr_progress
+from bpms.io.closing import Closing
 from bpms.io.text_rows import RowFormat
 
 CHUNK_ROWS = 10_000
@@ -28,3 +30,15 @@ def write_rows(f: TextIO, data: np.ndarray, fmt: str | Sequence[str], delimiter:
         f.write(rows.text(data[lo:hi]))
         if label:
             stderr_progress(label, hi, n)
+
+
+class TextWriter(Closing):
+    """A text file written block by block (constant memory): UTF-8, ``\\n`` line ends, opened
+    here, closed by :meth:`close` or at the end of a ``with`` block."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+
+    def close(self) -> None:
+        self._file.close()

@@ -52,6 +52,17 @@ def _peaks(mag: np.ndarray, threshold: float) -> np.ndarray:
     return idx
 
 
+def _keep_apart(kept: list[tuple], item: tuple, min_interval_s: float) -> None:
+    """Append ``item`` (time s, peak, ...) to ``kept``, one foot's strikes in time order,
+    unless it comes less than ``min_interval_s`` after the last one: then the larger peak of
+    the two stays."""
+    if kept and item[0] - kept[-1][0] < min_interval_s:
+        if item[1] > kept[-1][1]:
+            kept[-1] = item
+    else:
+        kept.append(item)
+
+
 def heel_strikes(accel_g: dict[str, np.ndarray], t: np.ndarray, threshold_g: float,
                  min_interval_s: float) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Heel strikes from the feet's accelerometer magnitude ``{"right": [N], "left": [N]}``
@@ -60,20 +71,15 @@ def heel_strikes(accel_g: dict[str, np.ndarray], t: np.ndarray, threshold_g: flo
     feet merged in time order. Returns frame indices, sides and peak values (g). On a
     recording made at ±2 g the peaks clip at the threshold: use
     :func:`bpms.analysis.gait_events.gyro_heel_strikes` there."""
-    cand: list[tuple[int, str, float]] = []
+    cand: list[tuple[float, float, int, str]] = []
     for side, mag in accel_g.items():
-        kept: list[tuple[int, str, float]] = []
+        kept: list[tuple[float, float, int, str]] = []
         for k in _peaks(np.nan_to_num(mag), threshold_g):
-            c = (int(k), side, float(mag[k]))
-            if kept and t[c[0]] - t[kept[-1][0]] < min_interval_s:
-                if c[2] > kept[-1][2]:
-                    kept[-1] = c
-                continue
-            kept.append(c)
+            _keep_apart(kept, (t[k], float(mag[k]), int(k), side), min_interval_s)
         cand += kept
-    cand.sort()
-    return (np.array([k for k, _, _ in cand], dtype=int), [s for _, s, _ in cand],
-            np.array([p for _, _, p in cand]))
+    cand.sort(key=lambda c: (c[2], c[3]))
+    return (np.array([c[2] for c in cand], dtype=int), [c[3] for c in cand],
+            np.array([c[1] for c in cand]))
 
 
 def walked_path(t: np.ndarray, accel_g: dict[str, np.ndarray], joint_positions: np.ndarray,
@@ -93,68 +99,71 @@ def walked_path(t: np.ndarray, accel_g: dict[str, np.ndarray], joint_positions: 
                   include_hips, declination_deg)
 
 
-class TrackAccumulator:
+class _Chunks:
+    """Consecutive chunks of frames seen as one run: two frames of history (times, joint
+    positions, each foot's signal) carry over, as a peak needs both its neighbours."""
+
+    def __init__(self) -> None:
+        self._next = 0  # global index of the next frame
+        self._tail_t = np.zeros(0)
+        self._tail_pos = np.zeros((0, len(POINT_INDEX), 3))
+        self._tail: dict[str, np.ndarray] = {}
+
+    def _extend(self, t: np.ndarray, signals: dict[str, np.ndarray],
+                joint_positions: np.ndarray) -> tuple[int, np.ndarray, dict[str, np.ndarray],
+                                                      np.ndarray]:
+        """The chunk with the history before it: (global index of its first row, times,
+        each foot's signal with NaN as 0, joint positions); the history moves on."""
+        base = self._next - len(self._tail_t)
+        t_ext = np.concatenate([self._tail_t, t])
+        pos_ext = np.concatenate([self._tail_pos, joint_positions])
+        ext = {side: np.concatenate([self._tail.get(side, np.zeros(0)), np.nan_to_num(v)])
+               for side, v in signals.items()}
+        self._tail_t = t_ext[-2:].copy()
+        self._tail_pos = pos_ext[-2:].copy()
+        self._tail.update({side: v[-2:] for side, v in ext.items()})
+        self._next += len(t)
+        return base, t_ext, ext, pos_ext
+
+
+class TrackAccumulator(_Chunks):
     """:func:`walked_path` computed chunk by chunk (constant memory, the same numbers):
     feed consecutive chunks with :meth:`add`, then :meth:`track`. Only the candidate heel
     strikes and two frames of history are kept between chunks."""
 
     def __init__(self, threshold_g: float = 2.0, min_interval_s: float = 0.4,
                  declination_deg: float = 0.0, include_hips: bool = False) -> None:
+        super().__init__()
         self.threshold_g = threshold_g
         self.min_interval_s = min_interval_s
         self.declination_deg = declination_deg
         self.include_hips = include_hips
-        self._next = 0  # global index of the next frame
-        self._tail_t = np.zeros(0)
-        self._tail_mag: dict[str, np.ndarray] = {}
-        self._tail_pos = np.zeros((0, len(POINT_INDEX), 3))
-        # kept strikes: (frame, side, peak g, time s, joint positions [21, 3])
-        self._kept: list[tuple[int, str, float, float, np.ndarray]] = []
-        self._last_of: dict[str, int] = {}  # side → index in _kept of its latest strike
+        # kept strikes per side: (time s, peak g, frame, side, joint positions [21, 3])
+        self._kept: dict[str, list[tuple[float, float, int, str, np.ndarray]]] = {}
 
     def add(self, t: np.ndarray, accel_g: dict[str, np.ndarray],
             joint_positions: np.ndarray) -> None:
         """The next chunk: ``t[N]`` s, feet accelerometer magnitudes ``{"right": [N],
         "left": [N]}`` g, ``joint_positions[N, 21, 3]`` m NED."""
-        n = len(t)
-        if n == 0:
+        if len(t) == 0:
             return
-        tail = len(self._tail_t)
-        base = self._next - tail
-        t_ext = np.concatenate([self._tail_t, t])
-        pos_ext = np.concatenate([self._tail_pos, joint_positions])
-        cand = []
-        for side, mag in accel_g.items():
-            m = np.concatenate([self._tail_mag.get(side, np.zeros(0)), np.nan_to_num(mag)])
+        base, t_ext, mags, pos_ext = self._extend(t, accel_g, joint_positions)
+        for side, m in mags.items():  # the minimum gap holds per foot, as in heel_strikes
+            kept = self._kept.setdefault(side, [])
             for k in _peaks(m, self.threshold_g):
-                cand.append((int(base + k), side, float(m[k]), float(t_ext[k]),
-                             pos_ext[k].copy()))
-            self._tail_mag[side] = m[-2:]
-        cand.sort(key=lambda c: (c[0], c[1], c[2]))
-        kept = self._kept
-        for c in cand:  # the minimum gap holds per foot, as in heel_strikes
-            last = self._last_of.get(c[1])
-            if last is not None and c[3] - kept[last][3] < self.min_interval_s:
-                if c[2] > kept[last][2]:
-                    kept[last] = c
-                continue
-            self._last_of[c[1]] = len(kept)
-            kept.append(c)
-        self._tail_t = t_ext[-2:].copy()
-        self._tail_pos = pos_ext[-2:].copy()
-        self._next += n
+                _keep_apart(kept, (float(t_ext[k]), float(m[k]), int(base + k), side,
+                                   pos_ext[k].copy()), self.min_interval_s)
 
     def track(self) -> Track:
         """The walked path so far."""
-        kept = sorted(self._kept, key=lambda c: (c[0], c[1]))
-        pos = (np.array([c[4] for c in kept]) if kept
-               else np.zeros((0, len(POINT_INDEX), 3)))
-        return _track(np.array([c[3] for c in kept]), [c[1] for c in kept],
-                      np.array([c[2] for c in kept]), pos, self.include_hips,
-                      self.declination_deg)
+        kept = sorted((c for side in self._kept.values() for c in side),
+                      key=lambda c: (c[2], c[3]))
+        return _track(np.array([c[0] for c in kept]), [c[3] for c in kept],
+                      np.array([c[1] for c in kept]), np.array([c[4] for c in kept]),
+                      self.include_hips, self.declination_deg)
 
 
-class GyroTrackAccumulator:
+class GyroTrackAccumulator(_Chunks):
     """:func:`walked_path` with the gyroscope heel strikes of
     :func:`bpms.analysis.gait_events.gyro_heel_strikes`, chunk by chunk.
 
@@ -170,37 +179,26 @@ class GyroTrackAccumulator:
     def __init__(self, min_interval_s: float = 0.4, declination_deg: float = 0.0,
                  include_hips: bool = False, min_swing_rate: float = 0.5,
                  swing_fraction: float = 0.25) -> None:
+        super().__init__()
         self.min_interval_s = min_interval_s
         self.declination_deg = declination_deg
         self.include_hips = include_hips
         self.min_swing_rate = min_swing_rate
         self.swing_fraction = swing_fraction
-        self._next = 0
-        self._tail_t = np.zeros(0)
-        self._tail_pos = np.zeros((0, len(POINT_INDEX), 3))
-        self._tail_r: dict[str, np.ndarray] = {}
-        self._pending: dict[str, tuple[int, float, float] | None] = {}
-        # per side: (peak frame, peak rad/s, peak time s, strike time s, positions [21, 3])
-        self._swings: dict[str, list[tuple[int, float, float, float, np.ndarray]]] = {}
+        # per side: the peak whose strike is still to come (peak time s, peak rad/s, frame)
+        self._pending: dict[str, tuple[float, float, int] | None] = {}
+        # per side: (peak time s, peak rad/s, peak frame, strike time s, positions [21, 3])
+        self._swings: dict[str, list[tuple[float, float, int, float, np.ndarray]]] = {}
 
     def add(self, t: np.ndarray, rates: dict[str, np.ndarray],
             joint_positions: np.ndarray) -> None:
         """The next chunk: ``t[N]`` s, shank lateral rates rad/s, ``joint_positions[N, 21, 3]``
         m NED."""
-        n = len(t)
-        if n == 0:
+        if len(t) == 0:
             return
-        tail = len(self._tail_t)
-        base = self._next - tail
-        t_ext = np.concatenate([self._tail_t, t])
-        pos_ext = np.concatenate([self._tail_pos, joint_positions])
-        for side, rate in rates.items():
-            r = np.concatenate([self._tail_r.get(side, np.zeros(0)), np.nan_to_num(rate)])
+        base, t_ext, ext, pos_ext = self._extend(t, rates, joint_positions)
+        for side, r in ext.items():
             self._scan(side, r, t_ext, pos_ext, base, 1, len(r) - 1)
-            self._tail_r[side] = r[-2:]
-        self._tail_t = t_ext[-2:].copy()
-        self._tail_pos = pos_ext[-2:].copy()
-        self._next += n
 
     def _scan(self, side: str, r: np.ndarray, t: np.ndarray, pos: np.ndarray, base: int,
               lo: int, hi: int) -> None:
@@ -216,13 +214,13 @@ class GyroTrackAccumulator:
             if r[k] > self.min_swing_rate and r[k] >= r[k - 1] and r[k] > r[k + 1]:
                 if pending is not None:  # no minimum since the last peak: strike just before
                     self._strike(side, pending, k - 1, r, t, pos, base)
-                self._pending[side] = (int(base + k), float(r[k]), float(t[k]))
-            elif pending is not None and base + k > pending[0]:
+                self._pending[side] = (float(t[k]), float(r[k]), int(base + k))
+            elif pending is not None and base + k > pending[2]:
                 self._strike(side, pending, k, r, t, pos, base)
 
-    def _strike(self, side: str, pending: tuple[int, float, float], k: int, r: np.ndarray,
+    def _strike(self, side: str, pending: tuple[float, float, int], k: int, r: np.ndarray,
                 t: np.ndarray, pos: np.ndarray, base: int) -> None:
-        if base + k > pending[0] + 1 and abs(r[k - 1]) < abs(r[k]):
+        if base + k > pending[2] + 1 and abs(r[k - 1]) < abs(r[k]):
             k -= 1  # the sample nearer the zero crossing
         self._swings[side].append((*pending, float(t[k]), pos[k].copy()))
         self._pending[side] = None
@@ -234,35 +232,29 @@ class GyroTrackAccumulator:
             swings = list(swings)
             pending = self._pending.get(side)
             if pending is not None and len(self._tail_t):  # the recording ends mid-swing
-                r = self._tail_r[side]
+                r = self._tail[side]
                 k = len(r) - 1
-                if self._next - 1 > pending[0] + 1 and len(r) > 1 and abs(r[-2]) < abs(r[-1]):
+                if self._next - 1 > pending[2] + 1 and len(r) > 1 and abs(r[-2]) < abs(r[-1]):
                     k -= 1
                 swings.append((*pending, float(self._tail_t[k]), self._tail_pos[k].copy()))
             if not swings:
                 continue
             typical = float(np.percentile([s[1] for s in swings], 90))
-            kept: list[tuple[int, float, float, float, np.ndarray]] = []
+            kept: list[tuple[float, float, int, float, np.ndarray]] = []
             for s in swings:
-                if s[1] < self.swing_fraction * typical:
-                    continue
-                if kept and s[2] - kept[-1][2] < self.min_interval_s:
-                    if s[1] > kept[-1][1]:
-                        kept[-1] = s
-                    continue
-                kept.append(s)
+                if s[1] >= self.swing_fraction * typical:
+                    _keep_apart(kept, s, self.min_interval_s)
             events += [(s[3], side, s[1], s[4]) for s in kept]
         events.sort(key=lambda e: (e[0], e[1]))
         return _track(np.array([e[0] for e in events]), [e[1] for e in events],
-                      np.array([e[2] for e in events]),
-                      np.array([e[3] for e in events]) if events
-                      else np.zeros((0, len(POINT_INDEX), 3)),
+                      np.array([e[2] for e in events]), np.array([e[3] for e in events]),
                       self.include_hips, self.declination_deg)
 
 
 def _track(times: np.ndarray, sides: list[str], peaks: np.ndarray, pos: np.ndarray,
            include_hips: bool, declination_deg: float) -> Track:
     """Steps (leading minus trailing leg, ``pos[K, 21, 3]`` at the strikes) and the path."""
+    pos = pos.reshape(-1, len(POINT_INDEX), 3)  # no strike: np.array([]) of shape (0,)
     origin_r = "pelvis" if include_hips else "hip_r"
     origin_l = "pelvis" if include_hips else "hip_l"
     right = pos[:, POINT_INDEX["ankle_r"]] - pos[:, POINT_INDEX[origin_r]]

@@ -53,8 +53,17 @@ def _masked(raw: np.ndarray, errors: np.ndarray | None, sensor: int) -> np.ndarr
     return values
 
 
+class _FedByFrame:
+    """What the procedures share: readings come one frame at a time (``feed``)."""
+
+    def feed_many(self, raw: np.ndarray, errors: np.ndarray | None = None) -> None:
+        """Frames ``raw [n, 18, 9]`` (``errors [n, 18, 3]`` or None) fed one by one."""
+        for k in range(len(raw)):
+            self.feed(raw[k], None if errors is None else errors[k])  # type: ignore[attr-defined]
+
+
 # -- gyroscope ---------------------------------------------------------------------------
-class GyroProcedure:
+class GyroProcedure(_FedByFrame):
     """Keep the suit still; average ``samples`` readings per axis of each chosen IMU.
 
     The stillness check runs on every block of ``check.window`` frames (gyro and accel std);
@@ -121,10 +130,6 @@ class GyroProcedure:
             self.state = "done"
             self.message = f"{self.frames} readings averaged"
 
-    def feed_many(self, raw: np.ndarray, errors: np.ndarray | None = None) -> None:
-        for k in range(len(raw)):
-            self.feed(raw[k], None if errors is None else errors[k])
-
     @property
     def averages(self) -> dict[int, np.ndarray]:
         """Per chosen IMU, the gyro averages ``[3]`` (counts); only when done."""
@@ -154,7 +159,7 @@ class AccelCapture:
 
 
 @dataclass
-class AccelProcedure:
+class AccelProcedure(_FedByFrame):
     """For each chosen IMU, the 6 axis-extreme poses in :data:`POSE_ORDER`.
 
     For the current step the operator holds the IMU still with the axis at its extreme and
@@ -293,10 +298,6 @@ class AccelProcedure:
                             f"(±{block.std(axis=0)[axis]:.1f})")
             self._advance()
 
-    def feed_many(self, raw: np.ndarray, errors: np.ndarray | None = None) -> None:
-        for k in range(len(raw)):
-            self.feed(raw[k], None if errors is None else errors[k])
-
     def extremes(self) -> dict[int, np.ndarray]:
         """Per IMU ``[3, 2]`` (min, max) per axis in counts, NaN where not captured."""
         out: dict[int, np.ndarray] = {}
@@ -311,7 +312,7 @@ SPHERE_BANDS, SPHERE_SECTORS = 8, 16  # 128 equal-area cells for the coverage in
 
 
 @dataclass
-class MagProcedure:
+class MagProcedure(_FedByFrame):
     """The timed magnetometer sweep of all chosen IMUs at once (2 minutes by default).
 
     Tracks min/max per axis (counts) and the fraction of the sphere seen per IMU (directions
@@ -361,10 +362,6 @@ class MagProcedure:
         self.frames += 1
         if self.frames >= self.needed:
             self.finish()
-
-    def feed_many(self, raw: np.ndarray, errors: np.ndarray | None = None) -> None:
-        for k in range(len(raw)):
-            self.feed(raw[k], None if errors is None else errors[k])
 
     def finish(self) -> None:
         """End the sweep now (also called when the time is up); runs the ellipsoid fits."""

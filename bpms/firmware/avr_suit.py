@@ -88,11 +88,8 @@ def chip_counts(raw: np.ndarray) -> np.ndarray:
     """Board-axis raw counts ``int16 [N, 18, 9]`` (a frame's ``ax ay az mx my mz gx gy gz``) →
     what each chip's data registers hold, ``int16 [N, 18, 3, 3]`` (sensor, chip x y z)."""
     raw = np.asarray(raw, dtype=np.int16).reshape(len(raw), 18, 3, 3)
-    chip = np.empty_like(raw)
-    for s, order in enumerate(BOARD_FROM_CHIP):
-        for board_axis, chip_axis in enumerate(order):
-            chip[:, :, s, chip_axis] = raw[:, :, s, board_axis]
-    return chip
+    board_axis = np.argsort(BOARD_FROM_CHIP, axis=-1)  # [sensor, chip axis]
+    return raw[:, :, np.arange(3)[:, None], board_axis]
 
 
 class AvrSuit:

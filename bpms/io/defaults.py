@@ -34,6 +34,11 @@ def _announce_factory(kind: str) -> None:
     missing = [name for name, path in (("options", default_options_path()),
                                        ("calibration", default_calibration_path()))
                if not path.is_file()] or [kind]
+    _say_factory(missing)
+
+
+def _say_factory(missing: list[str]) -> None:
+    """The notice itself, for the defaults ``missing`` (kinds), marked as said."""
     _announced.update(missing)
     what = " and ".join(missing)
     log.warning("no saved default %s in %s: factory %s used (save with "
@@ -47,10 +52,7 @@ def announce_factory(options: bool = True, calibration: bool = True) -> None:
               ("calibration", default_calibration_path(), calibration)]
     missing = [kind for kind, path, asked in wanted if asked and not path.is_file()]
     if missing and not set(missing) <= _announced:
-        _announced.update(missing)
-        what = " and ".join(missing)
-        log.warning("no saved default %s in %s: factory %s used (save with "
-                    "'bpms config save-default')", what, config_dir(), what)
+        _say_factory(missing)
 
 
 def default_options(announce: bool = True) -> Options:
@@ -63,9 +65,7 @@ def default_options(announce: bool = True) -> Options:
         return options
     if announce:
         _announce_factory("options")
-    options = Options()
-    options.source = "factory"
-    return options
+    return Options()  # source "factory"
 
 
 def default_calibration(announce: bool = True) -> CalibrationTable:

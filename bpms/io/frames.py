@@ -180,11 +180,6 @@ def decode_frame(frame: bytes | bytearray | memoryview) -> DecodedFrames:
     return decode_frames(frame)
 
 
-def cluster_of(imu_id: int) -> int:
-    """Cluster board (0..5) that carries IMU ``imu_id``."""
-    return imu_id // IMUS_PER_CLUSTER
-
-
 def describe_errors(flags: np.ndarray) -> list[str]:
     """Human-readable list of failed sensors for one frame's ``[18, 3]`` flags."""
     imus, sensors = np.nonzero(flags)

@@ -38,6 +38,7 @@ from typing import Protocol
 import serial
 import serial.tools.list_ports
 
+from bpms.io.closing import Closing
 from bpms.io.frames import FRAME_SIZE
 from bpms.io.parser import FrameParser
 
@@ -207,7 +208,7 @@ class LinkStats:
     reply_bytes_skipped: int = 0  # bytes before/after a reply that were not part of it
 
 
-class SuitLink:
+class SuitLink(Closing):
     """An open link to the suit. ``port``: a device path or a pyserial URL.
 
     ``baud`` is nominal over Bluetooth SPP; ``read_timeout_s`` bounds each
@@ -428,12 +429,6 @@ class SuitLink:
         self.streaming = False
         with contextlib.suppress(serial.SerialException, OSError):
             self._t.close(goodbye)
-
-    def __enter__(self) -> SuitLink:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
 
 def _reason(exc: BaseException) -> str:

@@ -382,15 +382,9 @@ def _attach_ranges() -> None:
             rng = option_range(section.name, f.name)
             if rng is None:
                 continue
-            meta = dict(f.metadata)
-            meta["range"] = rng
-            if rng.lo is not None:
-                meta["min"] = rng.lo
-            if rng.hi is not None:
-                meta["max"] = rng.hi
-            if rng.choices is not None:
-                meta["choices"] = rng.choices
-            f.metadata = types.MappingProxyType(meta)
+            bounds = {"min": rng.lo, "max": rng.hi, "choices": rng.choices}
+            f.metadata = types.MappingProxyType({**f.metadata, "range": rng, **{
+                name: value for name, value in bounds.items() if value is not None}})
 
 
 _attach_ranges()

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from bpms.io.closing import Closing
 from bpms.io.frames import FRAME_DTYPE, FRAME_SIZE
 from bpms.io.raw_layout import (
     EXTENSION,
@@ -65,7 +66,7 @@ def new_header(*, calibration: np.ndarray | None = None, options: dict[str, Any]
     return header
 
 
-class RawWriter:
+class RawWriter(Closing):
     """Appends records to a new raw file; data reach the disk at least every ``flush_interval_s``.
 
     Raises :class:`RecordingError` on any OS error (disk full, folder not writable, device
@@ -200,12 +201,6 @@ class RawWriter:
             except OSError as exc:  # a buffered tail that cannot be written
                 if not self.failed:
                     raise self._fail(exc, "") from exc
-
-    def __enter__(self) -> RawWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def write_raw(path: str | Path, times: np.ndarray, frames: bytes, header: dict[str, Any],

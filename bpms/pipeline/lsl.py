@@ -151,24 +151,23 @@ class LslOutlets:
                                f"link delay {link_delay:g} s subtracted",
                 "docs": "docs/lsl.md"}
         self.outlets = {}
-        for key, channels, stype, extra in (
-                ("segments", segment_channels(), "MoCap", {"quaternion_order": "w x y z"}),
-                ("joints", joint_channels(), "MoCap",
+        for key, channels, stype, fmt, extra in (
+                ("segments", segment_channels(), "MoCap", pylsl.cf_float32,
+                 {"quaternion_order": "w x y z"}),
+                ("joints", joint_channels(), "MoCap", pylsl.cf_float32,
                  {"convention": CONVENTION_TEXT.get(convention, convention)}),
-                ("sensors", sensor_channels(), "IMU", {"axes": "signed board axes"})):
-            info = pylsl.StreamInfo(STREAM_NAMES[key], stype, len(channels), rate,
-                                    pylsl.cf_float32, f"{base}:{key}")
+                ("sensors", sensor_channels(), "IMU", pylsl.cf_float32,
+                 {"axes": "signed board axes"}),
+                ("disturbance", disturbance_channels(), "Misc", pylsl.cf_int8, {
+                    "meaning": "1: the IMU's magnetometer is disturbed (the field off the "
+                               "earth's learnt at rest by more than 10 %, or its horizontal "
+                               "part turned) / it accelerates by over 0.2 g RMS; 0: not; -1: "
+                               "not computed",
+                    "order": "18 mag flags then 18 acc flags, IMU order"})):
+            info = pylsl.StreamInfo(STREAM_NAMES[key], stype, len(channels), rate, fmt,
+                                    f"{base}:{key}")
             _describe(info, channels, {**extra, **sync})
             self.outlets[key] = pylsl.StreamOutlet(info, chunk_size=1, max_buffered=360)
-        channels = disturbance_channels()
-        info = pylsl.StreamInfo(STREAM_NAMES["disturbance"], "Misc", len(channels), rate,
-                                pylsl.cf_int8, f"{base}:disturbance")
-        _describe(info, channels, {
-            "meaning": "1: the IMU's magnetometer is disturbed (the field off the earth's "
-                       "learnt at rest by more than 10 %, or its horizontal part turned) / it "
-                       "accelerates by over 0.2 g RMS; 0: not; -1: not computed",
-            "order": "18 mag flags then 18 acc flags, IMU order", **sync})
-        self.outlets["disturbance"] = pylsl.StreamOutlet(info, chunk_size=1, max_buffered=360)
         info = pylsl.StreamInfo(STREAM_NAMES["events"], "Markers", 1, pylsl.IRREGULAR_RATE,
                                 pylsl.cf_string, f"{base}:events")
         _describe(info, [Channel("event", "Marker", "")],

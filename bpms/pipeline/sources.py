@@ -256,26 +256,26 @@ class SuitFrameSource:
                 self.restarts += 1
             self._event(LinkEvent.OPENED if link.streaming else LinkEvent.OPENED_IDLE)
 
-    def connect(self) -> None:
-        """Open the port (discovering it when none was given) and start the stream.
-        Raises LinkError with a one-line reason (the source stays *connecting*)."""
+    def _open_in(self, state: LinkState) -> None:
+        """Open and attach the link; a failure while still ``state`` is an OPEN_FAILED event
+        (LinkError raised)."""
         try:
             link = self._open()
         except LinkError as exc:
-            if self._state is LinkState.CONNECTING:
+            if self._state is state:
                 self._event(LinkEvent.OPEN_FAILED, str(exc))
             raise
         self._attach(link)
 
+    def connect(self) -> None:
+        """Open the port (discovering it when none was given) and start the stream.
+        Raises LinkError with a one-line reason (the source stays *connecting*)."""
+        self._open_in(LinkState.CONNECTING)
+
     def _reopen(self) -> None:
         self._event(LinkEvent.RETRY)
-        try:
-            link = self._open()
-        except LinkError as exc:
-            if self._state is LinkState.REOPENING:
-                self._event(LinkEvent.OPEN_FAILED, str(exc))
-            return
-        self._attach(link)
+        with contextlib.suppress(LinkError):
+            self._open_in(LinkState.REOPENING)
 
     def _close_link(self) -> None:
         with self._lock:

@@ -154,11 +154,6 @@ def mounting_errors(rng: np.random.Generator, rms_deg: float) -> np.ndarray:
     return zyx(angles[:, 0], angles[:, 1], angles[:, 2])
 
 
-def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors ``[..., 3]`` (axis × angle, rad) of rotation matrices ``[..., 3, 3]``."""
-    return logm(R)
-
-
 def body_rates(R: np.ndarray, dt: float) -> np.ndarray:
     """``[N, 18, 3]`` rad/s: sample k's mean body rate over [t_{k-1}, t_k]; sample 0 reads 0."""
     out = np.zeros((*R.shape[:-2], 3))
@@ -185,10 +180,8 @@ def heel_strike_spikes(t: np.ndarray, strikes: list[tuple[float, str]], acc_lin:
         target = model.heel_strike_g * G
         # |v + m ẑ| = target → m = -v_z + sqrt(v_z² - |v|² + target²)
         m = -v[2] + np.sqrt(max(v[2] ** 2 - v @ v + target**2, 0.0))
-        for j in range(n):
-            k = k0 + j
-            if 0 <= k < len(t):
-                spikes[k, imu, 2] -= m * shape[j]  # upward = -z in NED
+        lo, hi = max(k0, 0), min(k0 + n, len(t))  # the samples inside the recording
+        spikes[lo:hi, imu, 2] -= m * shape[lo - k0:hi - k0]  # upward = -z in NED
     return spikes
 
 
@@ -258,12 +251,6 @@ def draw_noise(n: int, model: SensorModel, rng: np.random.Generator,
     return Noise(acc_counts=model.acc_noise_counts * white[..., 0, :],
                  mag=model.mag_noise * white[..., 1, :],
                  gyr=bias + np.deg2rad(model.gyro_noise_dps) * white[..., 2, :])
-
-
-def zero_noise(n: int) -> Noise:
-    """No noise at all."""
-    z = np.zeros((n, N_IMUS, 3))
-    return Noise(z, z, z)
 
 
 def _board(v: np.ndarray) -> np.ndarray:

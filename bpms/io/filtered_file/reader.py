@@ -12,6 +12,7 @@ from typing import TextIO
 import numpy as np
 
 from bpms.io.bounded import MAX_HEADER_BYTES
+from bpms.io.closing import Closing
 from bpms.io.filtered_file.columns import FIXED_COLUMNS, FORMAT_NAME, FORMAT_VERSION, column_groups
 from bpms.io.frames import N_IMUS
 
@@ -110,7 +111,7 @@ def _cells(line: str, version: int) -> list[str]:
     return cells
 
 
-class FilteredReader:
+class FilteredReader(Closing):
     """Streams a filtered file of any version (see the module docstring).
 
     ``info`` is read on construction; :meth:`blocks` yields :class:`FilteredBlock` of at most
@@ -287,12 +288,6 @@ class FilteredReader:
         f = getattr(self, "_file", None)
         if f is not None:
             f.close()
-
-    def __enter__(self) -> FilteredReader:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def iter_filtered(path: str | Path, block_rows: int = BLOCK_ROWS

@@ -9,6 +9,7 @@ from typing import BinaryIO, TextIO
 
 import numpy as np
 
+from bpms.io.closing import Closing
 from bpms.io.filtered_file.columns import (
     FIXED_COLUMNS,
     FORMAT_NAME,
@@ -28,7 +29,7 @@ _DEFAULT_CONVENTION = ("Euler roll, pitch, yaw (R = Rz Ry Rx), frame -> NED; joi
                        "docs/joint-angles.md")
 
 
-class FilteredWriter:
+class FilteredWriter(Closing):
     """Writes a version-2 filtered file block by block (live logging or whole files).
 
     degrees: angles written in degrees (given in radians); joints: add the ``joints`` group;
@@ -144,12 +145,6 @@ class FilteredWriter:
     def close(self) -> None:
         if self._owns and not self._file.closed:
             self._file.close()
-
-    def __enter__(self) -> FilteredWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def default_output_path(raw_path: str | Path) -> Path:

@@ -12,7 +12,6 @@ class UdpConfigError(ValueError):
     """A bad ``host:port`` target or listen address, or a socket that cannot be opened."""
 
 
-
 def parse_address(text: str, *, default_host: str = "0.0.0.0") -> tuple[str, int]:
     """``"host:port"`` (or ``":port"`` / ``"port"``) → (dotted IPv4, port). Host names are
     resolved (IPv4 only). Raises UdpConfigError with a one-line message."""

@@ -76,13 +76,29 @@ POSE_COUNTS = struct.Struct("!HH")
 ZERO_HEAD = struct.Struct("!BBHdI")  # source, heading, window, ψ0, mask
 ZERO_SIZE = ZERO_HEAD.size + N_IMUS * 9 * 8
 HEADINGS = ("hip", "mean")
-N_POSE_SEGMENTS = 18
-N_POSE_ANGLES = 28
 #: Largest UDP payload over IPv4.
 MAX_DATAGRAM = 65507
 #: |‖q‖ − 1| above this makes a POSE datagram malformed (float32 rounding is ~1e-7).
 QUAT_NORM_TOLERANCE = 1e-3
 SEQ_MOD = 1 << 32
+
+
+class SeqRun:
+    """Consecutive sequence numbers: how many so far, and the one expected next."""
+
+    __slots__ = ("count", "next")
+
+    def __init__(self, seq: int) -> None:
+        self.count = 1
+        self.next = (seq + 1) % SEQ_MOD
+
+    def extend(self, seq: int) -> bool:
+        """Count ``seq`` when it is the one expected next (True); else False, unchanged."""
+        if seq != self.next:
+            return False
+        self.count += 1
+        self.next = (seq + 1) % SEQ_MOD
+        return True
 
 
 class MessageType(IntEnum):

@@ -26,7 +26,7 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from enum import IntEnum
 
-from bpms.io.udp.codec import SEQ_MOD
+from bpms.io.udp.codec import SeqRun
 
 #: An active session keeps the receiver until it has been silent this long, s.
 TAKEOVER_AFTER_S = 5.0
@@ -70,14 +70,6 @@ class Takeover:
     newer_run: bool = False  # keyed: the same sender's newer epoch (no silence needed)
 
 
-class _Run:
-    __slots__ = ("count", "next")
-
-    def __init__(self, seq: int) -> None:
-        self.count = 1
-        self.next = (seq + 1) % SEQ_MOD
-
-
 class SessionGate:
     """The takeover and freshness rules above. ``keyed``: datagrams are authenticated (the
     receiver has a shared key), so sender ids and epochs can be trusted."""
@@ -91,7 +83,7 @@ class SessionGate:
         self.last_active = -float("inf")  # the active session's last datagram, monotonic s
         self.last_takeover: Takeover | None = None
         self.takeovers = 0
-        self._candidates: OrderedDict[SessionKey, _Run] = OrderedDict()
+        self._candidates: OrderedDict[SessionKey, SeqRun] = OrderedDict()
         self._retired: OrderedDict[SessionKey, None] = OrderedDict()
         self._newest_epoch: dict[int, int] = {}  # keyed: sender id -> newest epoch followed
 
@@ -124,12 +116,10 @@ class SessionGate:
         silent = now - self.last_active
         newer_run = (self.keyed and key.sender == active.sender and key.epoch > active.epoch)
         run = self._candidates.get(key)
-        if run is not None and seq == run.next:
-            run.count += 1
-            run.next = (seq + 1) % SEQ_MOD
+        if run is not None and run.extend(seq):
             self._candidates.move_to_end(key)
         else:
-            run = self._candidates[key] = _Run(seq)
+            run = self._candidates[key] = SeqRun(seq)
             self._candidates.move_to_end(key)
             while len(self._candidates) > MAX_CANDIDATES:
                 self._candidates.popitem(last=False)

@@ -17,6 +17,7 @@ import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
+from bpms.io.closing import Closing
 from bpms.io.udp.addresses import DEFAULT_PORT, UdpConfigError, is_multicast, parse_address
 from bpms.io.udp.auth import split_tag, tag_is_valid
 from bpms.io.udp.codec import (
@@ -101,7 +102,7 @@ class ReceivedFrame:
     restart: bool = False
 
 
-class UdpSource:
+class UdpSource(Closing):
     """Receives BPMS datagrams on ``listen`` (``"host:port"``), optionally joining an IPv4
     ``multicast_group`` (on ``multicast_interface``, default any), and yields raw frames.
 
@@ -394,9 +395,3 @@ class UdpSource:
             self._sock.close()
             self._wake_r.close()
             self._wake_w.close()
-
-    def __enter__(self) -> UdpSource:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bpms.io.closing import Closing
 from bpms.io.frames import FRAME_SIZE, is_frame
 from bpms.io.timebase import stream_time
 from bpms.io.udp.addresses import UdpConfigError, is_multicast, parse_address
@@ -110,7 +111,7 @@ class _Target:
         self.refused_said = False  # "nobody is listening" is said once per target
 
 
-class UdpForwarder:
+class UdpForwarder(Closing):
     """Sends every frame (and optionally poses) to one or more ``"host:port"`` targets.
 
     Unicast and IPv4 multicast (224.0.0.0/4: TTL ``multicast_ttl``, loopback ``multicast_loop``,
@@ -263,9 +264,3 @@ class UdpForwarder:
                 self._closed = True
         for target in self._targets:
             target.sock.close()
-
-    def __enter__(self) -> UdpForwarder:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

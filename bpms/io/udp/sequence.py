@@ -8,7 +8,7 @@ import bisect
 from collections import deque
 from enum import IntEnum
 
-from bpms.io.udp.codec import SEQ_MOD
+from bpms.io.udp.codec import SEQ_MOD, SeqRun
 
 #: Reorder window in sequence numbers (~11 min at 50 Hz). See docs/udp.md "Sequence numbers".
 REORDER_WINDOW = 1 << 15
@@ -32,14 +32,6 @@ class Verdict(IntEnum):
     IMPLAUSIBLE = 4  # jumped implausibly far: dropped (held until JUMP_CONFIRM follow it)
     CONFLICT = 5  # received before with a different frame: dropped (another sender)
     RESYNC = 6  # a held jump confirmed: delivered, the numbers start anew from here
-
-
-class _Run:
-    __slots__ = ("count", "next")
-
-    def __init__(self, seq: int) -> None:
-        self.count = 1
-        self.next = (seq + 1) % SEQ_MOD
 
 
 def _signed(d: int) -> int:
@@ -84,7 +76,7 @@ class SequenceTracker:
         self.implausible = 0
         self.jumps = 0
         self.conflicts = 0
-        self._jump: _Run | None = None  # a held jump and the consecutive numbers after it
+        self._jump: SeqRun | None = None  # a held jump and the consecutive numbers after it
         self._digests: dict[int, int] = {}  # unwrapped number -> digest, the latest kept
         self._digest_order: deque[int] = deque()
 
@@ -105,9 +97,6 @@ class SequenceTracker:
     def pending(self) -> int:
         """Gaps still inside the reorder window (a late datagram may still fill them)."""
         return self._open
-
-    def is_retired(self, session: int) -> bool:
-        return session in self._retired
 
     def _start(self, session: int, seq: int) -> None:
         self.lost_final += self._open
@@ -142,11 +131,8 @@ class SequenceTracker:
     def _held(self, seq: int, d: int, digest: int | None) -> Verdict:
         """An implausible jump: held until :data:`JUMP_CONFIRM` consecutive numbers follow."""
         run = self._jump
-        if run is not None and seq == run.next:
-            run.count += 1
-            run.next = (seq + 1) % SEQ_MOD
-        else:
-            run = self._jump = _Run(seq)
+        if run is None or not run.extend(seq):
+            run = self._jump = SeqRun(seq)
         if run.count < JUMP_CONFIRM:
             self.implausible += 1
             return Verdict.IMPLAUSIBLE
