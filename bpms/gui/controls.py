@@ -39,7 +39,6 @@ from bpms.io.udp.addresses import UdpConfigError
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not the window
     from bpms.pipeline.session import LiveStatus
 
-GAIN_NAMES = ("kp_rollpitch", "ki_rollpitch", "kp_yaw", "ki_yaw")
 #: The playback window's Reset Zero choice (bpms.filter.zero_choice): label, mode.
 ZERO_CHOICES = (("as recorded", "events"), ("automatic", "auto"), ("none", "none"))
 SPEEDS: tuple[tuple[str, float | None], ...] = (

@@ -27,7 +27,14 @@ from PyQt6.QtWidgets import QAbstractItemView, QHeaderView, QStyle, QTableView, 
 from bpms.filter.calibration import SensorCalibration
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.gui.angle_readout import poorly_defined
-from bpms.gui.columns import COLUMNS, TEXT_GROUPS, calibrated, human_joint_name, shown_angles
+from bpms.gui.columns import (
+    COLUMNS,
+    TEXT_GROUPS,
+    calibrated,
+    column_values,
+    human_joint_name,
+    shown_angles,
+)
 from bpms.gui.disturbance_view import FlagAges
 from bpms.gui.drag import CELLS_MIME, JOINTS_MIME, cells_to_mime, joints_to_mime
 from bpms.gui.stale import StaleOverlay
@@ -196,14 +203,9 @@ class ImuTableModel(_DragModel):
             return error_text(self.errors[row])
         if column.group == "disturbance":
             return self.flag_ages.text(row)
-        if column.group == "raw":
-            return int(self.raw[row, column.k])
-        if column.group == "cal":
-            return float(self.cal[row, column.k])
-        if column.group == "est":
-            return float(self.est[row, column.k])
-        angle = float(self.euler[row, column.k])
-        return float(np.degrees(angle)) if self.angle_unit == "deg" else angle
+        value = column_values(column, self.raw[row], self.cal[row], self.euler[row],
+                              self.angle_unit == "deg", self.est[row])
+        return int(value) if column.group == "raw" else float(value)
 
     def data(self, index: QModelIndex, role: int = _DISPLAY):
         if role == _DISPLAY:
