@@ -458,16 +458,9 @@ def best_columns(n: int, width: int, height: int) -> int:
     nearest :data:`CELL_ASPECT`."""
     if n <= 1 or width <= 0 or height <= 0:
         return 1
-    best, score = 1, float("inf")
-    for columns in sorted({1, 2, 3, n}):
-        if columns > n:
-            continue
-        rows = -(-n // columns)
-        aspect = (width / columns) / (height / rows)
-        s = abs(np.log(aspect / CELL_ASPECT))
-        if s < score:
-            best, score = columns, s
-    return best
+    # the aspect of a cell in c columns (of -(-n // c) rows); a tie goes to fewer columns
+    return min((c for c in sorted({1, 2, 3, n}) if c <= n),
+               key=lambda c: abs(np.log((width / c) / (height / -(-n // c)) / CELL_ASPECT)))
 
 
 class PlotDropArea(QLabel):
