@@ -379,10 +379,10 @@ class PlaybackPanel(QGroupBox):
         self.tick_labels: list[QLabel] = []
         n_ticks = 5
         for k in range(n_ticks):
-            self.tick_labels.append(label(
-                _mmss(stream_time(round(k / (n_ticks - 1) * len(self.replay)))), wrap=False,
-                style="color: #666; font-size: 9pt"))
-            ticks.addWidget(self.tick_labels[-1])
+            tick = label(_mmss(stream_time(round(k / (n_ticks - 1) * len(self.replay)))),
+                         wrap=False, style="color: #666; font-size: 9pt")
+            self.tick_labels.append(tick)
+            ticks.addWidget(tick)
             if k < n_ticks - 1:
                 ticks.addStretch(1)
         layout.addLayout(ticks)
