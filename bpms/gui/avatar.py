@@ -3,8 +3,8 @@ capsule between its two joints, a large one for the head, small ones for hands a
 flattened copy as the shadow on the floor.
 
 One mesh for the whole body: a fixed triangle list (:data:`FACES`) and, per pose, vertices
-``[V, 3]`` and colours ``[V, 4]`` built in one vectorised pass. :func:`body_mesh` caches the
-newest pose's mesh, so any number of 3D views showing the same sample share one set of arrays.
+``[V, 3]`` and colours ``[V, 4]`` built in one vectorised pass. The 3D views build the mesh
+of a pose once and share it (:func:`bpms.gui.view3d_gl.shared_meshdata`).
 
 Points are display metres (x north, y west, z up; :mod:`bpms.gui.view3d_geometry`).
 """
@@ -80,20 +80,14 @@ SEG_COLOURS = np.array([_colour(child) for _, child, _ in SEGMENTS])
 #: Vertex colours ``[V, 4]`` of the figure and of the waiting (grey) figure.
 VERTEX_COLOURS = np.repeat(SEG_COLOURS, VERTS_PER_SEGMENT, axis=0)
 WAITING_COLOURS = np.tile(np.array(WAITING), (N_SEGMENTS * VERTS_PER_SEGMENT, 1))
-SHADOW_COLOURS = np.tile(np.array(SHADOW), (N_SEGMENTS * VERTS_PER_SEGMENT, 1))
 
 from bpms.gui.view3d_geometry import SEG_END, SEG_START  # noqa: E402  (after SEGMENTS use)
 
 
-def capsule_vertices(a: np.ndarray, b: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """Vertices ``[M * VERTS_PER_SEGMENT, 3]`` of M capsules from ``a [M, 3]`` to
-    ``b [M, 3]`` with ``radii [M]`` (metres). A zero-length segment is a sphere."""
-    return capsule_mesh(a, b, radii)[0]
-
-
 def capsule_mesh(a: np.ndarray, b: np.ndarray, radii: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices, unit normals), both ``[M * VERTS_PER_SEGMENT, 3]``, of M capsules. The
+    """(vertices, unit normals), both ``[M * VERTS_PER_SEGMENT, 3]``, of M capsules from
+    ``a [M, 3]`` to ``b [M, 3]`` with ``radii [M]`` (metres; a zero-length one is a sphere). The
     normals are exact (radial on the sides, spherical on the caps) and point inwards, the
     side pyqtgraph's "shaded" shader lights when it faces the camera; computing them from
     the faces would cost more than the whole frame."""
@@ -141,25 +135,3 @@ def shadow_vertices(verts: np.ndarray) -> np.ndarray:
     flat[:, 2] = SHADOW_Z
     return flat
 
-
-class BodyMeshCache:
-    """The newest pose's mesh arrays, computed once and shared by every view."""
-
-    def __init__(self) -> None:
-        self._key: object = None
-        self.verts: np.ndarray | None = None
-        self.shadow: np.ndarray | None = None
-
-    def get(self, key: object, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(vertices, shadow vertices) of ``points``; ``key`` identifies the pose (e.g. the
-        sample object): the same key returns the same arrays without recomputing."""
-        if key is None or key is not self._key or self.verts is None:
-            self.verts = figure_vertices(points)
-            self.shadow = shadow_vertices(self.verts)
-            self._key = key
-        assert self.shadow is not None
-        return self.verts, self.shadow
-
-
-#: The process-wide cache the Qt views use.
-SHARED = BodyMeshCache()

@@ -20,19 +20,15 @@ import numpy as np
 from PyQt6.QtCore import Qt
 from PyQt6.QtWidgets import (
     QCheckBox,
-    QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
     QGridLayout,
-    QHBoxLayout,
     QHeaderView,
     QLabel,
     QLineEdit,
     QListWidget,
     QProgressBar,
-    QPushButton,
     QRadioButton,
-    QSpinBox,
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
@@ -49,6 +45,7 @@ from bpms.calibration.procedures import (
     pose_name,
 )
 from bpms.calibration.result import summary
+from bpms.gui.widgets import button, label, row, spin_box
 from bpms.io.events import FrameSource
 from bpms.io.frames import IMU_NAMES, N_IMUS
 
@@ -88,77 +85,75 @@ def _scene(source: FrameSource | None, *args, **kwargs) -> None:
         source.set_scene(*args, **kwargs)
 
 
-class SetupPage(QWizardPage):
+def _table(headers: list[str], stretch_last: bool) -> QTableWidget:
+    """A table of text under ``headers``, columns as wide as their contents (the last one
+    taking the room left when ``stretch_last``), no row numbers."""
+    table = QTableWidget(0, len(headers))
+    table.setHorizontalHeaderLabels(headers)
+    table.verticalHeader().setVisible(False)
+    header = table.horizontalHeader()
+    header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+    header.setStretchLastSection(stretch_last)
+    header.setHighlightSections(False)
+    return table
+
+
+class _Page(QWizardPage):
+    """A page of ``wizard`` (``_wizard``): its title and subtitle over a vertical layout
+    (``box``)."""
+
+    def __init__(self, wizard: QWizard, title: str, subtitle: str) -> None:
+        super().__init__()
+        self._wizard = wizard
+        self.setTitle(title)
+        self.setSubTitle(subtitle)
+        self.box = QVBoxLayout(self)
+
+
+class SetupPage(_Page):
     """IMUs, sensors, settings, the suit or the simulated suit, the output file."""
 
     def __init__(self, wizard: QWizard) -> None:
-        super().__init__()
-        self.setTitle("Sensor calibration")
-        self.setSubTitle("Choose the IMUs and sensors to calibrate. Values of everything not "
-                         "chosen are kept from the existing file.")
-        layout = QVBoxLayout(self)
+        super().__init__(wizard, "Sensor calibration", "Choose the IMUs and sensors to "
+                         "calibrate. Values of everything not chosen are kept from the "
+                         "existing file.")
+        layout = self.box
         grid = QGridLayout()
-        self.imu_boxes = []
-        for i in range(N_IMUS):
-            box = QCheckBox(imu_label(i))
-            box.setChecked(True)
-            box.toggled.connect(self.completeChanged)
+        self.imu_boxes = [self._chosen(imu_label(i)) for i in range(N_IMUS)]
+        for i, box in enumerate(self.imu_boxes):
             grid.addWidget(box, i // 4, i % 4)
-            self.imu_boxes.append(box)
         layout.addLayout(grid)
-        row = QHBoxLayout()
-        for text, state in (("All", True), ("None", False)):
-            b = QPushButton(text)
-            b.clicked.connect(lambda _=False, s=state: [x.setChecked(s) for x in self.imu_boxes])
-            row.addWidget(b)
-        row.addStretch(1)
-        self.sensor_boxes = {}
-        for s in SENSORS:
-            box = QCheckBox(s)
-            box.setChecked(True)
-            box.toggled.connect(self.completeChanged)
-            row.addWidget(box)
-            self.sensor_boxes[s] = box
-        layout.addLayout(row)
+        every = [button(text, lambda _=False, on=on: [b.setChecked(on) for b in self.imu_boxes])
+                 for text, on in (("All", True), ("None", False))]
+        self.sensor_boxes = {s: self._chosen(s) for s in SENSORS}
+        layout.addLayout(row(*every, None, *self.sensor_boxes.values()))
         form = QFormLayout()
-        self.gyro_samples = QSpinBox()
-        self.gyro_samples.setRange(10, 100_000)
-        self.gyro_samples.setValue(500)
-        self.gyro_samples.setSuffix(" readings")
+        self.gyro_samples = spin_box(10, 100_000, 500, " readings")
         form.addRow("Gyro average of", self.gyro_samples)
-        self.accel_samples = QSpinBox()
-        self.accel_samples.setRange(10, 10_000)
-        self.accel_samples.setValue(200)
-        self.accel_samples.setSuffix(" readings")
+        self.accel_samples = spin_box(10, 10_000, 200, " readings")
         form.addRow("Accel average of", self.accel_samples)
-        self.sweep_s = QDoubleSpinBox()
-        self.sweep_s.setRange(1.0, 1200.0)
-        self.sweep_s.setValue(120.0)
-        self.sweep_s.setSuffix(" s")
+        self.sweep_s = spin_box(1.0, 1200.0, 120.0, " s")
         form.addRow("Magnetometer sweep", self.sweep_s)
         self.ellipsoid = QCheckBox("also fit an ellipsoid (hard + soft iron)")
         form.addRow("", self.ellipsoid)
-        out_row = QHBoxLayout()
         self.output = QLineEdit(str(Path.cwd() / "Calib.cfg"))
         self.output.textChanged.connect(self.completeChanged)
-        browse = QPushButton("Browse…")
-        browse.clicked.connect(self._browse)
-        out_row.addWidget(self.output, 1)
-        out_row.addWidget(browse)
-        form.addRow("Calibration file", out_row)
+        form.addRow("Calibration file", row(self.output, button("Browse…", self._browse),
+                                            grow=self.output))
         self.use_suit = QRadioButton("the suit")
         self.use_sim = QRadioButton("the simulated suit")
         self.use_suit.setChecked(True)
-        src = QHBoxLayout()
-        src.addWidget(self.use_suit)
-        src.addWidget(self.use_sim)
-        src.addStretch(1)
-        form.addRow("Calibrate", src)
+        form.addRow("Calibrate", row(self.use_suit, self.use_sim, None))
         layout.addLayout(form)
-        self.status = QLabel()
-        self.status.setWordWrap(True)
+        self.status = label()
         layout.addWidget(self.status)
-        self._wizard = wizard
+
+    def _chosen(self, text: str) -> QCheckBox:
+        """A box ticked at first; ticking or unticking it may complete the page."""
+        box = QCheckBox(text)
+        box.setChecked(True)
+        box.toggled.connect(self.completeChanged)
+        return box
 
     def _browse(self) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Calibration file", self.output.text(),
@@ -181,23 +176,17 @@ class SetupPage(QWizardPage):
         return ok
 
 
-class GyroPage(QWizardPage):
+class GyroPage(_Page):
     def __init__(self, wizard: QWizard) -> None:
-        super().__init__()
-        self._wizard = wizard
-        self.setTitle("Gyroscope")
-        self.setSubTitle("Lay the suit down and keep it still, then press Start. Moving it "
-                         "refuses the capture.")
-        layout = QVBoxLayout(self)
-        self.start = QPushButton("Start")
-        self.start.clicked.connect(self.begin)
+        super().__init__(wizard, "Gyroscope", "Lay the suit down and keep it still, then "
+                         "press Start. Moving it refuses the capture.")
+        self.start = button("Start", self.begin)
         self.progress = QProgressBar()
         self.motion = QLabel("motion: –")
-        self.message = QLabel()
-        self.message.setWordWrap(True)
+        self.message = label()
         for w in (self.start, self.progress, self.motion, self.message):
-            layout.addWidget(w)
-        layout.addStretch(1)
+            self.box.addWidget(w)
+        self.box.addStretch(1)
         self.proc: GyroProcedure | None = None
 
     def initializePage(self) -> None:
@@ -238,36 +227,24 @@ class GyroPage(QWizardPage):
         return self.proc is not None and self.proc.state == "done"
 
 
-class AccelPage(QWizardPage):
+class AccelPage(_Page):
     def __init__(self, wizard: QWizard) -> None:
-        super().__init__()
-        self._wizard = wizard
-        self.setTitle("Accelerometer")
-        self.setSubTitle("Six poses per IMU, in the order shown. Hold the IMU still with the "
-                         "axis at its extreme, then Capture.")
-        layout = QVBoxLayout(self)
-        self.prompt = QLabel()
-        self.prompt.setWordWrap(True)
+        super().__init__(wizard, "Accelerometer", "Six poses per IMU, in the order shown. "
+                         "Hold the IMU still with the axis at its extreme, then Capture.")
+        self.prompt = label()
         self.live = QLabel()
         self.still = QLabel()
         self.progress = QProgressBar()
-        row = QHBoxLayout()
-        self.capture = QPushButton("Capture")
-        self.capture.clicked.connect(self._capture)
-        self.skip = QPushButton("Skip")
-        self.skip.clicked.connect(self._skip)
-        self.redo = QPushButton("Redo selected")
-        self.redo.clicked.connect(self._redo)
-        for b in (self.capture, self.skip, self.redo):
-            row.addWidget(b)
+        self.capture = button("Capture", self._capture)
+        self.skip = button("Skip", self._skip)
+        self.redo = button("Redo selected", self._redo)
         self.steps = QListWidget()
-        self.message = QLabel()
-        self.message.setWordWrap(True)
+        self.message = label()
         for w in (self.prompt, self.live, self.still, self.progress):
-            layout.addWidget(w)
-        layout.addLayout(row)
-        layout.addWidget(self.message)
-        layout.addWidget(self.steps, 1)
+            self.box.addWidget(w)
+        self.box.addLayout(row(self.capture, self.skip, self.redo))
+        self.box.addWidget(self.message)
+        self.box.addWidget(self.steps, 1)
         self.proc: AccelProcedure | None = None
 
     def initializePage(self) -> None:
@@ -314,9 +291,9 @@ class AccelPage(QWizardPage):
             self._pose()
 
     def _redo(self) -> None:
-        row = self.steps.currentRow()
-        if self.proc is not None and row >= 0:
-            self.proc.redo(row)
+        step = self.steps.currentRow()
+        if self.proc is not None and step >= 0:
+            self.proc.redo(step)
             self._pose()
 
     def feed(self, raw: np.ndarray, errors: np.ndarray) -> None:
@@ -344,7 +321,7 @@ class AccelPage(QWizardPage):
         return self.proc is not None and self.proc.done
 
 
-class MagPage(QWizardPage):
+class MagPage(_Page):
     """The magnetometer sweep. Below the coverage the procedure asks for, the page is complete
     only when the sweep is done again or :attr:`accept_low` (the confirmation) is ticked."""
 
@@ -352,36 +329,19 @@ class MagPage(QWizardPage):
                "mag z [counts]\nmin / max", "sphere\ncoverage")
 
     def __init__(self, wizard: QWizard) -> None:
-        super().__init__()
-        self._wizard = wizard
-        self.setTitle("Magnetometer")
-        self.setSubTitle("Away from metal, rotate the garment through every orientation in one "
-                         "place for the whole sweep.")
-        layout = QVBoxLayout(self)
-        row = QHBoxLayout()
-        self.start = QPushButton("Start sweep")
-        self.start.clicked.connect(self.begin)
-        self.stop = QPushButton("Finish now")
-        self.stop.clicked.connect(self._finish)
+        super().__init__(wizard, "Magnetometer", "Away from metal, rotate the garment through "
+                         "every orientation in one place for the whole sweep.")
+        layout = self.box
+        self.start = button("Start sweep", self.begin)
+        self.stop = button("Finish now", self._finish)
         self.stop.setEnabled(False)
-        row.addWidget(self.start)
-        row.addWidget(self.stop)
-        self.remaining = QLabel()
-        self.remaining.setWordWrap(True)
-        row.addWidget(self.remaining, 1)
-        layout.addLayout(row)
+        self.remaining = label()
+        layout.addLayout(row(self.start, self.stop, self.remaining, grow=self.remaining))
         self.progress = QProgressBar()
         layout.addWidget(self.progress)
-        self.table = QTableWidget(0, len(self.HEADERS))
-        self.table.setHorizontalHeaderLabels(list(self.HEADERS))
-        self.table.verticalHeader().setVisible(False)
-        header = self.table.horizontalHeader()
-        header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
-        header.setStretchLastSection(True)
-        header.setHighlightSections(False)
+        self.table = _table(list(self.HEADERS), stretch_last=True)
         layout.addWidget(self.table, 1)
-        self.warnings = QLabel()
-        self.warnings.setWordWrap(True)
+        self.warnings = label()
         layout.addWidget(self.warnings)
         self.accept_low = QCheckBox()
         self.accept_low.setVisible(False)
@@ -476,26 +436,15 @@ class MagPage(QWizardPage):
         return not self.low_coverage() or self.accept_low.isChecked()
 
 
-class SummaryPage(QWizardPage):
+class SummaryPage(_Page):
     def __init__(self, wizard: QWizard) -> None:
-        super().__init__()
-        self._wizard = wizard
-        self.setTitle("Summary")
-        self.setSubTitle("Old vs new values (counts; Gravity in counts per g). Finish saves the "
-                         "legacy Calib.cfg and the modern .json beside it.")
-        layout = QVBoxLayout(self)
-        self.table = QTableWidget(0, 5)
-        self.table.setHorizontalHeaderLabels(["IMU", "value", "old", "new", "change"])
-        self.table.verticalHeader().setVisible(False)
-        header = self.table.horizontalHeader()
-        header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
-        header.setStretchLastSection(False)  # the numbers beside their names
-        header.setHighlightSections(False)
-        layout.addWidget(self.table, 1)
-        self.quality = QLabel()
-        self.quality.setWordWrap(True)
-        self.quality.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        layout.addWidget(self.quality)
+        super().__init__(wizard, "Summary", "Old vs new values (counts; Gravity in counts per "
+                         "g). Finish saves the legacy Calib.cfg and the modern .json beside it.")
+        # the numbers beside their names (the last column not stretched)
+        self.table = _table(["IMU", "value", "old", "new", "change"], stretch_last=False)
+        self.box.addWidget(self.table, 1)
+        self.quality = label(selectable=True)
+        self.box.addWidget(self.quality)
 
     def initializePage(self) -> None:
         w = self._wizard
@@ -503,9 +452,9 @@ class SummaryPage(QWizardPage):
         new = update.merge(w.existing.table)
         rows = summary(w.existing.table, new, w.imus)
         self.table.setRowCount(len(rows))
-        for r, row in enumerate(rows):
-            for c, text in enumerate((imu_label(row.imu), row.field, _number(row.old),
-                                      _number(row.new), _number(row.change, "+.2f"))):
+        for r, line in enumerate(rows):
+            for c, text in enumerate((imu_label(line.imu), line.field, _number(line.old),
+                                      _number(line.new), _number(line.change, "+.2f"))):
                 self.table.setItem(r, c, QTableWidgetItem(text) if c < 2 else _number_item(text))
         lines = update.quality.lines() or ["no quality figure (nothing measured)"]
         self.quality.setText("\n".join(named(line) for line in lines))

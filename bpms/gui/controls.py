@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
-from PyQt6.QtCore import Qt, pyqtSignal
+from PyQt6.QtCore import QSignalBlocker, Qt, pyqtSignal
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -19,7 +19,6 @@ from PyQt6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QLineEdit,
-    QPushButton,
     QSizePolicy,
     QSlider,
     QStyle,
@@ -30,6 +29,8 @@ from PyQt6.QtWidgets import (
 
 from bpms.gui.modes import SessionRunner
 from bpms.gui.safety import BackgroundTask, debounce, guard_wheel, set_enabled_keeping_focus
+from bpms.gui.widgets import button, label, row
+from bpms.io.filtered_file.reader import is_number
 from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, check_option, option_range
 from bpms.io.rawfile import RecordingError
 from bpms.io.timebase import stream_time
@@ -38,7 +39,6 @@ from bpms.io.udp.addresses import UdpConfigError
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not the window
     from bpms.pipeline.session import LiveStatus
 
-GAIN_NAMES = ("kp_rollpitch", "ki_rollpitch", "kp_yaw", "ki_yaw")
 #: The playback window's Reset Zero choice (bpms.filter.zero_choice): label, mode.
 ZERO_CHOICES = (("as recorded", "events"), ("automatic", "auto"), ("none", "none"))
 SPEEDS: tuple[tuple[str, float | None], ...] = (
@@ -67,19 +67,14 @@ class StatusPanel(QGroupBox):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__("Data", parent)
         form = QFormLayout(self)
-        buttons = QHBoxLayout()
-        self.data_button = QPushButton("Start Data")
-        self.data_button.setToolTip("Start or stop the stream (Ctrl+Space)")
+        self.data_button = button("Start Data", tip="Start or stop the stream (Ctrl+Space)")
         debounce(self.data_button, lambda: self.dataToggled.emit(not self.streaming))
-        self.reset_button = QPushButton("Reset Zero")
-        self.reset_button.setToolTip("Stand in the calibration pose and press (Ctrl+R); "
-                                     "done automatically once the subject stands still, "
-                                     "from 1 s after the stream starts")
+        self.reset_button = button("Reset Zero", self.resetZeroClicked,
+                                   "Stand in the calibration pose and press (Ctrl+R); done "
+                                   "automatically once the subject stands still, from 1 s "
+                                   "after the stream starts")
         self.reset_button.setEnabled(False)
-        self.reset_button.clicked.connect(self.resetZeroClicked)
-        buttons.addWidget(self.data_button)
-        buttons.addWidget(self.reset_button)
-        form.addRow(buttons)
+        form.addRow(row(self.data_button, self.reset_button))
         self.labels: dict[str, QLabel] = {}
         for key, title in (("source", "Source"), ("state", "Link state"),
                            ("rate", "Reception rate"), ("frames", "Frames"),
@@ -88,11 +83,8 @@ class StatusPanel(QGroupBox):
                            ("extra", "Source counters"), ("event", "Last event"),
                            ("calibration", "Calibration"), ("options", "Options"),
                            ("filter", "Filter"), ("reset_zero", "Reset Zero")):
-            label = QLabel("–")
-            label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-            label.setWordWrap(True)
-            self.labels[key] = label
-            form.addRow(title, label)
+            self.labels[key] = label("–", selectable=True)
+            form.addRow(title, self.labels[key])
         self.labels["calibration"].setToolTip("Where the sensor calibration in force came from")
         self.labels["options"].setToolTip("Where the options in force came from")
         self.labels["filter"].setToolTip("The attitude filter the numbers come from")
@@ -185,20 +177,16 @@ class GainsPanel(QGroupBox):
             edit.setToolTip(f"{fields[name].metadata.get('help', '')}; valid "
                             f"{rng.describe() if rng else 'any'}")
             edit.editingFinished.connect(lambda n=name: self.apply(n))
-            row = QWidget()
-            line = QHBoxLayout(row)
+            field = QWidget()
+            line = QHBoxLayout(field)
             line.setContentsMargins(0, 0, 0, 0)
             line.addWidget(edit, 1)
-            hint = QLabel(rng.describe() if rng else "")
-            hint.setStyleSheet("color: #666")
-            line.addWidget(hint)
+            line.addWidget(label(rng.describe() if rng else "", wrap=False, style="color: #666"))
             self.values[name] = float(getattr(options, name))
-            self.edits[name], self.rows[name] = edit, row
+            self.edits[name], self.rows[name] = edit, field
             self.labels[name] = QLabel(_short_name(name))
-            form.addRow(self.labels[name], row)
-        self.message = QLabel("")
-        self.message.setWordWrap(True)
-        self.message.setStyleSheet("color: #b00")
+            form.addRow(self.labels[name], field)
+        self.message = label(style="color: #b00")
         form.addRow(self.message)
         self._refused = ""
         self.show_settings_of(options.algorithm)
@@ -206,14 +194,14 @@ class GainsPanel(QGroupBox):
     def show_settings_of(self, algorithm: str) -> None:
         """Show only ``algorithm``'s own settings."""
         mine = set(ALGORITHM_SETTINGS.get(algorithm, ()))
-        for name, row in self.rows.items():
-            row.setVisible(name in mine)
+        for name, widget in self.rows.items():
+            widget.setVisible(name in mine)
             self.labels[name].setVisible(name in mine)
         self.message.setText("")
 
     def shown_settings(self) -> list[str]:
         """The settings whose fields are shown (those of the chosen filter)."""
-        return [n for n, row in self.rows.items() if not row.isHidden()]
+        return [n for n, field in self.rows.items() if not field.isHidden()]
 
     def apply(self, name: str) -> bool:
         """Check the field of ``name`` and apply it (False: refused, the message says why)."""
@@ -225,7 +213,7 @@ class GainsPanel(QGroupBox):
         try:
             value = check_option("filter", name, float(text))
         except ValueError as exc:
-            why = str(exc).split(" (")[0] if _is_number(text) else \
+            why = str(exc).split(" (")[0] if is_number(text) else \
                 f"filter.{name}: {text!r} is not a number"
             shown = "" if rng is not None and rng.describe() in why else f"; {valid}"
             return self._refuse(name, f"refused {why}{shown}; kept {old:g}")
@@ -254,14 +242,6 @@ class GainsPanel(QGroupBox):
         return False
 
 
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 def _short_name(name: str) -> str:
     """``observer_k_incl`` → ``k_incl``: the filter's name is in the combo box above."""
     for algorithm in ALGORITHM_SETTINGS:
@@ -282,7 +262,6 @@ class FilePanel(QGroupBox):
         self.name_edit.setToolTip("Files are Raw_<name>_<n>.bpmsraw and Filtered_<name>_<n>.csv;"
                                   " n grows at every Start Logging")
         form.addRow("Name", self.name_edit)
-        boxes = QHBoxLayout()
         self.raw_box = QCheckBox("Raw")
         self.filtered_box = QCheckBox("Filtered")
         self.raw_box.setChecked(runner.options.logging.raw)
@@ -294,16 +273,11 @@ class FilePanel(QGroupBox):
                                     "data)")
         self.degrees_box = QCheckBox("angles in deg")
         self.degrees_box.setToolTip("Filtered file angle unit (default rad)")
-        for box in (self.raw_box, self.filtered_box, self.degrees_box):
-            boxes.addWidget(box)
-        form.addRow(boxes)
-        self.log_button = QPushButton("Start Logging")
-        self.log_button.setToolTip("Ctrl+L")
+        form.addRow(row(self.raw_box, self.filtered_box, self.degrees_box))
+        self.log_button = button("Start Logging", tip="Ctrl+L")
         debounce(self.log_button, self.toggle_logging)
         form.addRow(self.log_button)
-        self.files_label = QLabel("not logging")
-        self.files_label.setWordWrap(True)
-        self.files_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.files_label = label("not logging", selectable=True)
         form.addRow(self.files_label)
         self.message = ""
         self.last_recording = None
@@ -405,10 +379,10 @@ class PlaybackPanel(QGroupBox):
         self.tick_labels: list[QLabel] = []
         n_ticks = 5
         for k in range(n_ticks):
-            label = QLabel(_mmss(stream_time(round(k / (n_ticks - 1) * len(self.replay)))))
-            label.setStyleSheet("color: #666; font-size: 9pt")
-            self.tick_labels.append(label)
-            ticks.addWidget(label)
+            tick = label(_mmss(stream_time(round(k / (n_ticks - 1) * len(self.replay)))),
+                         wrap=False, style="color: #666; font-size: 9pt")
+            self.tick_labels.append(tick)
+            ticks.addWidget(tick)
             if k < n_ticks - 1:
                 ticks.addStretch(1)
         layout.addLayout(ticks)
@@ -423,39 +397,31 @@ class PlaybackPanel(QGroupBox):
                 (sp.SP_MediaSkipForward, "+1 s", 50, "Ctrl+Shift+Right")):
             # tool buttons: as wide as icon and text (push buttons keep a style minimum that
             # makes four of them scroll a narrow panel sideways)
-            button = QToolButton()
-            button.setIcon(icon(pixmap))
-            button.setText(text)
-            button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
-            button.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
+            tool = QToolButton()
+            tool.setIcon(icon(pixmap))
+            tool.setText(text)
+            tool.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+            tool.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
             if n > 0:
-                button.setLayoutDirection(Qt.LayoutDirection.RightToLeft)  # text, then icon
+                tool.setLayoutDirection(Qt.LayoutDirection.RightToLeft)  # text, then icon
             word = "forward" if n > 0 else "back"
-            button.setToolTip(f"Paused: {abs(n)} frame{'s' if abs(n) > 1 else ''} {word} "
-                              f"({'1 s' if abs(n) == 50 else 'one frame'}; {tip})")
-            button.clicked.connect(lambda _=False, n=n: self.step(n))
-            steps.addWidget(button)
-            self.step_buttons.append(button)
+            tool.setToolTip(f"Paused: {abs(n)} frame{'s' if abs(n) > 1 else ''} {word} "
+                            f"({'1 s' if abs(n) == 50 else 'one frame'}; {tip})")
+            tool.clicked.connect(lambda _=False, n=n: self.step(n))
+            steps.addWidget(tool)
+            self.step_buttons.append(tool)
         layout.addLayout(steps)
-        row = QHBoxLayout()
-        self.position_label = QLabel()
-        self.position_label.setWordWrap(True)  # a narrow panel: two lines, no sideways scroll
-        row.addWidget(self.position_label, 1)
-        row.addWidget(QLabel("Speed"))
+        self.position_label = label()  # a narrow panel: two lines, no sideways scroll
         self.speed_combo = QComboBox()
-        for label, _ in SPEEDS:
-            self.speed_combo.addItem(label)
+        self.speed_combo.addItems([text for text, _ in SPEEDS])
         self.speed_combo.setCurrentIndex(2)
         self.speed_combo.currentIndexChanged.connect(
             lambda i: self.replay.set_speed(SPEEDS[i][1]))
         guard_wheel(self.speed_combo)
-        row.addWidget(self.speed_combo)
-        layout.addLayout(row)
-        zero = QHBoxLayout()
-        zero.addWidget(QLabel("Reset Zero"))
+        layout.addLayout(row(self.position_label, QLabel("Speed"), self.speed_combo,
+                             grow=self.position_label))
         self.zero_combo = QComboBox()
-        for label, _ in ZERO_CHOICES:
-            self.zero_combo.addItem(label)
+        self.zero_combo.addItems([text for text, _ in ZERO_CHOICES])
         self.zero_combo.setToolTip("as recorded: the Reset Zero captures made live, at their "
                                    "frames; automatic: made again once the subject stands "
                                    "still; none: the IMUs' own attitudes. Changing it plays "
@@ -464,8 +430,7 @@ class PlaybackPanel(QGroupBox):
         self.zero_combo.currentIndexChanged.connect(
             lambda i: self.runner.set_playback_reset_zero(ZERO_CHOICES[i][1]))
         guard_wheel(self.zero_combo)
-        zero.addWidget(self.zero_combo, 1)
-        layout.addLayout(zero)
+        layout.addLayout(row(QLabel("Reset Zero"), self.zero_combo, grow=self.zero_combo))
         self._update_label(self.replay.position)
 
     def _slider_moved(self, value: int) -> None:
@@ -489,9 +454,8 @@ class PlaybackPanel(QGroupBox):
         if self.replay.playing:
             return
         index = min(max(0, self.shown + n), max(0, len(self.replay) - 1))
-        self.slider.blockSignals(True)
-        self.slider.setValue(index)
-        self.slider.blockSignals(False)
+        with QSignalBlocker(self.slider):
+            self.slider.setValue(index)
         self.seek(index)
 
     def _update_label(self, index: int) -> None:
@@ -508,9 +472,8 @@ class PlaybackPanel(QGroupBox):
         if playing and not self.slider.isSliderDown():
             # the last delivered frame (position is the next one)
             pos = min(max(0, self.replay.position - 1), self.slider.maximum())
-            self.slider.blockSignals(True)
-            self.slider.setValue(pos)
-            self.slider.blockSignals(False)
+            with QSignalBlocker(self.slider):
+                self.slider.setValue(pos)
             self.shown = pos
             self._update_label(pos)
 
@@ -526,11 +489,10 @@ class UdpServerPanel(QGroupBox):
         self.targets_edit = QLineEdit(", ".join(runner.options.udp.forward_to))
         self.targets_edit.setToolTip("host:port targets, comma-separated (multicast allowed)")
         form.addRow("Targets", self.targets_edit)
-        self.button = QPushButton("Start UDP server")
+        self.button = button("Start UDP server")
         debounce(self.button, self.toggle)
         form.addRow(self.button)
-        self.status_label = QLabel("off")
-        self.status_label.setWordWrap(True)
+        self.status_label = label("off")
         form.addRow(self.status_label)
         self.on = False
 

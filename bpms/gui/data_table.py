@@ -25,8 +25,16 @@ from PyQt6.QtGui import QColor, QFont, QFontMetrics
 from PyQt6.QtWidgets import QAbstractItemView, QHeaderView, QStyle, QTableView, QWidget
 
 from bpms.filter.calibration import SensorCalibration
+from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.gui.angle_readout import poorly_defined
-from bpms.gui.columns import COLUMNS, TEXT_GROUPS, calibrated, human_joint_name, shown_angles
+from bpms.gui.columns import (
+    COLUMNS,
+    TEXT_GROUPS,
+    calibrated,
+    column_values,
+    human_joint_name,
+    shown_angles,
+)
 from bpms.gui.disturbance_view import FlagAges
 from bpms.gui.drag import CELLS_MIME, JOINTS_MIME, cells_to_mime, joints_to_mime
 from bpms.gui.stale import StaleOverlay
@@ -35,8 +43,6 @@ from bpms.pipeline.session import PoseSample
 
 #: Error flags stay red at least this long after the last faulty frame, s.
 ERROR_HOLD_S = 2.0
-
-
 
 
 def error_text(flags: np.ndarray) -> str:
@@ -66,8 +72,42 @@ WIDEST = {"euler": ("-9999.99", "-99.999"), "raw": ("-32768",), "cal": ("-156.90
           "disturbance": ("mag 59 min 999 %, acc 59 min 9.9 g",)}
 
 
-class ImuTableModel(QAbstractTableModel):
+class _DragModel(QAbstractTableModel):
+    """A flat table of ``SHAPE`` (rows, columns) whose cells drag as ``MIME``."""
+
+    SHAPE = (0, 0)
+    MIME = ""
+
+    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else self.SHAPE[0]
+
+    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
+        return 0 if parent.isValid() else self.SHAPE[1]
+
+    def mimeTypes(self) -> list[str]:
+        return [self.MIME]
+
+
+def _drag_view(view: QTableView, model: _DragModel,
+               behaviour: QAbstractItemView.SelectionBehavior) -> StaleOverlay:
+    """``view`` showing ``model`` read-only, selecting ``behaviour`` (cells or rows), dragging
+    onto plots; returns the veil over its cells while the data is not live."""
+    view.setModel(model)
+    view.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
+    view.setSelectionBehavior(behaviour)
+    view.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+    view.setDragEnabled(True)
+    view.setDragDropMode(QAbstractItemView.DragDropMode.DragOnly)
+    view.setAlternatingRowColors(True)
+    view.verticalHeader().setDefaultSectionSize(22)
+    return StaleOverlay(view.viewport())
+
+
+class ImuTableModel(_DragModel):
     """Numbers of the newest sample; refreshed by :meth:`update` once per display tick."""
+
+    SHAPE = (N_IMUS, len(COLUMNS))
+    MIME = CELLS_MIME
 
     def __init__(self, calibration: SensorCalibration, angle_unit: str = "deg",
                  parent: QWidget | None = None) -> None:
@@ -156,12 +196,6 @@ class ImuTableModel(QAbstractTableModel):
         self.dataChanged.emit(self.index(0, 0), self.index(N_IMUS - 1, len(COLUMNS) - 1))
 
     # -- QAbstractTableModel --------------------------------------------------------------
-    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
-        return 0 if parent.isValid() else N_IMUS
-
-    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
-        return 0 if parent.isValid() else len(COLUMNS)
-
     def value(self, row: int, col: int) -> float | str:
         """The number (in the header's unit) or text shown at ``row, col``."""
         column = COLUMNS[col]
@@ -169,14 +203,9 @@ class ImuTableModel(QAbstractTableModel):
             return error_text(self.errors[row])
         if column.group == "disturbance":
             return self.flag_ages.text(row)
-        if column.group == "raw":
-            return int(self.raw[row, column.k])
-        if column.group == "cal":
-            return float(self.cal[row, column.k])
-        if column.group == "est":
-            return float(self.est[row, column.k])
-        angle = float(self.euler[row, column.k])
-        return float(np.degrees(angle)) if self.angle_unit == "deg" else angle
+        value = column_values(column, self.raw[row], self.cal[row], self.euler[row],
+                              self.angle_unit == "deg", self.est[row])
+        return int(value) if column.group == "raw" else float(value)
 
     def data(self, index: QModelIndex, role: int = _DISPLAY):
         if role == _DISPLAY:
@@ -203,9 +232,6 @@ class ImuTableModel(QAbstractTableModel):
         if index.isValid() and COLUMNS[index.column()].group not in TEXT_GROUPS:
             base |= Qt.ItemFlag.ItemIsDragEnabled
         return base
-
-    def mimeTypes(self) -> list[str]:
-        return [CELLS_MIME]
 
     def mimeData(self, indexes) -> QMimeData:
         """Dragged cells (onto a plot, or onto empty space for a new plot)."""
@@ -234,23 +260,14 @@ class DataTable(QTableView):
 
     def __init__(self, model: ImuTableModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        self.setModel(model)
-        self.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
-        self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectItems)
-        self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
-        self.setDragEnabled(True)
-        self.setDragDropMode(QAbstractItemView.DragDropMode.DragOnly)
+        self.stale = _drag_view(self, model, QAbstractItemView.SelectionBehavior.SelectItems)
         self.setDefaultDropAction(Qt.DropAction.CopyAction)
-        self.setAlternatingRowColors(True)
         self.setWordWrap(False)
         header = self.horizontalHeader()
         header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
         self.fit_columns()
         header.moveSection(header.visualIndex(DISTURBANCE_COLUMN), _ERRORS_COLUMN + 1)
-        self.verticalHeader().setDefaultSectionSize(22)
         model.headerDataChanged.connect(lambda *_: self.fit_columns())
-        #: veils the cells while the data is not live (the main window says when)
-        self.stale = StaleOverlay(self.viewport())
 
     def column_width(self, col: int) -> int:
         """Pixels for column ``col``: its header in bold (a selected cell's column header is
@@ -297,14 +314,15 @@ class DataTable(QTableView):
             sel.select(self.model().index(row, col), flag)
 
 
-class JointAngleModel(QAbstractTableModel):
+class JointAngleModel(_DragModel):
     """The 28 joint angles of the newest sample: readable name, value in deg or rad.
     Rows drag as joint angles onto plots."""
 
+    SHAPE = (len(JOINT_ANGLE_NAMES), 2)
+    MIME = JOINTS_MIME
+
     def __init__(self, angle_unit: str = "deg", parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        from bpms.filter.joints import JOINT_ANGLE_NAMES
-
         self.names = [human_joint_name(n) for n in JOINT_ANGLE_NAMES]
         self.angle_unit = angle_unit
         self.values = np.full(len(self.names), np.nan)  # rad
@@ -327,12 +345,6 @@ class JointAngleModel(QAbstractTableModel):
         self.headerDataChanged.emit(Qt.Orientation.Horizontal, 1, 1)
         self.dataChanged.emit(self.index(0, 1), self.index(len(self.names) - 1, 1))
 
-    def rowCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
-        return 0 if parent.isValid() else len(self.names)
-
-    def columnCount(self, parent: QModelIndex = QModelIndex()) -> int:  # noqa: B008
-        return 0 if parent.isValid() else 2
-
     def data(self, index: QModelIndex, role: int = _DISPLAY):
         if role == _DISPLAY:
             return self.names[index.row()] if index.column() == 0 else self._text[index.row()]
@@ -349,9 +361,6 @@ class JointAngleModel(QAbstractTableModel):
     def flags(self, index: QModelIndex) -> Qt.ItemFlag:
         return super().flags(index) | Qt.ItemFlag.ItemIsDragEnabled
 
-    def mimeTypes(self) -> list[str]:
-        return [JOINTS_MIME]
-
     def mimeData(self, indexes) -> QMimeData:
         """Dragged joint angles (onto a plot, or onto empty space for a new plot)."""
         return joints_to_mime(sorted({i.row() for i in indexes}))
@@ -362,18 +371,10 @@ class JointTable(QTableView):
 
     def __init__(self, model: JointAngleModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        self.setModel(model)
-        self.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
-        self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
-        self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
-        self.setDragEnabled(True)
-        self.setDragDropMode(QAbstractItemView.DragDropMode.DragOnly)
-        self.setAlternatingRowColors(True)
+        self.stale = _drag_view(self, model, QAbstractItemView.SelectionBehavior.SelectRows)
         self.verticalHeader().setVisible(False)
-        self.verticalHeader().setDefaultSectionSize(22)
         self.horizontalHeader().setStretchLastSection(True)
         self.setColumnWidth(0, 220)
-        self.stale = StaleOverlay(self.viewport())
 
     def selected_joints(self) -> list[int]:
         return sorted({i.row() for i in self.selectionModel().selectedIndexes()})

@@ -56,11 +56,7 @@ def cells_from_mime(mime: QMimeData | None) -> list[tuple[int, int]]:
 
 def accept_drag(event) -> None:
     """Accept a drag that carries table cells or joint names, ignore any other."""
-    mime = event.mimeData()
-    if cells_from_mime(mime) or joints_from_mime(mime):
-        event.acceptProposedAction()
-    else:
-        event.ignore()
+    take_drop(event)
 
 
 def take_drop(event) -> tuple[list[tuple[int, int]], list[int]]:

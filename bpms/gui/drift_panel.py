@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from PyQt6.QtWidgets import (
     QDockWidget,
-    QLabel,
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
@@ -16,6 +15,7 @@ from PyQt6.QtWidgets import (
 )
 
 from bpms.gui.safety import BackgroundTask
+from bpms.gui.widgets import label
 from bpms.io.frames import IMU_NAMES
 
 COLUMNS = ("segment", "total [deg]", "heading [deg]", "inclination [deg]")
@@ -40,8 +40,7 @@ class DriftPanel(QWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         layout = QVBoxLayout(self)
-        self.summary = QLabel("computing the drift report…")
-        self.summary.setWordWrap(True)
+        self.summary = label("computing the drift report…")
         self.table = QTableWidget(len(IMU_NAMES), len(COLUMNS))
         self.table.setHorizontalHeaderLabels(list(COLUMNS))
         self.table.setVerticalHeaderLabels([str(i) for i in range(len(IMU_NAMES))])

@@ -62,14 +62,9 @@ class EventLog(QListWidget):
         if events == self._session_seen:
             return
         seen = self._session_seen
-        start = 0
-        # the newest seen entry's position in the new list: what follows it is new
-        if seen:
-            last = seen[-1]
-            for k in range(len(events) - 1, -1, -1):
-                if events[k] == last:
-                    start = k + 1
-                    break
+        # the newest seen entry's (last) position in the new list: what follows it is new
+        positions = [k for k, entry in enumerate(events) if seen and entry == seen[-1]]
+        start = positions[-1] + 1 if positions else 0
         warned = set(warnings)
         for entry in events[start:]:
             when, _, text = entry.partition(" ")

@@ -33,9 +33,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from PyQt6.QtCore import Qt
-from PyQt6.QtWidgets import QFormLayout, QGroupBox, QHBoxLayout, QLabel, QWidget
+from PyQt6.QtWidgets import QFormLayout, QGroupBox, QLabel, QWidget
 
+from bpms.gui.widgets import label, row
 from bpms.pipeline.session import LiveStatus
 
 #: No frame for this long (data on) = red, s.
@@ -174,29 +174,22 @@ class HealthPanel(QGroupBox):
         form = QFormLayout(self)
         # a narrow dock puts a long value under its name instead of scrolling sideways
         form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapLongRows)
-        row = QHBoxLayout()
         self.light = QLabel()
         self.light.setFixedSize(18, 18)
-        self.state_label = QLabel("stopped")
-        self.state_label.setStyleSheet("font-weight: bold")
-        row.addWidget(self.light)
-        row.addWidget(self.state_label, 1)
-        self.simulated_label = QLabel("SIMULATED")
-        self.simulated_label.setStyleSheet(
-            "background: #6a3d9a; color: white; font-weight: bold; padding: 1px 6px")
-        self.simulated_label.setToolTip("The data come from the simulated suit, not a suit")
+        self.state_label = label("stopped", wrap=False, style="font-weight: bold")
+        self.simulated_label = label(
+            "SIMULATED", wrap=False, tip="The data come from the simulated suit, not a suit",
+            style="background: #6a3d9a; color: white; font-weight: bold; padding: 1px 6px")
         self.simulated_label.setVisible(simulated)
-        row.addWidget(self.simulated_label)
-        form.addRow(row)
+        form.addRow(row(self.light, self.state_label, self.simulated_label,
+                        grow=self.state_label))
         self.labels: dict[str, QLabel] = {}
         for key, title in (("since", "Last frame"), ("rate", "Rate"), ("errors", "Errors"),
                            ("battery", "Battery"), ("not_filtered", "Not filtered"),
                            ("backlog", "Backlog"), ("skipped", "Display skipped"),
                            ("disturbance", "Disturbed")):
-            label = QLabel("–")
-            label.setWordWrap(True)
-            self.labels[key] = label
-            form.addRow(title, label)
+            self.labels[key] = label("–")
+            form.addRow(title, self.labels[key])
         self.labels["not_filtered"].setToolTip(
             "Frames received (and recorded raw) that the filters never saw: holes in the "
             "filtered file, each marked")
@@ -206,29 +199,21 @@ class HealthPanel(QGroupBox):
         self.labels["disturbance"].setToolTip(
             "IMUs whose magnetometer (mag: field off the earth's or turned) or acceleration "
             "(acc: over 0.2 g) is disturbed now (docs/filters.md)")
-        self.listening_label = QLabel(listening or "")
-        self.listening_label.setWordWrap(True)
-        self.listening_label.setTextInteractionFlags(
-            Qt.TextInteractionFlag.TextSelectableByMouse)
-        self.listening_label.setToolTip("The UDP client's socket (host:port)")
+        self.listening_label = label(listening or "", selectable=True,
+                                     tip="The UDP client's socket (host:port)")
         form.addRow("Listening on" if listening else "", self.listening_label)
         self.listening_label.setVisible(bool(listening))
-        self.source_label = QLabel("")  # why the source is down (red) / its warning (amber)
-        self.source_label.setWordWrap(True)
+        self.source_label = label()  # why the source is down (red) / its warning (amber)
         self.source_label.setVisible(False)
         form.addRow(self.source_label)
-        self.rec_error_label = QLabel("")
-        self.rec_error_label.setWordWrap(True)
-        self.rec_error_label.setStyleSheet(RED_TEXT)
+        self.rec_error_label = label(style=RED_TEXT)
         self.rec_error_label.setVisible(False)
         form.addRow(self.rec_error_label)
-        self.rec_label = QLabel("")
-        self.rec_label.setWordWrap(True)
-        self.rec_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.rec_label = label(selectable=True)
         form.addRow(self.rec_label)
         #: the REC state for the window's status bar (always in view, whatever the docks)
-        self.rec_badge = QLabel("")
-        self.rec_badge.setToolTip("Logging: elapsed time (the files are in the Status panel)")
+        self.rec_badge = label(wrap=False, tip="Logging: elapsed time (the files are in the "
+                                               "Status panel)")
         self.rec_badge.setVisible(False)
         self.colour = ""
         self.battery_low = False
@@ -248,11 +233,11 @@ class HealthPanel(QGroupBox):
                                "red": "no frame for 1 s"}[colour])
 
     def _set(self, key: str, text: str, style: str = "") -> None:
-        label = self.labels[key]
-        if label.text() != text:
-            label.setText(text)
-        if label.styleSheet() != style:
-            label.setStyleSheet(style)
+        shown = self.labels[key]
+        if shown.text() != text:
+            shown.setText(text)
+        if shown.styleSheet() != style:
+            shown.setStyleSheet(style)
 
     def show_health(self, health: Health, st: LiveStatus | None, now: float) -> None:
         self.set_colour(health.colour)

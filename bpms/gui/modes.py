@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bpms.io.calib_file import CalibrationTable
@@ -302,9 +301,3 @@ class SessionRunner:
             self.sim = None
         self._data_on = False
 
-
-def recording_folder(options: Options, config: ModeConfig) -> Path:
-    """Where Start Logging writes."""
-    from bpms.io.naming import recordings_folder
-
-    return recordings_folder(config.recording_dir or options.logging.directory)

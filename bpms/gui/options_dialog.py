@@ -16,7 +16,6 @@ from PyQt6.QtWidgets import (
     QDialogButtonBox,
     QFileDialog,
     QFormLayout,
-    QLabel,
     QLineEdit,
     QScrollArea,
     QTabWidget,
@@ -25,6 +24,7 @@ from PyQt6.QtWidgets import (
 )
 
 from bpms.gui.safety import guard_wheel
+from bpms.gui.widgets import label
 from bpms.io import defaults
 from bpms.io.options import Options, options_from_dict, save_options
 from bpms.io.problems import FileProblem
@@ -107,13 +107,12 @@ class OptionsDialog(QDialog):
                 self.editors[(name, f.name)] = editor
                 self.defaults[(name, f.name)] = f.default if f.default is not dataclasses.MISSING \
                     else f.default_factory()  # type: ignore[misc]
-                label = QLabel(f"<b>{f.name}</b> <small>{help_text}</small>")
-                label.setWordWrap(True)
-                label.setBuddy(editor)
+                title = label(f"<b>{f.name}</b> <small>{help_text}</small>")
+                title.setBuddy(editor)
                 guard_wheel(editor)
                 # the name and help on a row of their own, the form's whole width (as a label
                 # column they wrap at about 200 px), the field under them
-                form.addRow(label)
+                form.addRow(title)
                 form.addRow(editor)
             scroll = _FormScroll()
             scroll.setWidget(page)

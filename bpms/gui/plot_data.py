@@ -156,16 +156,13 @@ def cell_curve(imu: int, col: int, angle_unit: str = "deg") -> CurveSpec:
                                                     degrees, b.est)[:, imu], unit, (imu, col))
 
 
-def _joint_curve(k: int, degrees: bool) -> CurveSpec:
+def joint_curve(k: int, angle_unit: str = "deg") -> CurveSpec:
+    """The curve of joint angle ``k`` (``JOINT_ANGLE_NAMES`` order)."""
+    degrees = angle_unit == "deg"
     unit = "deg" if degrees else "rad"
     return CurveSpec(f"{human_joint_name(JOINT_ANGLE_NAMES[k])} [{unit}]",
                      lambda b: np.degrees(b.joint_angles[:, k]) if degrees
                      else b.joint_angles[:, k], unit, joint=k)
-
-
-def joint_curve(k: int, angle_unit: str = "deg") -> CurveSpec:
-    """The curve of joint angle ``k`` (``JOINT_ANGLE_NAMES`` order)."""
-    return _joint_curve(k, angle_unit == "deg")
 
 
 #: Groups of the joint-angle plot: (title, name prefixes).
@@ -180,8 +177,7 @@ JOINT_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
 
 def joint_angle_groups(angle_unit: str = "deg") -> list[tuple[str, list[CurveSpec]]]:
     """The 28 joint angles of ``JOINT_ANGLE_NAMES`` in :data:`JOINT_GROUPS`."""
-    degrees = angle_unit == "deg"
-    return [(title, [_joint_curve(k, degrees) for k, name in enumerate(JOINT_ANGLE_NAMES)
+    return [(title, [joint_curve(k, angle_unit) for k, name in enumerate(JOINT_ANGLE_NAMES)
                      if name.startswith(prefixes)])
             for title, prefixes in JOINT_GROUPS]
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import pyqtgraph as pg
 from PyQt6.QtCore import Qt
-from PyQt6.QtGui import QFontMetrics
+from PyQt6.QtGui import QFont, QFontMetrics
 from PyQt6.QtWidgets import QGraphicsItem, QSizePolicy
 
 PALETTE = ("#0072B2", "#D55E00", "#000000", "#009E73", "#E69F00", "#CC79A7", "#56B4E9",
@@ -40,8 +40,6 @@ AXIS_FONT_PT = 8
 def style_axes(plot: pg.PlotItem) -> None:
     """Black axes, cached (text is the slowest thing to paint), without SI prefixes, tick
     labels in :data:`AXIS_FONT_PT`."""
-    from PyQt6.QtGui import QFont
-
     font = QFont()
     font.setPointSize(AXIS_FONT_PT)
     for name in ("left", "bottom"):
@@ -69,8 +67,6 @@ _LEGEND_FONT_PT = 8
 
 def legend_width(names: list[str]) -> int:
     """Pixels a legend of ``names`` needs beside its plot (swatch, spacing, longest name)."""
-    from PyQt6.QtGui import QFont
-
     font = QFont()
     font.setPointSize(_LEGEND_FONT_PT)
     metrics = QFontMetrics(font)

@@ -18,16 +18,9 @@ from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PyQt6.QtCore import QPointF, Qt, pyqtSignal
+from PyQt6.QtCore import QPointF, QSignalBlocker, Qt, pyqtSignal
 from PyQt6.QtGui import QKeySequence, QShortcut
-from PyQt6.QtWidgets import (
-    QApplication,
-    QHBoxLayout,
-    QLabel,
-    QPushButton,
-    QVBoxLayout,
-    QWidget,
-)
+from PyQt6.QtWidgets import QApplication, QLabel, QVBoxLayout, QWidget
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.gui.columns import COLUMNS, TEXT_GROUPS
@@ -52,6 +45,7 @@ from bpms.gui.plot_style import (
 )
 from bpms.gui.stale import StaleOverlay
 from bpms.gui.view3d_keys import PLOT_BINDINGS
+from bpms.gui.widgets import button, label, row
 from bpms.io.frames import FRAME_RATE_HZ, IMU_NAMES
 
 #: The time axis of a following plot moves by this much at a time, s.
@@ -88,39 +82,26 @@ class PlotWindow(QWidget):
 
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
-        bar = QHBoxLayout()
-        self.pause_button = QPushButton("Pause")
-        self.pause_button.setCheckable(True)
-        self.pause_button.setToolTip("Freeze the drawing (the history keeps filling); Space")
+        self.pause_button = button("Pause", tip="Freeze the drawing (the history keeps "
+                                   "filling); Space", checkable=True)
         self.pause_button.toggled.connect(self.set_paused)
-        self.follow_button = QPushButton("Follow")
-        self.follow_button.setCheckable(True)
-        self.follow_button.setChecked(True)
-        self.follow_button.setToolTip("The time axis follows the newest data (double-click "
-                                      "the plot or View All turns it back on)")
+        self.follow_button = button("Follow", tip="The time axis follows the newest data "
+                                    "(double-click the plot or View All turns it back on)",
+                                    checkable=True, checked=True)
         self.follow_button.toggled.connect(lambda on: self.reset_view() if on
                                            else self._manual_range())
-        self.lock_button = QPushButton("Lock y")
-        self.lock_button.setCheckable(True)
-        self.lock_button.setToolTip("Keep each plot's y range as it is now (Follow and "
-                                    "double-click no longer rescale it)")
+        self.lock_button = button("Lock y", tip="Keep each plot's y range as it is now (Follow "
+                                  "and double-click no longer rescale it)", checkable=True)
         self.lock_button.toggled.connect(self.lock_y)
-        self.legend_button = QPushButton("Legend")
-        self.legend_button.setCheckable(True)
-        self.legend_button.setChecked(True)
-        self.legend_button.setToolTip("The curves' names beside the data: show or fold away")
+        self.legend_button = button("Legend", self._legend_chosen, "The curves' names beside "
+                                    "the data: show or fold away", checkable=True, checked=True)
         self.legend_button.toggled.connect(self.show_legends)
-        self.legend_button.clicked.connect(self._legend_chosen)
         self.legend_auto = True  # fold the legends when the plot is too narrow for them
-        for button in (self.pause_button, self.follow_button, self.lock_button,
-                       self.legend_button):
-            bar.addWidget(button)
-        hint = QLabel(f"{history_s:g} s")
-        hint.setToolTip(f"{history_s:g} s of history · drop table cells here to add them · "
-                        "click a legend name to hide/show its curve")
-        hint.setStyleSheet("color: #666")
-        bar.addWidget(hint, 1)
-        layout.addLayout(bar)
+        hint = label(f"{history_s:g} s", wrap=False, style="color: #666",
+                     tip=f"{history_s:g} s of history · drop table cells here to add them · "
+                         "click a legend name to hide/show its curve")
+        layout.addLayout(row(self.pause_button, self.follow_button, self.lock_button,
+                             self.legend_button, hint, grow=hint))
         self.graphics = pg.GraphicsLayoutWidget()
         self.graphics.setBackground("w")
         self.graphics.setMinimumSize(150, 100)
@@ -243,14 +224,14 @@ class PlotWindow(QWidget):
     def description(self) -> dict[str, Any]:
         """What a saved layout needs to re-create this plot: its curves, the locked y ranges
         (or None) and whether the legend is shown."""
-        view = {"y_lock": self.y_ranges() if self.lock_button.isChecked() else None,
+        joints = self.kind == "joints"  # the 28 angles, plus any cells dropped on it
+        described = {"kind": "joints" if joints else "cells", "title": self.windowTitle(),
+                     "cells": [list(s.cell) for s in self.specs if s.cell is not None]}
+        if not joints:
+            described["joints"] = [s.joint for s in self.specs if s.joint is not None]
+        return {**described,
+                "y_lock": self.y_ranges() if self.lock_button.isChecked() else None,
                 "legend": "auto" if self.legend_auto else self.legend_button.isChecked()}
-        if self.kind == "joints":  # the 28 angles, plus any cells dropped on it
-            return {"kind": "joints", "title": self.windowTitle(),
-                    "cells": [list(s.cell) for s in self.specs if s.cell is not None], **view}
-        return {"kind": "cells", "title": self.windowTitle(),
-                "cells": [list(s.cell) for s in self.specs if s.cell is not None],
-                "joints": [s.joint for s in self.specs if s.joint is not None], **view}
 
     def apply_view(self, description: dict[str, Any]) -> None:
         """The view settings of a :meth:`description`: legend shown (or folded; "auto" when
@@ -268,21 +249,16 @@ class PlotWindow(QWidget):
     def dragEnterEvent(self, event) -> None:
         accept_drag(event)
 
-    def dragMoveEvent(self, event) -> None:
-        self.dragEnterEvent(event)
+    dragMoveEvent = dragEnterEvent
 
     def dropEvent(self, event) -> None:
-        cells, joints = take_drop(event)
-        if cells:
-            if self.receivers(self.cellsDropped):
-                self.cellsDropped.emit(cells, self)
-            else:
-                self.add_cells(cells)
-        if joints:
-            if self.receivers(self.jointsDropped):
-                self.jointsDropped.emit(joints, self)
-            else:
-                self.add_joints(joints)
+        # a listener (the main window) adds them; without one the plot does
+        for items, signal, add in zip(take_drop(event), (self.cellsDropped, self.jointsDropped),
+                                      (self.add_cells, self.add_joints), strict=True):
+            if items and self.receivers(signal):
+                signal.emit(items, self)
+            elif items:
+                add(items)
 
     # -- mouse --------------------------------------------------------------------------------
     def _clicked(self, event) -> None:
@@ -293,8 +269,8 @@ class PlotWindow(QWidget):
             legend = plot.legend
             if legend is None:
                 continue
-            for sample, label in legend.items:
-                if label.sceneBoundingRect().contains(event.scenePos()):
+            for sample, name in legend.items:
+                if name.sceneBoundingRect().contains(event.scenePos()):
                     self.toggle_curve(sample.item)
                     return
         # A double click: pyqtgraph flags it, or (depending on the event sequence the platform
@@ -314,19 +290,17 @@ class PlotWindow(QWidget):
         for plot in self.plots:
             if plot.legend is None:
                 continue
-            for sample, label in plot.legend.items:
+            for sample, name in plot.legend.items:
                 if sample.item is curve:
-                    label.setOpacity(1.0 if curve.isVisible() else 0.4)
+                    name.setOpacity(1.0 if curve.isVisible() else 0.4)
                     sample.update()
 
     def reset_view(self) -> None:
         """Back to following the data: y auto-range (unless locked), x the newest history."""
         self.follow = True
         self._x_end = None
-        if not self.follow_button.isChecked():
-            self.follow_button.blockSignals(True)
+        with QSignalBlocker(self.follow_button):
             self.follow_button.setChecked(True)
-            self.follow_button.blockSignals(False)
         for plot in self.plots:
             if not self.lock_button.isChecked():
                 plot.enableAutoRange(axis="y")
@@ -405,10 +379,8 @@ class PlotWindow(QWidget):
 
     def _manual_range(self, *_args) -> None:
         self.follow = False
-        if self.follow_button.isChecked():
-            self.follow_button.blockSignals(True)
+        with QSignalBlocker(self.follow_button):
             self.follow_button.setChecked(False)
-            self.follow_button.blockSignals(False)
 
     def _follow_time(self, t: np.ndarray) -> None:
         # The time axis moves in pages of PAGE_S, not at every tick: redrawing an axis's
@@ -486,16 +458,9 @@ def best_columns(n: int, width: int, height: int) -> int:
     nearest :data:`CELL_ASPECT`."""
     if n <= 1 or width <= 0 or height <= 0:
         return 1
-    best, score = 1, float("inf")
-    for columns in sorted({1, 2, 3, n}):
-        if columns > n:
-            continue
-        rows = -(-n // columns)
-        aspect = (width / columns) / (height / rows)
-        s = abs(np.log(aspect / CELL_ASPECT))
-        if s < score:
-            best, score = columns, s
-    return best
+    # the aspect of a cell in c columns (of -(-n // c) rows); a tie goes to fewer columns
+    return min((c for c in sorted({1, 2, 3, n}) if c <= n),
+               key=lambda c: abs(np.log((width / c) / (height / -(-n // c)) / CELL_ASPECT)))
 
 
 class PlotDropArea(QLabel):
@@ -515,8 +480,7 @@ class PlotDropArea(QLabel):
     def dragEnterEvent(self, event) -> None:
         accept_drag(event)
 
-    def dragMoveEvent(self, event) -> None:
-        self.dragEnterEvent(event)
+    dragMoveEvent = dragEnterEvent
 
     def dropEvent(self, event) -> None:
         cells, joints = take_drop(event)

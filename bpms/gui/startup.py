@@ -8,6 +8,7 @@ leaves this window open; closing the main window brings it back.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -23,9 +24,7 @@ from PyQt6.QtWidgets import (
     QLabel,
     QLineEdit,
     QMessageBox,
-    QPushButton,
     QRadioButton,
-    QSpinBox,
     QStackedWidget,
     QVBoxLayout,
     QWidget,
@@ -37,6 +36,7 @@ from bpms.gui.modes import MODE_LABELS, MODES, ModeConfig, ModeError, SessionRun
 from bpms.gui.optional import optional_module
 from bpms.gui.options_dialog import OptionsDialog
 from bpms.gui.safety import BackgroundTask
+from bpms.gui.widgets import button, label, row, spin_box
 from bpms.io import defaults
 from bpms.io.calib_file import CalibrationTable, load_calibration
 from bpms.io.link import describe_candidate_ports, discover_suit
@@ -95,10 +95,10 @@ class StartupWindow(QWidget):
         radios = QHBoxLayout()
         self.pages = QStackedWidget()
         for k, mode in enumerate(MODES):
-            button = QRadioButton(MODE_LABELS[mode])
-            self.mode_group.addButton(button, k)
-            self.mode_buttons[mode] = button
-            radios.addWidget(button)
+            radio = QRadioButton(MODE_LABELS[mode])
+            self.mode_group.addButton(radio, k)
+            self.mode_buttons[mode] = radio
+            radios.addWidget(radio)
         self.mode_group.idToggled.connect(
             lambda k, on: on and self.pages.setCurrentIndex(k))
         mode_layout.addLayout(radios)
@@ -113,21 +113,13 @@ class StartupWindow(QWidget):
         files_box = QGroupBox("Options and calibration")
         form = QFormLayout(files_box)
         self.options_label = QLabel()
-        row = QHBoxLayout()
-        load_opt = QPushButton("Load options…")
-        load_opt.clicked.connect(self._choose_options)
-        edit_opt = QPushButton("Edit options…")
-        edit_opt.clicked.connect(self.edit_options)
-        row.addWidget(self.options_label, 1)
-        row.addWidget(load_opt)
-        row.addWidget(edit_opt)
-        form.addRow("Options", row)
+        load = button("Load options…", lambda: self._choose(
+            "Load options", "TOML (*.toml);;All (*)", self.load_options_file))
+        form.addRow("Options", row(self.options_label, load,
+                                   button("Edit options…", self.edit_options),
+                                   grow=self.options_label))
         self.calibration_label = QLabel()
-        row = QHBoxLayout()
-        load_cal = QPushButton("Load calibration…")
-        load_cal.clicked.connect(self._choose_calibration)
-        self.wizard_button = QPushButton("Sensor calibration…")
-        self.wizard_button.clicked.connect(self.open_calibration_wizard)
+        self.wizard_button = button("Sensor calibration…", self.open_calibration_wizard)
         self._wizard_module, why = optional_module("bpms.gui.calibration_wizard")
         if self._wizard_module is None or not hasattr(self._wizard_module, "CalibrationWizard"):
             self.wizard_button.setEnabled(False)
@@ -135,31 +127,24 @@ class StartupWindow(QWidget):
                                                  "bpms.gui.calibration_wizard")
         else:
             self.wizard_button.setToolTip("Calibrate the IMUs' sensors (writes a Calib.cfg)")
-        row.addWidget(self.calibration_label, 1)
-        row.addWidget(load_cal)
-        row.addWidget(self.wizard_button)
-        form.addRow("Calibration", row)
-        self.default_button = QPushButton("Save as default")
-        self.default_button.setToolTip("Use these options and this calibration whenever none "
-                                       "are given, from the next start on (bpms config)")
-        self.default_button.clicked.connect(self.save_as_default)
+        load = button("Load calibration…", lambda: self._choose(
+            "Load calibration", "Calibration (*.cfg);;All (*)", self.load_calibration_file))
+        form.addRow("Calibration", row(self.calibration_label, load, self.wizard_button,
+                                       grow=self.calibration_label))
+        self.default_button = button("Save as default", self.save_as_default,
+                                     "Use these options and this calibration whenever none "
+                                     "are given, from the next start on (bpms config)")
         form.addRow("", self.default_button)
         layout.addWidget(files_box)
 
         # -- GO ----------------------------------------------------------------------------
-        bottom = QHBoxLayout()
-        self.status_label = QLabel("")
-        self.status_label.setWordWrap(True)
-        self.go_button = QPushButton("GO")
+        self.status_label = label()
+        self.go_button = button("GO", self.go, "Open the main window (Enter)")
         self.go_button.setDefault(True)
         self.go_button.setMinimumWidth(120)
-        self.go_button.setToolTip("Open the main window (Enter)")
-        self.go_button.clicked.connect(self.go)
-        bottom.addWidget(self.status_label, 1)
-        bottom.addWidget(self.go_button)
         for key in (Qt.Key.Key_Return, Qt.Key.Key_Enter):
             QShortcut(QKeySequence(key), self, activated=self.go)
-        layout.addLayout(bottom)
+        layout.addLayout(row(self.status_label, self.go_button, grow=self.status_label))
         self._show_files()
         self.refresh_ports()
         # The simulated suit unless the remembered port answers (probed in the background):
@@ -177,20 +162,11 @@ class StartupWindow(QWidget):
         self.port_combo = QComboBox()
         self.port_combo.setEditable(True)
         self.port_combo.setToolTip("Serial port or pyserial URL; empty = discover at GO")
-        row = QHBoxLayout()
-        row.addWidget(self.port_combo, 1)
-        refresh = QPushButton("Refresh")
-        refresh.clicked.connect(self.refresh_ports)
-        self.discover_button = QPushButton("Discover")
-        self.discover_button.setToolTip("Ask every port for the suit's 'BPMS' answer")
-        self.discover_button.clicked.connect(self.discover)
-        row.addWidget(refresh)
-        row.addWidget(self.discover_button)
-        form.addRow("Port", row)
-        self.baud_spin = QSpinBox()
-        self.baud_spin.setRange(1200, 4_000_000)
-        self.baud_spin.setSuffix(" bit/s")
-        self.baud_spin.setValue(self.options.serial.baud)
+        self.discover_button = button("Discover", self.discover,
+                                      "Ask every port for the suit's 'BPMS' answer")
+        form.addRow("Port", row(self.port_combo, button("Refresh", self.refresh_ports),
+                                self.discover_button, grow=self.port_combo))
+        self.baud_spin = spin_box(1200, 4_000_000, self.options.serial.baud, " bit/s")
         form.addRow("Baud", self.baud_spin)
         self.discover_label = QLabel("")
         form.addRow(self.discover_label)
@@ -210,21 +186,17 @@ class StartupWindow(QWidget):
     def _file_page(self) -> QWidget:
         page = QWidget()
         form = QFormLayout(page)
-        row = QHBoxLayout()
         self.file_edit = QLineEdit()
         self.file_edit.setPlaceholderText("a .bpmsraw recording or a legacy raw file")
-        browse = QPushButton("Browse…")
-        browse.clicked.connect(self._choose_file)
-        row.addWidget(self.file_edit, 1)
-        row.addWidget(browse)
-        form.addRow("Recording", row)
+        browse = button("Browse…", lambda: self._choose(
+            "Raw recording", "Raw recordings (*.bpmsraw *.txt);;All (*)", self.file_edit.setText))
+        form.addRow("Recording", row(self.file_edit, browse, grow=self.file_edit))
         return page
 
     def _sim_page(self) -> QWidget:
         page = QWidget()
         form = QFormLayout(page)
-        self.seed_spin = QSpinBox()
-        self.seed_spin.setRange(0, 1_000_000)
+        self.seed_spin = spin_box(0, 1_000_000)
         form.addRow("Seed", self.seed_spin)
         form.addRow(QLabel("The simulated suit (bpms.firmware.sim) on a pseudo-terminal in this "
                            "process, streaming its scripted motion at 50 frames/s."))
@@ -335,22 +307,11 @@ class StartupWindow(QWidget):
                                              "factory values used for these")
         return self.calibration
 
-    def _choose_options(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Load options", "", "TOML (*.toml);;All (*)")
+    def _choose(self, title: str, filters: str, then: Callable[[str], object]) -> None:
+        """Ask for a file to open; ``then(path)`` once one is chosen."""
+        path, _ = QFileDialog.getOpenFileName(self, title, "", filters)
         if path:
-            self.load_options_file(path)
-
-    def _choose_calibration(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Load calibration", "",
-                                              "Calibration (*.cfg);;All (*)")
-        if path:
-            self.load_calibration_file(path)
-
-    def _choose_file(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Raw recording", "",
-                                              "Raw recordings (*.bpmsraw *.txt);;All (*)")
-        if path:
-            self.file_edit.setText(path)
+            then(path)
 
     def edit_options(self) -> OptionsDialog:
         """Open the options form; OK applies it (problems → the warning dialog)."""

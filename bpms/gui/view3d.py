@@ -26,6 +26,7 @@ plain message instead, so 2D tests and remote sessions never crash on it.
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import time
 import weakref
@@ -57,42 +58,36 @@ GL_TIME_BUDGET = 0.4
 WAITING_TEXT = "Waiting for Reset Zero: grey figure = calibration pose"
 KEYS_TEXT = short_help(VIEW3D_BINDINGS)
 
-_gl_problem: str | None = None
 _OPEN_WINDOWS: weakref.WeakSet[QWidget] = weakref.WeakSet()
-_gl_checked = False
 
 
+@functools.cache
 def opengl_problem() -> str | None:
     """Why 3D views cannot be drawn here (one line), or None when OpenGL works. Cached."""
-    global _gl_problem, _gl_checked
-    if _gl_checked:
-        return _gl_problem
-    _gl_checked = True
     platform = QGuiApplication.platformName()
     if platform in {"offscreen", "minimal", "vnc"}:
         # Qt's offscreen platform has no usable GL surface; pyqtgraph GL would crash there.
-        _gl_problem = f"the Qt platform '{platform}' has no OpenGL display"
-        return _gl_problem
+        return f"the Qt platform '{platform}' has no OpenGL display"
     try:
         import pyqtgraph.opengl  # noqa: F401
     except Exception as exc:  # ImportError, or PyOpenGL failing to find libGL
-        _gl_problem = f"pyqtgraph.opengl cannot be loaded ({type(exc).__name__}: {exc})"
-        return _gl_problem
+        return f"pyqtgraph.opengl cannot be loaded ({type(exc).__name__}: {exc})"
     context = QOpenGLContext()
     surface = QOffscreenSurface()
     surface.create()
+    problem = None
     if not context.create() or not context.isValid():
-        _gl_problem = "no OpenGL context could be created (graphics driver?)"
+        problem = "no OpenGL context could be created (graphics driver?)"
     elif not context.makeCurrent(surface):
-        _gl_problem = "the OpenGL context cannot be made current"
+        problem = "the OpenGL context cannot be made current"
     else:
         fmt = context.format()
         context.doneCurrent()
         if (fmt.majorVersion(), fmt.minorVersion()) < (2, 0):
-            _gl_problem = f"OpenGL {fmt.majorVersion()}.{fmt.minorVersion()} is older than 2.0"
-    if _gl_problem:
-        log.warning("3D views disabled: %s", _gl_problem)
-    return _gl_problem
+            problem = f"OpenGL {fmt.majorVersion()}.{fmt.minorVersion()} is older than 2.0"
+    if problem:
+        log.warning("3D views disabled: %s", problem)
+    return problem
 
 
 class ImageView(QWidget):

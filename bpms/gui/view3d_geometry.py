@@ -18,7 +18,6 @@ RIGHT_COLOUR = (0.15, 0.85, 0.15, 1.0)
 LEFT_COLOUR = (0.95, 0.2, 0.2, 1.0)
 CENTRE_COLOUR = (0.35, 0.65, 1.0, 1.0)
 JOINT_COLOUR = (1.0, 0.85, 0.2, 1.0)
-WAITING_COLOUR = (0.5, 0.5, 0.5, 1.0)
 AXIS_COLOURS = ((1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0), (0.0, 0.0, 1.0, 1.0))
 AXIS_LENGTH_M = 0.12
 
@@ -80,8 +79,6 @@ def imu_axes_lines(points: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.nd
     pos = np.stack([starts, ends], axis=2).reshape(-1, 2, 3)[ok].reshape(-1, 3)
     col = np.tile(np.array(AXIS_COLOURS), (len(AXIS_IMUS), 1))[ok]
     return pos, np.repeat(col, 2, axis=0)
-
-
 
 
 def camera_axes(elevation_deg: float, azimuth_deg: float

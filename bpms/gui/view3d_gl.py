@@ -72,6 +72,7 @@ def shared_meshdata(key: object, points: np.ndarray, waiting: bool) -> tuple[obj
 def make_gl_view() -> QWidget:
     """The GLViewWidget subclass, defined lazily so importing this module never needs GL."""
     import pyqtgraph.opengl as gl
+    from pyqtgraph import Vector
     from pyqtgraph.opengl.shaders import ShaderProgram
 
     # pyqtgraph caches compiled shader programs per class (process-wide), but each window has
@@ -171,8 +172,6 @@ def make_gl_view() -> QWidget:
         def frame(self) -> None:
             """Centre and distance that show the whole figure at the current angles, field of
             view and shape of the view."""
-            from pyqtgraph import Vector
-
             points = reach_points(self.last_points if self.last_points is not None
                                   else to_display(CALIBRATION_POSE))
             aspect = self.width() / max(1, self.height())
@@ -217,8 +216,6 @@ def make_gl_view() -> QWidget:
 
         def recentre(self, _key: object = None) -> None:
             """p: the camera looks at the figure's pelvis (mid-height)."""
-            from pyqtgraph import Vector
-
             if self.last_points is not None and np.isfinite(self.last_points[0]).all():
                 x, y, z = self.last_points[0]
                 self.setCameraPosition(pos=Vector(float(x), float(y), float(z)))

@@ -12,6 +12,7 @@ input). docs/3d-views.md carries the same table
 from __future__ import annotations
 
 from dataclasses import dataclass
+from html import escape
 
 from PyQt6.QtCore import Qt
 
@@ -88,10 +89,7 @@ def short_help(bindings: tuple[Binding, ...] = VIEW3D_BINDINGS) -> str:
 
 def help_html(title: str, bindings: tuple[Binding, ...]) -> str:
     """A titled two-column HTML table of ``bindings`` (the F1 page)."""
-    rows = "".join(f"<tr><td><b>{_esc(b.inputs)}</b></td><td>{_esc(b.action)}</td></tr>"
-                   for b in bindings)
-    return f"<h3>{_esc(title)}</h3><table cellspacing='2' cellpadding='2'>{rows}</table>"
-
-
-def _esc(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    rows = "".join(f"<tr><td><b>{escape(b.inputs, quote=False)}</b></td>"
+                   f"<td>{escape(b.action, quote=False)}</td></tr>" for b in bindings)
+    return (f"<h3>{escape(title, quote=False)}</h3><table cellspacing='2' cellpadding='2'>"
+            f"{rows}</table>")

@@ -71,11 +71,8 @@ def _vp() -> ModuleType:
 
 
 def _vec(vp: ModuleType, v: Sequence[float]) -> Any:
+    """A vpython vector (a position, a direction or an RGB colour)."""
     return vp.vector(float(v[0]), float(v[1]), float(v[2]))
-
-
-def _rgb(vp: ModuleType, c: Sequence[float]) -> Any:
-    return vp.vector(float(c[0]), float(c[1]), float(c[2]))
 
 
 def ground_grid(vp: ModuleType, size_m: float = 2.0, step_m: float = 0.5) -> list[Any]:
@@ -109,12 +106,12 @@ class BodyScene:
         self.grid = ground_grid(vp)
         points = to_display(CALIBRATION_POSE)
         self.bones = [vp.cylinder(pos=_vec(vp, points[a]), axis=_vec(vp, points[b] - points[a]),
-                                  radius=0.015, color=_rgb(vp, c))
+                                  radius=0.015, color=_vec(vp, c))
                       for a, b, c in zip(SEG_START, SEG_END, SEG_COLOURS, strict=True)]
-        self.joints = [vp.sphere(pos=_vec(vp, p), radius=0.025, color=_rgb(vp, JOINT_COLOUR))
+        self.joints = [vp.sphere(pos=_vec(vp, p), radius=0.025, color=_vec(vp, JOINT_COLOUR))
                        for p in points]
         self.axes = [[vp.arrow(pos=vp.vector(0, 0, 0), axis=vp.vector(AXIS_LENGTH_M, 0, 0),
-                               shaftwidth=0.01, color=_rgb(vp, c), visible=show_axes)
+                               shaftwidth=0.01, color=_vec(vp, c), visible=show_axes)
                       for c in AXIS_COLOURS] for _ in AXIS_IMUS]
         self.show_axes = show_axes
         self.canvas.bind("keydown", self._on_key)
@@ -207,7 +204,7 @@ class SingleIMUView:
             vp.label(pos=vp.vector(*axis), text=text, box=False, opacity=0)
         if mode == "axis":
             self.arrows = [vp.arrow(axis=vp.vector(*np.eye(3)[k]), shaftwidth=0.04,
-                                    color=_rgb(vp, AXIS_COLOURS[k])) for k in range(3)]
+                                    color=_vec(vp, AXIS_COLOURS[k])) for k in range(3)]
         else:
             self.body = vp.box(length=1.0, height=0.05, width=0.5, color=vp.color.red)
             self.pointer = vp.arrow(axis=vp.vector(0.8, 0, 0), shaftwidth=0.06,

@@ -112,8 +112,7 @@ class DockLayouts:
             widget.apply_view(description)  # the same plot: its history stays
             return
         if dock is not None:  # another dock took this name in this session: it stays too
-            dock.setObjectName(self._next_name("plot" if widget is not None
-                                               and isinstance(widget, PlotWindow)
+            dock.setObjectName(self._next_name("plot" if isinstance(widget, PlotWindow)
                                                else "view3d"))
         plot = plot_from(description, self.table_model.angle_unit,
                          self.options.display.plot_history_s)

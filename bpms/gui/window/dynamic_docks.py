@@ -63,12 +63,6 @@ class DynamicDocks:
         self.dynamic_docks.append(dock)
         return dock
 
-    def _forget(self, window: QWidget) -> None:
-        if window in self.plot_windows:
-            self.plot_windows.remove(window)
-        if window in self.view3d_windows:
-            self.view3d_windows.remove(window)
-
     def _prune(self) -> None:
         """Forget plots and 3D views whose dock the user closed (deleted by Qt). No
         ``destroyed`` slots: they would run while this window itself is torn down."""
@@ -76,22 +70,6 @@ class DynamicDocks:
         self.plot_windows = [w for w in self.plot_windows
                              if not sip.isdeleted(w) and not w.closed]
         self.view3d_windows = [w for w in self.view3d_windows if not sip.isdeleted(w)]
-
-    def clear_dynamic_docks(self) -> None:
-        """Remove every plot and 3D view dock."""
-        self._prune()
-        for dock in list(self.dynamic_docks):
-            widget = dock.widget()
-            self._forget(widget)
-            self.removeDockWidget(dock)
-            # Out of the window at once: restoreState() looks docks up by object name among
-            # the window's children, and must never find one that is about to be deleted.
-            dock.setObjectName("")
-            dock.setParent(None)
-            if widget is not None:
-                widget.close()
-            dock.deleteLater()
-        self.dynamic_docks.clear()
 
     def dock_of(self, widget: QWidget) -> QDockWidget | None:
         for dock in self.dynamic_docks:
@@ -117,7 +95,7 @@ class DynamicDocks:
         number = 1 + sum(isinstance(d.widget(), PlotWindow) for d in self.dynamic_docks)
         window = cells_plot(cells, self.table_model.angle_unit,
                             self.options.display.plot_history_s, number)
-        self._show_plot(window)
+        self.add_plot_dock(window)
         return window
 
     def _cells_dropped(self, cells: list, plot: object) -> None:
@@ -138,15 +116,12 @@ class DynamicDocks:
         window = plot_from({"kind": "cells", "title": f"Plot {number}", "joints": joints},
                            self.table_model.angle_unit, self.options.display.plot_history_s)
         if window is not None:
-            self._show_plot(window)
+            self.add_plot_dock(window)
         return window
 
     def open_joint_plot(self) -> PlotWindow:
         window = joint_angle_plot(self.table_model.angle_unit,
                                   self.options.display.plot_history_s)
-        return self._show_plot(window)
-
-    def _show_plot(self, window: PlotWindow) -> PlotWindow:
         self.add_plot_dock(window)
         return window
 

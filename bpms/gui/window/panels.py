@@ -9,7 +9,6 @@ from PyQt6.QtWidgets import (
     QDockWidget,
     QHBoxLayout,
     QLabel,
-    QPushButton,
     QTabWidget,
     QVBoxLayout,
     QWidget,
@@ -23,6 +22,7 @@ from bpms.gui.health import HealthPanel
 from bpms.gui.optional import optional_module
 from bpms.gui.plots import PlotDropArea
 from bpms.gui.safety import guard_wheel
+from bpms.gui.widgets import button, row
 
 
 def _column() -> tuple[QWidget, QVBoxLayout]:
@@ -73,14 +73,11 @@ class WindowPanels:
         return table_box
 
     def _table_buttons(self) -> QHBoxLayout:
-        top = QHBoxLayout()
-        self.plot_button = QPushButton("Plot selection")
-        self.plot_button.setToolTip("Select cells (Ctrl/Shift+click), then plot them (Ctrl+P); "
-                                    "or drag cells onto a plot, or onto empty space")
-        self.plot_button.clicked.connect(self.plot_selection)
-        self.joints_button = QPushButton("Joint angles")
-        self.joints_button.setToolTip("Plot the 28 joint angles (Ctrl+J)")
-        self.joints_button.clicked.connect(self.open_joint_plot)
+        self.plot_button = button("Plot selection", self.plot_selection,
+                                  "Select cells (Ctrl/Shift+click), then plot them (Ctrl+P); "
+                                  "or drag cells onto a plot, or onto empty space")
+        self.joints_button = button("Joint angles", self.open_joint_plot,
+                                    "Plot the 28 joint angles (Ctrl+J)")
         self._offer_view3d()
         self._offer_browser_view()
         self.unit_combo = QComboBox()
@@ -89,18 +86,12 @@ class WindowPanels:
         self.unit_combo.setToolTip("Unit of angles in the table and new plots (Ctrl+U)")
         self.unit_combo.currentTextChanged.connect(self.set_angle_unit)
         guard_wheel(self.unit_combo)
-        for widget in (self.plot_button, self.joints_button, self.view3d_button,
-                       self.browser_button):
-            top.addWidget(widget)
-        top.addStretch(1)
-        top.addWidget(QLabel("Angles"))
-        top.addWidget(self.unit_combo)
-        return top
+        return row(self.plot_button, self.joints_button, self.view3d_button,
+                   self.browser_button, None, QLabel("Angles"), self.unit_combo)
 
     def _offer_view3d(self) -> None:
         """The 3D View button, disabled (saying why) when bpms.gui.view3d cannot load."""
-        self.view3d_button = QPushButton("3D View")
-        self.view3d_button.clicked.connect(self.open_3d_view)
+        self.view3d_button = button("3D View", self.open_3d_view)
         self._view3d, why = optional_module("bpms.gui.view3d")
         if self._view3d is None or not hasattr(self._view3d, "View3DWindow"):
             self.view3d_button.setEnabled(False)
@@ -110,8 +101,7 @@ class WindowPanels:
 
     def _offer_browser_view(self) -> None:
         """The Browser 3D view button, disabled (saying why) without the vpython extra."""
-        self.browser_button = QPushButton("Browser 3D view")
-        self.browser_button.clicked.connect(self.open_browser_view)
+        self.browser_button = button("Browser 3D view", self.open_browser_view)
         self._vpython, why = optional_module("bpms.gui.vpython_views")
         problem = why or (self._vpython.vpython_problem()  # type: ignore[union-attr]
                           if hasattr(self._vpython, "vpython_problem") else None)

@@ -96,7 +96,8 @@ class FilteredData:
         return self.info.version if self.info else (0 if self.legacy else 1)
 
 
-def _is_number(text: str) -> bool:
+def is_number(text: str) -> bool:
+    """``text`` reads as a float (a number cell, or a value typed into a field)."""
     try:
         float(text)
     except ValueError:
@@ -174,7 +175,7 @@ class FilteredReader(Closing):
             raise FilteredFileError(f"{path}: empty file, not a filtered file")
         cells = [c.strip() for c in _cells(first, 0)]
         self._pending: str | None = None
-        if all(_is_number(c) for c in cells) and not meta:
+        if all(is_number(c) for c in cells) and not meta:
             version = 0
             if len(cells) != N_LEGACY_COLUMNS:
                 raise FilteredFileError(
