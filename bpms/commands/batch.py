@@ -44,7 +44,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", metavar="options.toml",
                    help="options file (default: each recording's stored options)")
     add_reset_zero_option(p)
-    p.set_defaults(run=run)
     return p
 
 

@@ -34,7 +34,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="options file (default: the options stored in the recording)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     add_reset_zero_option(p)
-    p.set_defaults(run=run)
     return p
 
 

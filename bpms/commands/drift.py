@@ -25,7 +25,6 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--options", metavar="options.toml",
                         help="options file (default: the options stored in the recording)")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 

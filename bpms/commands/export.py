@@ -67,7 +67,6 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="options file (default: the recording's, else your default)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 

@@ -32,7 +32,6 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--degrees", action="store_true", help="filtered: angles in degrees")
     parser.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV file")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output")
-    parser.set_defaults(run=run)
     return parser
 
 

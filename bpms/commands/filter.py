@@ -53,7 +53,6 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                              + " (default: the options' [filter] algorithm, normally mahony; "
                              "docs/filters.md)")
     add_reset_zero_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 

@@ -57,7 +57,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--sim", action="store_true",
                    help="monitor the simulated suit (every status line says SIMULATED)")
     add_sim_options(p)
-    p.set_defaults(run=run)
     return p
 
 

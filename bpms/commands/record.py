@@ -66,7 +66,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", default=None, metavar="FILE", help="options file (TOML)")
     p.add_argument("--sim", action="store_true", help="record the simulated suit")
     add_sim_options(p)
-    p.set_defaults(run=run)
     return p
 
 

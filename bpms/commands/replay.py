@@ -46,7 +46,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", default=None, metavar="FILE",
                    help="options file (default: the options stored in the recording)")
     add_reset_zero_option(p)
-    p.set_defaults(run=run)
     return p
 
 

@@ -36,7 +36,6 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="options file (default: each recording's, else your default)")
     parser.add_argument("--no-figures", action="store_true", help="tables only")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 

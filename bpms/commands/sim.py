@@ -50,7 +50,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "simulated seconds (repeatable)")
     a.add_argument("--report", metavar="FILE.json",
                    help="with --avr: write the simulator's final figures there (JSON)")
-    p.set_defaults(run=run)
     return p
 
 

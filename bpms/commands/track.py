@@ -44,7 +44,6 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="options file (default: the recording's, else your default)")
     parser.add_argument("--no-figure", action="store_true", help="CSV only")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 
