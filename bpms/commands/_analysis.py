@@ -9,6 +9,7 @@ from collections.abc import Iterator, Sequence
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.commands._shared import warn
 
 __all__ = ["add_filter_option", "open_recording_for", "processed", "stream"]
 
@@ -31,8 +32,7 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     except OSError as exc:
         raise CliError(f"{path}: {exc.strerror or exc}") from exc
     print(f"bpms {command}: {opened.sources_line()}", file=sys.stderr)
-    for problem in opened.problems:
-        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    warn(command, opened.problems)
     if opened.n_frames == 0:
         raise CliError(f"{path}: the recording holds no frames")
     opened.problems.clear()
@@ -51,8 +51,7 @@ def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
         raise CliError(str(exc)) from exc
     except OSError as exc:
         raise CliError(f"{opened.path}: {exc.strerror or exc}") from exc
-    for problem in opened.problems:
-        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    warn(command, opened.problems)
 
 
 def processed(command: str, path: str, calibration: str | None = None,
@@ -73,6 +72,5 @@ def processed(command: str, path: str, calibration: str | None = None,
         raise CliError(f"{path}: {exc.strerror or exc}") from exc
     if len(p.result) == 0:
         raise CliError(f"{path}: the recording holds no frames")
-    for problem in p.result.problems:
-        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    warn(command, p.result.problems)
     return p

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import threading
 import time
 from typing import TYPE_CHECKING
@@ -23,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpms.commands import CliError
+from bpms.commands._shared import stop_on_signals
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.events import SourceStatus
@@ -68,10 +68,6 @@ def count_error_bits(frames: list[bytes]) -> int:
     return int(error_words_to_flags(words).sum())
 
 
-def _sigterm(signum, frame) -> None:
-    raise KeyboardInterrupt
-
-
 def run(args: argparse.Namespace) -> int:
     from bpms.pipeline.sources import SuitFrameSource
 
@@ -88,8 +84,7 @@ def run(args: argparse.Namespace) -> int:
         if port is None:
             raise CliError(f"no suit answered on {len(candidates)} candidate port(s) (is it "
                            "paired, switched on, charged? --sim monitors the simulated suit)")
-    signal.signal(signal.SIGTERM, _sigterm)
-    signal.signal(signal.SIGINT, signal.default_int_handler)  # even when started in background
+    stop_on_signals()
     serial = SerialOptions(baud=args.baud, discovery_timeout_s=args.timeout)
     source = SuitFrameSource(port, serial, simulated=server is not None)
     try:
@@ -212,8 +207,7 @@ def _monitor_udp(args: argparse.Namespace) -> int:
                                 takeover_after_s=udp.takeover_after_s)
     except (UdpConfigError, OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
-    signal.signal(signal.SIGTERM, _sigterm)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    stop_on_signals()
     print(f"listening for UDP on {source.udp.listening}", flush=True)
     t0 = time.monotonic()
     next_line = t0 + 1.0

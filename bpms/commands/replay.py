@@ -20,6 +20,7 @@ import time
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
+from bpms.commands._shared import warn
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_replay
@@ -71,8 +72,7 @@ def _opened(path: str, options_path: str | None, reset_zero):
     if not opened.has_raw:
         raise CliError(f"{path}: a filtered file; give a raw recording")
     print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
-    for problem in opened.problems:
-        print(f"bpms replay: warning: {problem}", file=sys.stderr)
+    warn("replay", opened.problems)
     return opened
 
 

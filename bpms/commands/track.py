@@ -13,6 +13,7 @@ import numpy as np
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.commands._shared import add_sources
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -38,10 +39,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--to", dest="t1", type=float, metavar="T1", help="end, s")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="track CSV (default: <raw stem>_track.csv); the PNG beside it")
-    parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the recording's, else your default)")
-    parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the recording's, else your default)")
+    add_sources(parser)
     parser.add_argument("--no-figure", action="store_true", help="CSV only")
     add_filter_option(parser)
     return parser
