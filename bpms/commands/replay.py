@@ -50,15 +50,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return p
 
 
-def load_recording(path: str):
-    """A native (read from disk as it plays) or legacy raw recording, or a CliError naming
-    the problem (also for a recording with no valid frame)."""
-    try:
-        return open_replay(path)
-    except RawFileError as exc:
-        raise CliError(str(exc)) from None
-
-
 def _opened(path: str, options_path: str | None, reset_zero):
     """The recording through the one door (:mod:`bpms.filter.door`): the given options, else
     the recording's calibration and options, else the user's default, else factory; the
@@ -86,7 +77,10 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--speed must be ≥ 0 (0 = as fast as possible)")
     if not (args.udp or args.lsl or args.mvn):
         raise CliError("nothing to send: give --udp HOST:PORT, --lsl and/or --mvn HOST:PORT")
-    recording = load_recording(args.raw_file)
+    try:  # native (read from disk as it plays) or legacy; no valid frame is an error too
+        recording = open_replay(args.raw_file)
+    except RawFileError as exc:
+        raise CliError(str(exc)) from None
     for problem in recording.problems:
         print(f"warning: {problem}", file=sys.stderr)
     if len(recording) == 0:
