@@ -31,7 +31,9 @@ from bpms.io.link import DEFAULT_BAUD, LinkError, discover_suit, list_candidate_
 from bpms.io.options import SerialOptions, UdpOptions
 
 if TYPE_CHECKING:
-    from bpms.pipeline.sources import SuitFrameSource
+    from collections.abc import Callable
+
+    from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -124,7 +126,7 @@ class _Reader(threading.Thread):
     """Reads the source and counts, so that a read blocked in a probe or a reconnection
     (up to ``--timeout`` s each) never holds back the status line."""
 
-    def __init__(self, source: SuitFrameSource) -> None:
+    def __init__(self, source: SuitFrameSource | UdpFrameSource) -> None:
         super().__init__(name="bpms-monitor-reader", daemon=True)
         self.source = source
         self.lock = threading.Lock()
@@ -151,8 +153,11 @@ class _Reader(threading.Thread):
         self._stop.set()
 
 
-def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
-    """One line per second from the main thread, whatever the reader waits for."""
+def _status_loop(source: SuitFrameSource | UdpFrameSource, seconds: float | None,
+                 line: Callable[[float, float, int, int, SourceStatus], str] = status_line
+                 ) -> None:
+    """One line per second from the main thread, whatever the reader waits for; ``line``
+    makes it of elapsed time, rate, frames, error bits and the source's status."""
     reader = _Reader(source)
     reader.start()
     t0 = time.monotonic()
@@ -167,8 +172,7 @@ def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
             if now >= next_line:
                 frames, error_bits = reader.counts()
                 rate = (frames - shown) / (now - window_t0)
-                print(status_line(now - t0, rate, frames, error_bits, source.status()),
-                      flush=True)
+                print(line(now - t0, rate, frames, error_bits, source.status()), flush=True)
                 shown, window_t0 = frames, now
                 next_line += 1.0
                 if next_line < now:  # fell behind (suspended): no burst of lines
@@ -209,21 +213,9 @@ def _monitor_udp(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     stop_on_signals()
     print(f"listening for UDP on {source.udp.listening}", flush=True)
-    t0 = time.monotonic()
-    next_line = t0 + 1.0
-    frames = window = 0
-    window_t0 = t0
     try:
-        while args.seconds is None or time.monotonic() - t0 < args.seconds:
-            got = source.read(0.05)
-            frames += len(got)
-            window += len(got)
-            now = time.monotonic()
-            if now >= next_line:
-                print(udp_status_line(now - t0, window / (now - window_t0), frames,
-                                      source.status()), flush=True)
-                window, window_t0 = 0, now
-                next_line = max(next_line + 1.0, now + 0.5)
+        _status_loop(source, args.seconds, lambda elapsed, rate, frames, _bits, status:
+                     udp_status_line(elapsed, rate, frames, status))
     except KeyboardInterrupt:
         pass
     finally:
