@@ -56,11 +56,8 @@ def command_summary(name: str) -> str | None:
                 and node.func.attr == "add_parser" and node.args
                 and isinstance(node.args[0], ast.Constant) and node.args[0].value == name):
             for kw in node.keywords:
-                if kw.arg == "help":
-                    try:
-                        value = ast.literal_eval(kw.value)
-                    except ValueError:
-                        return None
+                if kw.arg == "help":  # a string literal, not an f-string, a name, a call
+                    value = kw.value.value if isinstance(kw.value, ast.Constant) else None
                     return value if isinstance(value, str) else None
     return None
 
