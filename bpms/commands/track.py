@@ -82,15 +82,14 @@ def run(args: argparse.Namespace) -> int:
             window &= res.t >= args.t0
         if args.t1 is not None:
             window &= res.t <= args.t1
-        if detector == "gyro":
-            rates = {side: np.where(window, lateral_gyro_rate(res.C[:, i], res.R[:, i],
-                                                              gyr[:, i]), 0.0)
-                     for side, i in SHANK_IMUS.items()}
-            acc_track.add(res.t, rates, res.joint_positions)
+        if detector == "gyro":  # per side: the shank's swing rate, else the foot's |a| in g
+            per_side = {side: np.where(window, lateral_gyro_rate(res.C[:, i], res.R[:, i],
+                                                                 gyr[:, i]), 0.0)
+                        for side, i in SHANK_IMUS.items()}
         else:
-            accel_g = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i],
-                                      0.0) for side, i in FOOT_IMUS.items()}
-            acc_track.add(res.t, accel_g, res.joint_positions)
+            per_side = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i],
+                                       0.0) for side, i in FOOT_IMUS.items()}
+        acc_track.add(res.t, per_side, res.joint_positions)
     track = acc_track.track()
     peak_col = "swing_peak_rad_s" if detector == "gyro" else "peak_g"
     out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")
