@@ -1,8 +1,8 @@
 """The ``bpms`` command line. Each module in :mod:`bpms.commands` adds one sub-command.
 
-A command module defines ``register(subparsers) -> argparse.ArgumentParser`` whose parser sets
-``run=callable(args) -> int``. Errors meant for the user are raised as :class:`CliError` and
-printed as one line; the exit status is then 2.
+A command module defines ``register(subparsers) -> argparse.ArgumentParser`` (its options)
+and ``run(args) -> int`` (what it does; set as the parser's default ``run``). Errors meant for
+the user are raised as :class:`CliError` and printed as one line; the exit status is then 2.
 
 Command modules are found by name without importing them; only the command asked for is
 imported (all of them only for ``bpms --help``), and a module's ``register`` imports nothing
@@ -56,11 +56,8 @@ def command_summary(name: str) -> str | None:
                 and node.func.attr == "add_parser" and node.args
                 and isinstance(node.args[0], ast.Constant) and node.args[0].value == name):
             for kw in node.keywords:
-                if kw.arg == "help":
-                    try:
-                        value = ast.literal_eval(kw.value)
-                    except ValueError:
-                        return None
+                if kw.arg == "help":  # a string literal, not an f-string, a name, a call
+                    value = kw.value.value if isinstance(kw.value, ast.Constant) else None
                     return value if isinstance(value, str) else None
     return None
 
@@ -113,7 +110,8 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
             continue
         module = importlib.import_module(f"bpms.commands.{name}")
         command = module.register(sub)
-        if isinstance(command, argparse.ArgumentParser) and command.epilog is None:
+        command.set_defaults(run=module.run)
+        if command.epilog is None:
             command.epilog = docs_hint()  # the pages that help texts name are there
     _plain_help(parser)  # the docstrings' markup is for the API reference
     return parser
@@ -149,14 +147,11 @@ def main(argv: list[str] | None = None) -> int:
                       to_file=getattr(args, "log_file", args.command in LOGGED_COMMANDS))
     try:
         return int(args.run(args) or 0)
-    except CliError as exc:
-        print(f"bpms {args.command}: {exc}", file=sys.stderr)
-        return 2
-    except ImportError as exc:
+    except (CliError, ImportError) as exc:
         from bpms.extras import MissingExtraError
 
-        if not isinstance(exc, MissingExtraError):
-            raise
+        if not isinstance(exc, (CliError, MissingExtraError)):
+            raise  # not a missing extra: a bug, with its traceback
         print(f"bpms {args.command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

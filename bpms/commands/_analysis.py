@@ -6,11 +6,23 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 
-from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.commands._shared import warn
 
-__all__ = ["add_filter_option", "open_recording_for", "processed", "stream"]
+__all__ = ["open_recording_for", "processed", "stream"]
+
+
+@contextmanager
+def _read_errors(path: str, *kinds: type[Exception]) -> Iterator[None]:
+    """An exception of ``kinds`` as a CliError of its text, an OSError as ``PATH: reason``."""
+    try:
+        yield
+    except kinds as exc:
+        raise CliError(str(exc)) from exc
+    except OSError as exc:
+        raise CliError(f"{path}: {exc.strerror or exc}") from exc
 
 
 def open_recording_for(command: str, path: str, calibration: str | None = None,
@@ -23,16 +35,11 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
 
-    try:
+    with _read_errors(path, RawFileError, FilteredFileError, VqfMissingError):
         opened = open_for_processing(path, calibration, options, algorithm, heading,
                                      reset_zero)
-    except (RawFileError, FilteredFileError, VqfMissingError) as exc:
-        raise CliError(str(exc)) from exc
-    except OSError as exc:
-        raise CliError(f"{path}: {exc.strerror or exc}") from exc
     print(f"bpms {command}: {opened.sources_line()}", file=sys.stderr)
-    for problem in opened.problems:
-        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    warn(command, opened.problems)
     if opened.n_frames == 0:
         raise CliError(f"{path}: the recording holds no frames")
     opened.problems.clear()
@@ -45,14 +52,9 @@ def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
     from bpms.analysis.source import stderr_progress
     from bpms.io.filtered_file.reader import FilteredFileError
 
-    try:
+    with _read_errors(opened.path, FilteredFileError):
         yield from opened.chunks(zero_at_s, stderr_progress)
-    except FilteredFileError as exc:
-        raise CliError(str(exc)) from exc
-    except OSError as exc:
-        raise CliError(f"{opened.path}: {exc.strerror or exc}") from exc
-    for problem in opened.problems:
-        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    warn(command, opened.problems)
 
 
 def processed(command: str, path: str, calibration: str | None = None,
@@ -64,15 +66,10 @@ def processed(command: str, path: str, calibration: str | None = None,
     from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
 
-    try:
+    with _read_errors(path, RawFileError, FilteredFileError):
         p = process_recording(path, calibration, options, zero_at_s, algorithm=algorithm,
                               heading=heading, reset_zero=reset_zero)
-    except (RawFileError, FilteredFileError) as exc:
-        raise CliError(str(exc)) from exc
-    except OSError as exc:
-        raise CliError(f"{path}: {exc.strerror or exc}") from exc
     if len(p.result) == 0:
         raise CliError(f"{path}: the recording holds no frames")
-    for problem in p.result.problems:
-        print(f"bpms {command}: warning: {problem}", file=sys.stderr)
+    warn(command, p.result.problems)
     return p

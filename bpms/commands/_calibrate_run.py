@@ -56,17 +56,12 @@ def parse_imus(text: str) -> list[int]:
 
 
 def parse_sensors(values: list[str] | None) -> list[str]:
-    if not values:
-        return list(SENSORS)
-    out = []
-    for v in values:
-        for s in v.split(","):
-            s = s.strip().lower()
-            if s not in SENSORS:
-                raise ValueError(f"unknown sensor '{s}' (accel, mag or gyro)")
-            if s not in out:
-                out.append(s)
-    return [s for s in SENSORS if s in out]
+    """``--sensor`` values (repeated, comma lists; none: all) → the sensors in step order."""
+    chosen = [s.strip().lower() for v in values or SENSORS for s in v.split(",")]
+    for s in chosen:
+        if s not in SENSORS:
+            raise ValueError(f"unknown sensor '{s}' (accel, mag or gyro)")
+    return [s for s in SENSORS if s in chosen]
 
 
 class Terminal:
@@ -106,6 +101,17 @@ class Terminal:
             return self.lines.get_nowait()
         except queue.Empty:
             return None
+
+    def ask(self, question: str, timeout_s: float = 600.0) -> str | None:
+        """Say ``question``; the next line typed within ``timeout_s`` (None when none is)."""
+        self.say(question)
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            try:
+                return self.lines.get(timeout=0.5)
+            except queue.Empty:
+                continue
+        return None
 
 
 class Driver:
@@ -300,18 +306,9 @@ def run(args: argparse.Namespace) -> int:
     if not update.imus:
         term.say("nothing was measured; nothing saved")
         return 1
-    if not args.yes:
-        term.say(f"save to {out}? [Y/n]")
-        answer = None
-        end = time.monotonic() + 600
-        while answer is None and time.monotonic() < end:
-            try:
-                answer = term.lines.get(timeout=0.5)
-            except queue.Empty:
-                continue
-        if answer not in ("", "y", "yes"):
-            term.say("not saved")
-            return 1
+    if not args.yes and term.ask(f"save to {out}? [Y/n]") not in ("", "y", "yes"):
+        term.say("not saved")
+        return 1
     try:
         legacy, modern = save_pair(existing, update, out, sensors)
     except OSError as exc:
@@ -339,11 +336,8 @@ def _offer_default(args: argparse.Namespace, term: Terminal, legacy: Path) -> No
 
     make = args.make_default
     if not make and not args.yes:
-        term.say("make it your default calibration (used when none is given)? [y/N]")
-        try:
-            make = term.lines.get(timeout=600) in ("y", "yes")
-        except queue.Empty:
-            make = False
+        make = term.ask("make it your default calibration (used when none is given)? "
+                        "[y/N]") in ("y", "yes")
     if make:
         try:
             term.say(f"default calibration: {save_default_calibration(legacy)}")

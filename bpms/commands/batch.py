@@ -27,6 +27,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
+from bpms.commands._shared import require_formats, warn
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -44,7 +45,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", metavar="options.toml",
                    help="options file (default: each recording's stored options)")
     add_reset_zero_option(p)
-    p.set_defaults(run=run)
     return p
 
 
@@ -68,14 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if unknown or not outputs:
         raise CliError(f"--outputs: unknown {', '.join(unknown) or '(empty)'}; "
                        f"choose from {', '.join(OUTPUTS)}")
-    from bpms.analysis.binary_out import MissingPackageError, check_available
-
-    try:
-        for kind in ("mat", "parquet"):
-            if kind in outputs:
-                check_available(kind)
-    except MissingPackageError as exc:
-        raise CliError(str(exc)) from None
+    require_formats(kind for kind in ("mat", "parquet") if kind in outputs)
     out = Path(args.output) if args.output else folder / "batch"
     jobs = [j for j in find_recordings(folder) if out.resolve() not in Path(j.path).resolve()
             .parents]
@@ -100,8 +93,7 @@ def run(args: argparse.Namespace) -> int:
                  else f"{outcome.frames} frames, {outcome.seconds:.1f} s")
         print(f"[{done}/{total}] {outcome.job.subject}/{outcome.job.trial}: {state}",
               flush=True)
-        for problem in outcome.problems:
-            print(f"bpms batch: warning: {problem}", file=sys.stderr, flush=True)
+        warn("batch", outcome.problems, flush=True)
 
     try:
         outcomes = run_batch(jobs, out, outputs, workers, args.options, progress,

@@ -61,7 +61,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="simulated frames at X times real time; 0 = as fast as possible")
     p.add_argument("--sim-move-gyro", action="store_true",
                    help="the simulated suit moves during the first gyro capture")
-    p.set_defaults(run=run)
     return p
 
 

@@ -25,7 +25,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="show: as if given explicitly; save-default: make it the default")
     p.add_argument("--calibration", metavar="Calib.cfg",
                    help="show: as if given explicitly; save-default: make it the default")
-    p.set_defaults(run=run)
     return p
 
 

@@ -12,12 +12,12 @@ Both are written in one filtering pass. docs/analysis.md describes the contents.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
+from bpms.commands._shared import add_sources, refuse_existing, require_formats, warn
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -28,18 +28,14 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="output format (repeatable; default: both)")
     p.add_argument("-o", "--output", metavar="STEM",
                    help="output path without suffix (default: beside the raw file)")
-    p.add_argument("--calibration", metavar="Calib.cfg",
-                   help="calibration file (default: the one stored in the recording)")
-    p.add_argument("--options", metavar="options.toml",
-                   help="options file (default: the options stored in the recording)")
+    add_sources(p, "the one stored in the recording", "the options stored in the recording")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     add_reset_zero_option(p)
-    p.set_defaults(run=run)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.binary_out import SUFFIX, MissingPackageError, check_available
+    from bpms.analysis.binary_out import SUFFIX
     from bpms.analysis.source import stderr_progress
     from bpms.analysis.stream_export import export_recording
     from bpms.io.filtered_file.reader import FilteredFileError
@@ -49,15 +45,9 @@ def run(args: argparse.Namespace) -> int:
     raw = Path(args.raw_file)
     stem = Path(args.output) if args.output else raw.with_suffix("")
     kinds = list(dict.fromkeys(args.format or ["mat", "parquet"]))
-    try:
-        for kind in kinds:
-            check_available(kind)
-    except MissingPackageError as exc:
-        raise CliError(str(exc)) from None
-    outputs = {k: stem.with_name(stem.name + SUFFIX[k]) for k in kinds}
-    for target in outputs.values():
-        if target.exists() and not args.force:
-            raise CliError(f"{target} exists (use --force to overwrite)")
+    require_formats(kinds)
+    outputs = {k: refuse_existing(stem.with_name(stem.name + SUFFIX[k]), args.force)
+               for k in kinds}
     try:
         summary = export_recording(raw, outputs, args.calibration, args.options,
                                    stderr_progress, args.reset_zero)
@@ -67,8 +57,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"cannot write: {exc.strerror or exc}") from None
     if summary.frames == 0:
         raise CliError(f"{raw}: the recording holds no frames")
-    for problem in summary.problems:
-        print(f"bpms convert: warning: {problem}", file=sys.stderr)
+    warn("convert", summary.problems)
     for kind, target in summary.written.items():
         print(f"wrote {target} ({summary.frames} frames, {kind})")
     print(f"UTC start {summary.utc_start}, joint angles: {summary.convention}; "

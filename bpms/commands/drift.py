@@ -10,6 +10,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.commands._shared import add_sources
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -20,12 +21,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("raw_file", metavar="RAW_FILE", help="raw recording")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="also write the report as CSV")
-    parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the one stored in the recording)")
-    parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the options stored in the recording)")
+    add_sources(parser, "the one stored in the recording", "the options stored in the recording")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 

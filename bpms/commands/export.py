@@ -22,6 +22,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.commands._shared import add_sources, refuse_existing
 from bpms.io.timebase import stream_time
 
 #: format → the endings of the files it writes after the stem (docs/analysis.md).
@@ -61,20 +62,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--head-neck", action="store_true",
                         help="opensim: add head_imu and neck_imu (models with a head)")
     parser.add_argument("--radians", action="store_true", help="matlab: angles in radians")
-    parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the recording's, else your default)")
-    parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the recording's, else your default)")
+    add_sources(parser)
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
-
-
-def _target(path: Path, force: bool) -> Path:
-    if path.exists() and not force:
-        raise CliError(f"{path} exists (use --force to overwrite)")
-    return path
 
 
 def run(args: argparse.Namespace) -> int:
@@ -82,8 +73,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.commands._analysis import open_recording_for, stream
 
     t_start = time.perf_counter()
-    targets = [_target(p, args.force) for p in output_paths(args.format, args.raw_file,
-                                                             args.output)]
+    targets = [refuse_existing(p, args.force)
+               for p in output_paths(args.format, args.raw_file, args.output)]
     if any(p.resolve() == Path(args.raw_file).resolve() for p in targets):
         raise CliError(f"{args.raw_file}: the output would overwrite the recording (give -o)")
     if args.format == "c3d":

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from bpms.commands import CliError
+from bpms.commands._shared import refuse_existing, warn
 
 KINDS = ("raw", "filtered", "vicon", "qualisys")
 
@@ -32,7 +33,6 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--degrees", action="store_true", help="filtered: angles in degrees")
     parser.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV file")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output")
-    parser.set_defaults(run=run)
     return parser
 
 
@@ -83,9 +83,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         _ask(args, "body", "rigid body name")
     _ask(args, "output", "output CSV file")
-    out = Path(args.output)
-    if out.exists() and not args.force:
-        raise CliError(f"{out} exists (use --force to overwrite)")
+    out = refuse_existing(Path(args.output), args.force)
     problems: list[str] = []
     try:
         if args.kind == "raw":
@@ -113,8 +111,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from exc
     except OSError as exc:
         raise CliError(f"{args.input}: {exc.strerror or exc}") from exc
-    for p in problems:
-        print(f"bpms extract: warning: {p}", file=sys.stderr)
+    warn("extract", problems)
     if rows == 0 and args.kind == "filtered":
         out.unlink(missing_ok=True)
         raise CliError(f"{args.input}: the file holds no rows of data")

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
+from bpms.commands._shared import add_sources, refuse_existing
 from bpms.io.options import FilterOptions
 
 FILTER_CHOICES = tuple(next(f for f in dataclasses.fields(FilterOptions)
@@ -43,17 +44,13 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                              "observer/adaptive filters) estimates (docs/filtered-file.md)")
     parser.add_argument("--no-flags", dest="flags", action="store_false",
                         help="leave out the per-IMU re-initialisation and disturbance flags")
-    parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the recording's, else your default)")
-    parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the recording's, else your default)")
+    add_sources(parser)
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     parser.add_argument("--filter", metavar="NAME",
                         help="attitude filter for all 18 IMUs: " + ", ".join(FILTER_CHOICES)
                              + " (default: the options' [filter] algorithm, normally mahony; "
                              "docs/filters.md)")
     add_reset_zero_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 
@@ -71,9 +68,8 @@ def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     if args.filter is not None and args.filter not in FILTER_CHOICES:
         raise CliError(f"unknown filter '{args.filter}' (choose {', '.join(FILTER_CHOICES)})")
-    out_path = Path(args.output) if args.output else default_output_path(args.raw_file)
-    if out_path.exists() and not args.force:
-        raise CliError(f"{out_path} exists (use --force to overwrite)")
+    out_path = refuse_existing(Path(args.output) if args.output
+                               else default_output_path(args.raw_file), args.force)
     opened = open_recording_for("filter", args.raw_file, args.calibration, args.options,
                                 args.filter, reset_zero=args.reset_zero)
     if opened.kind == "filtered":

@@ -21,7 +21,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--recording-dir", metavar="DIR",
                    help="folder for recordings (default: the options' logging.directory, else "
                         "the per-user recordings folder)")
-    p.set_defaults(run=run)
     return p
 
 

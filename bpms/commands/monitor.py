@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import threading
 import time
 from typing import TYPE_CHECKING
@@ -23,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpms.commands import CliError
+from bpms.commands._shared import stop_on_signals
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.events import SourceStatus
@@ -31,7 +31,9 @@ from bpms.io.link import DEFAULT_BAUD, LinkError, discover_suit, list_candidate_
 from bpms.io.options import SerialOptions, UdpOptions
 
 if TYPE_CHECKING:
-    from bpms.pipeline.sources import SuitFrameSource
+    from collections.abc import Callable
+
+    from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -57,7 +59,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--sim", action="store_true",
                    help="monitor the simulated suit (every status line says SIMULATED)")
     add_sim_options(p)
-    p.set_defaults(run=run)
     return p
 
 
@@ -67,10 +68,6 @@ def count_error_bits(frames: list[bytes]) -> int:
         return 0
     words = np.frombuffer(b"".join(frames), dtype=FRAME_DTYPE)["clusters"]["error"]
     return int(error_words_to_flags(words).sum())
-
-
-def _sigterm(signum, frame) -> None:
-    raise KeyboardInterrupt
 
 
 def run(args: argparse.Namespace) -> int:
@@ -89,8 +86,7 @@ def run(args: argparse.Namespace) -> int:
         if port is None:
             raise CliError(f"no suit answered on {len(candidates)} candidate port(s) (is it "
                            "paired, switched on, charged? --sim monitors the simulated suit)")
-    signal.signal(signal.SIGTERM, _sigterm)
-    signal.signal(signal.SIGINT, signal.default_int_handler)  # even when started in background
+    stop_on_signals()
     serial = SerialOptions(baud=args.baud, discovery_timeout_s=args.timeout)
     source = SuitFrameSource(port, serial, simulated=server is not None)
     try:
@@ -130,7 +126,7 @@ class _Reader(threading.Thread):
     """Reads the source and counts, so that a read blocked in a probe or a reconnection
     (up to ``--timeout`` s each) never holds back the status line."""
 
-    def __init__(self, source: SuitFrameSource) -> None:
+    def __init__(self, source: SuitFrameSource | UdpFrameSource) -> None:
         super().__init__(name="bpms-monitor-reader", daemon=True)
         self.source = source
         self.lock = threading.Lock()
@@ -157,8 +153,11 @@ class _Reader(threading.Thread):
         self._stop.set()
 
 
-def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
-    """One line per second from the main thread, whatever the reader waits for."""
+def _status_loop(source: SuitFrameSource | UdpFrameSource, seconds: float | None,
+                 line: Callable[[float, float, int, int, SourceStatus], str] = status_line
+                 ) -> None:
+    """One line per second from the main thread, whatever the reader waits for; ``line``
+    makes it of elapsed time, rate, frames, error bits and the source's status."""
     reader = _Reader(source)
     reader.start()
     t0 = time.monotonic()
@@ -173,8 +172,7 @@ def _status_loop(source: SuitFrameSource, seconds: float | None) -> None:
             if now >= next_line:
                 frames, error_bits = reader.counts()
                 rate = (frames - shown) / (now - window_t0)
-                print(status_line(now - t0, rate, frames, error_bits, source.status()),
-                      flush=True)
+                print(line(now - t0, rate, frames, error_bits, source.status()), flush=True)
                 shown, window_t0 = frames, now
                 next_line += 1.0
                 if next_line < now:  # fell behind (suspended): no burst of lines
@@ -213,24 +211,11 @@ def _monitor_udp(args: argparse.Namespace) -> int:
                                 takeover_after_s=udp.takeover_after_s)
     except (UdpConfigError, OSError, ValueError) as exc:
         raise CliError(str(exc)) from None
-    signal.signal(signal.SIGTERM, _sigterm)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    stop_on_signals()
     print(f"listening for UDP on {source.udp.listening}", flush=True)
-    t0 = time.monotonic()
-    next_line = t0 + 1.0
-    frames = window = 0
-    window_t0 = t0
     try:
-        while args.seconds is None or time.monotonic() - t0 < args.seconds:
-            got = source.read(0.05)
-            frames += len(got)
-            window += len(got)
-            now = time.monotonic()
-            if now >= next_line:
-                print(udp_status_line(now - t0, window / (now - window_t0), frames,
-                                      source.status()), flush=True)
-                window, window_t0 = 0, now
-                next_line = max(next_line + 1.0, now + 0.5)
+        _status_loop(source, args.seconds, lambda elapsed, rate, frames, _bits, status:
+                     udp_status_line(elapsed, rate, frames, status))
     except KeyboardInterrupt:
         pass
     finally:

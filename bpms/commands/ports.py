@@ -16,7 +16,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--probe", action="store_true", help="ask every port whether it is the suit")
     p.add_argument("--timeout", type=float, default=1.0, metavar="S",
                    help="wait for the answer per port, s (default 1)")
-    p.set_defaults(run=run)
     return p
 
 

@@ -22,7 +22,6 @@ stream; ``bpms filter`` and ``bpms replay`` of the recording apply them where th
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 import time
@@ -30,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
+from bpms.commands._shared import stop_on_signals
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.link import LinkError
@@ -66,12 +66,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", default=None, metavar="FILE", help="options file (TOML)")
     p.add_argument("--sim", action="store_true", help="record the simulated suit")
     add_sim_options(p)
-    p.set_defaults(run=run)
     return p
-
-
-def _interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt
 
 
 def status_line(status: LiveStatus, elapsed: float) -> str:
@@ -177,8 +172,7 @@ def run(args: argparse.Namespace) -> int:
     announce_factory(options=not args.options, calibration=not args.calibration)
     folder = Path(args.output) if args.output else None  # None: options, else per-user folder
     session = LiveSession(source, options, processor, recording_dir=folder, notes=args.notes)
-    signal.signal(signal.SIGTERM, _interrupt)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    stop_on_signals()
     recording = None
     bridges: list = []
     wait = args.lsl_wait if args.lsl else 0.0

@@ -20,6 +20,7 @@ import time
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
+from bpms.commands._shared import warn
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_replay
@@ -46,17 +47,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--options", default=None, metavar="FILE",
                    help="options file (default: the options stored in the recording)")
     add_reset_zero_option(p)
-    p.set_defaults(run=run)
     return p
-
-
-def load_recording(path: str):
-    """A native (read from disk as it plays) or legacy raw recording, or a CliError naming
-    the problem (also for a recording with no valid frame)."""
-    try:
-        return open_replay(path)
-    except RawFileError as exc:
-        raise CliError(str(exc)) from None
 
 
 def _opened(path: str, options_path: str | None, reset_zero):
@@ -72,8 +63,7 @@ def _opened(path: str, options_path: str | None, reset_zero):
     if not opened.has_raw:
         raise CliError(f"{path}: a filtered file; give a raw recording")
     print(f"bpms replay: {opened.sources_line()}", file=sys.stderr)
-    for problem in opened.problems:
-        print(f"bpms replay: warning: {problem}", file=sys.stderr)
+    warn("replay", opened.problems)
     return opened
 
 
@@ -87,7 +77,10 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--speed must be ≥ 0 (0 = as fast as possible)")
     if not (args.udp or args.lsl or args.mvn):
         raise CliError("nothing to send: give --udp HOST:PORT, --lsl and/or --mvn HOST:PORT")
-    recording = load_recording(args.raw_file)
+    try:  # native (read from disk as it plays) or legacy; no valid frame is an error too
+        recording = open_replay(args.raw_file)
+    except RawFileError as exc:
+        raise CliError(str(exc)) from None
     for problem in recording.problems:
         print(f"warning: {problem}", file=sys.stderr)
     if len(recording) == 0:

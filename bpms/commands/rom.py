@@ -10,6 +10,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.commands._shared import add_sources
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -30,13 +31,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("-o", "--output-dir", metavar="DIR", default=".",
                         help="folder for rom.csv, rom.md and rom_<group>.png (default: .)")
     parser.add_argument("--name", default="rom", help="file name stem of the outputs")
-    parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: each recording's, else your default)")
-    parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: each recording's, else your default)")
+    add_sources(parser, "each recording's, else your default")
     parser.add_argument("--no-figures", action="store_true", help="tables only")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 

@@ -21,6 +21,7 @@ import time
 from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
+from bpms.commands._shared import stop_on_signals, warn
 
 if TYPE_CHECKING:  # numpy and the sensor model load when the suit is built, not for --help
     from bpms.firmware.sim.arbiter import Arbiter, MotionSource
@@ -50,7 +51,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "simulated seconds (repeatable)")
     a.add_argument("--report", metavar="FILE.json",
                    help="with --avr: write the simulator's final figures there (JSON)")
-    p.set_defaults(run=run)
     return p
 
 
@@ -103,8 +103,7 @@ def build_source(args: argparse.Namespace) -> MotionSource:
     table = None
     if args.calibration:
         table = load_calibration(args.calibration)
-        for problem in table.problems:
-            print(f"bpms sim: warning: {problem}", file=sys.stderr)
+        warn("sim", table.problems)
     source = MotionSource.simulated(
         seed=args.seed, mag_disturbance=args.mag_disturbance,
         mounting_errors=not args.no_mounting_errors, noise=not args.no_noise,
@@ -126,10 +125,6 @@ def build_arbiter(args: argparse.Namespace) -> Arbiter:
     )
     return Arbiter(build_source(args), faults, realtime=not args.fast, battery_v=args.battery,
                    battery_drain_v_per_h=args.drain, seed=args.seed)
-
-
-def _sigterm(signum, frame) -> None:
-    raise KeyboardInterrupt
 
 
 def open_server(args: argparse.Namespace, suit) -> SimServer:
@@ -158,8 +153,7 @@ def run(args: argparse.Namespace) -> int:
     print(where, flush=True)
     print(f"bpms sim: serving the simulated suit on {where} "
           f"({'fast' if args.fast else 'real time'}); Ctrl-C stops", file=sys.stderr, flush=True)
-    signal.signal(signal.SIGTERM, _sigterm)
-    signal.signal(signal.SIGINT, signal.default_int_handler)  # even when started in background
+    stop_on_signals()
     server.start()
     try:
         while True:

@@ -13,6 +13,7 @@ import numpy as np
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
+from bpms.commands._shared import add_sources
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -38,13 +39,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--to", dest="t1", type=float, metavar="T1", help="end, s")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="track CSV (default: <raw stem>_track.csv); the PNG beside it")
-    parser.add_argument("--calibration", metavar="Calib.cfg",
-                        help="calibration file (default: the recording's, else your default)")
-    parser.add_argument("--options", metavar="options.toml",
-                        help="options file (default: the recording's, else your default)")
+    add_sources(parser)
     parser.add_argument("--no-figure", action="store_true", help="CSV only")
     add_filter_option(parser)
-    parser.set_defaults(run=run)
     return parser
 
 
@@ -85,15 +82,14 @@ def run(args: argparse.Namespace) -> int:
             window &= res.t >= args.t0
         if args.t1 is not None:
             window &= res.t <= args.t1
-        if detector == "gyro":
-            rates = {side: np.where(window, lateral_gyro_rate(res.C[:, i], res.R[:, i],
-                                                              gyr[:, i]), 0.0)
-                     for side, i in SHANK_IMUS.items()}
-            acc_track.add(res.t, rates, res.joint_positions)
+        if detector == "gyro":  # per side: the shank's swing rate, else the foot's |a| in g
+            per_side = {side: np.where(window, lateral_gyro_rate(res.C[:, i], res.R[:, i],
+                                                                 gyr[:, i]), 0.0)
+                        for side, i in SHANK_IMUS.items()}
         else:
-            accel_g = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i],
-                                      0.0) for side, i in FOOT_IMUS.items()}
-            acc_track.add(res.t, accel_g, res.joint_positions)
+            per_side = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i],
+                                       0.0) for side, i in FOOT_IMUS.items()}
+        acc_track.add(res.t, per_side, res.joint_positions)
     track = acc_track.track()
     peak_col = "swing_peak_rad_s" if detector == "gyro" else "peak_g"
     out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")

@@ -20,7 +20,6 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--filter", dest="filters", action="append", metavar="NAME",
                    choices=("mahony", "observer", "adaptive", "vqf"),
                    help="only this filter (repeatable; default: every filter)")
-    p.set_defaults(run=run)
     return p
 
 
