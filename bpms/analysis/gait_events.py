@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from bpms.analysis.track import _keep_apart, _peaks
+
 #: Shank IMUs of the suit (numbering of docs/suit.md, 0-based).
 SHANK_IMUS = {"right": 2, "left": 14}
 #: The ADXL345 range of recordings that do not say (the original firmware's ±2 g).
@@ -76,22 +78,15 @@ def lateral_gyro_rate(C: np.ndarray, R: np.ndarray, gyro: np.ndarray) -> np.ndar
 def _swing_strikes(rate: np.ndarray, t: np.ndarray, min_swing_rate: float,
                    swing_fraction: float, min_gap_s: float) -> tuple[list[int], list[float]]:
     r = np.nan_to_num(rate)
-    if len(r) < 3:
-        return [], []
-    mid = r[1:-1]
-    peaks = np.flatnonzero((mid > min_swing_rate) & (mid >= r[:-2]) & (mid > r[2:])) + 1
+    peaks = _peaks(r, min_swing_rate)
     if len(peaks) == 0:
         return [], []
     typical = float(np.percentile(r[peaks], 90))
-    peaks = peaks[r[peaks] >= swing_fraction * typical]
     # minimum gap per foot: of two peaks closer than the gap, the larger stays
-    kept: list[int] = []
-    for k in peaks:
-        if kept and t[k] - t[kept[-1]] < min_gap_s:
-            if r[k] > r[kept[-1]]:
-                kept[-1] = int(k)
-            continue
-        kept.append(int(k))
+    apart: list[tuple[float, float, int]] = []
+    for k in peaks[r[peaks] >= swing_fraction * typical]:
+        _keep_apart(apart, (t[k], r[k], int(k)), min_gap_s)
+    kept = [k for _, _, k in apart]
     strikes, swing = [], []
     for n, k in enumerate(kept):
         end = kept[n + 1] if n + 1 < len(kept) else len(r)

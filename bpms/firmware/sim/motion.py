@@ -181,27 +181,24 @@ def _dof_track(script: list[Step], t: np.ndarray, heading0: float, body: BodyOpt
     t0 = 0.0
     leg = body.thigh + body.shank
     for step in script:
+        if isinstance(step, Walk):
+            t1 = t0 + (step.steps + 1) * step.step_period
+        else:
+            t1 = t0 + step.duration + (step.hold if isinstance(step, Move) else 0.0)
+        sel = (t >= t0) & (t < t1)
+        phases.append((t0, t1, step.name))
         if isinstance(step, Still):
-            t1 = t0 + step.duration
-            sel = (t >= t0) & (t < t1)
             dofs[sel] = current
             walk_xy[sel] = walked
-            phases.append((t0, t1, step.name))
         elif isinstance(step, Move):
             target = current.copy() if step.keep else np.zeros(len(DOFS))
             for name, deg in step.target.items():
                 target[DOF_INDEX[name]] = deg * _D
-            t1 = t0 + step.duration + step.hold
-            sel = (t >= t0) & (t < t1)
             s = min_jerk((t[sel] - t0) / step.duration)
             dofs[sel] = current + s[:, None] * (target - current)
             walk_xy[sel] = walked
-            phases.append((t0, t1, step.name))
             current = target
         else:
-            t1 = t0 + (step.steps + 1) * step.step_period
-            sel = (t >= t0) & (t < t1)
-            phases.append((t0, t1, step.name))
             if not sel.any():  # the recording ends before the walk
                 t0 = t1
                 continue
@@ -289,19 +286,9 @@ def _still_windows(dofs: np.ndarray, pelvis: np.ndarray, t: np.ndarray,
     moving[1:] |= np.abs(np.diff(pelvis, axis=0)).max(axis=1) > 1e-12
     moving[:-1] |= moving[1:].copy()
     ok = posture & ~moving
-    windows = []
-    k = 0
-    while k < len(t):
-        if ok[k]:
-            j = k
-            while j + 1 < len(t) and ok[j + 1]:
-                j += 1
-            if t[j] - t[k] >= min_s:
-                windows.append((float(t[k]), float(t[j])))
-            k = j + 1
-        else:
-            k += 1
-    return windows
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))  # run starts, ends (past)
+    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True)
+            if t[b - 1] - t[a] >= min_s]
 
 
 def generate_motion(n_samples: int | None = None, *, script: list[Step] | None = None,
