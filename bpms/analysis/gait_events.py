@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from bpms.analysis.track import _keep_apart, _peaks
+from bpms.filter.rotations import rotation_vector
 
 #: Shank IMUs of the suit (numbering of docs/suit.md, 0-based).
 SHANK_IMUS = {"right": 2, "left": 14}
@@ -54,15 +55,8 @@ def lateral_rate(C: np.ndarray, dt: float) -> np.ndarray:
     """``[N]`` angular velocity (rad/s) about the segment's own y (right) axis from the
     orientations ``C[N, 3, 3]`` (segment → world); 0 at the first sample, NaN where C is."""
     rel = np.einsum("nji,njk->nik", C[:-1], C[1:])  # C_{k-1}ᵀ C_k, segment axes
-    # rotation vector of a small rotation: ½ vee(M − Mᵀ) · θ / sin θ
-    vee = 0.5 * np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0],
-                          rel[:, 1, 0] - rel[:, 0, 1]], axis=-1)
-    s = np.linalg.norm(vee, axis=-1)
-    c = 0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0)
-    theta = np.arctan2(s, c)
-    scale = np.where(s > 1e-12, theta / np.where(s > 1e-12, s, 1.0), 1.0)
     out = np.zeros(len(C))
-    out[1:] = vee[:, 1] * scale / dt
+    out[1:] = rotation_vector(rel)[:, 1] / dt
     return out
 
 
