@@ -110,8 +110,7 @@ class MatWriter:
         if meta.n_frames is not None:
             self._stream = self._open(int(meta.n_frames))
         else:
-            with open(self.path, "wb"):  # fail early (folder missing, no permission)
-                pass
+            self.path.write_bytes(b"")  # fail early (folder missing, no permission)
 
     def _open(self, n: int):
         from bpms.analysis.mat5_stream import Mat5Stream

@@ -82,13 +82,9 @@ MOUNTING: tuple[str, ...] = (
 )
 
 
-def board_axes(imu: int) -> np.ndarray:
-    """``[3, 3]`` whose rows are the filter-frame directions of board x, y, z of ``imu``:
-    ``v_board = board_axes(imu) @ v_filter``."""
-    return np.array([DIRECTIONS[name] for name in MOUNTING_KINDS[MOUNTING[imu]]])
-
-
-BOARD_AXES = np.stack([board_axes(i) for i in range(N_IMUS)])  # [18, 3, 3]
+#: ``[18, 3, 3]``: per IMU, rows the filter-frame directions of board x, y, z
+#: (``v_board = BOARD_AXES[imu] @ v_filter``).
+BOARD_AXES = np.array([[DIRECTIONS[name] for name in MOUNTING_KINDS[kind]] for kind in MOUNTING])
 
 #: Chip polarity per board axis (accel, mag, gyro), what the host's sign vectors undo: the
 #: accelerometer reads +1 g on a board axis pointing down; the magnetometer's y and z and all
