@@ -71,10 +71,8 @@ def hierarchy(body: BodyOptions | None = None) -> tuple[list[str], list[tuple[in
     def emit(k: int, parent_imu: int, offset: np.ndarray, depth: int) -> None:
         p = BODY_POINTS[k]
         pad = "  " * depth
-        lines.append(f"{pad}JOINT {joint_name(k)}")
-        lines.append(f"{pad}{{")
-        lines.append(f"{pad}  OFFSET {fmt(offset)}")
-        lines.append(f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation")
+        lines.extend([f"{pad}JOINT {joint_name(k)}", f"{pad}{{", f"{pad}  OFFSET {fmt(offset)}",
+                      f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation"])
         order.append((p.imu, parent_imu))
         vec = NED_TO_BVH @ np.array(p.direction) * getattr(body, p.length) * CM_PER_M
         kids = children.get(p.name, [])

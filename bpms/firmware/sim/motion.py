@@ -254,26 +254,22 @@ def segment_orientations(dofs: np.ndarray, heading0: float) -> np.ndarray:
     def q(name: str) -> np.ndarray:
         return dofs[:, DOF_INDEX[name]]
 
-    zero = np.zeros(n)
-
-    def joint(roll=zero, pitch=zero, yaw=zero) -> np.ndarray:
-        return zyx(roll, pitch, yaw)
-
+    # each joint is zyx(roll, pitch, yaw) of its DOFs (0 where it has none: broadcast)
     C = np.empty((n, N_IMUS, 3, 3))
-    pelvis = joint(q("pelvis_roll"), q("pelvis_tilt"), heading0 + q("pelvis_turn"))
-    spine = pelvis @ joint(q("torso_lat"), q("torso_flex"), q("torso_rot"))
-    neck = spine @ joint(pitch=q("neck_flex"))
-    head = neck @ joint(pitch=q("head_nod"), yaw=q("head_turn"))
+    pelvis = zyx(q("pelvis_roll"), q("pelvis_tilt"), heading0 + q("pelvis_turn"))
+    spine = pelvis @ zyx(q("torso_lat"), q("torso_flex"), q("torso_rot"))
+    neck = spine @ zyx(0.0, q("neck_flex"), 0.0)
+    head = neck @ zyx(0.0, q("head_nod"), q("head_turn"))
     C[:, 6], C[:, 8], C[:, 7], C[:, 17] = pelvis, spine, neck, head
     for side, sh, arm, fore, hand in (("r", 15, 4, 5, 3), ("l", 16, 10, 11, 9)):
         C[:, sh] = spine
-        C[:, arm] = spine @ joint(q(f"sh_{side}_abd"), q(f"sh_{side}_flex"), q(f"sh_{side}_rot"))
-        C[:, fore] = C[:, arm] @ joint(pitch=q(f"elbow_{side}"))
-        C[:, hand] = C[:, fore] @ joint(pitch=q(f"wrist_{side}"))
+        C[:, arm] = spine @ zyx(q(f"sh_{side}_abd"), q(f"sh_{side}_flex"), q(f"sh_{side}_rot"))
+        C[:, fore] = C[:, arm] @ zyx(0.0, q(f"elbow_{side}"), 0.0)
+        C[:, hand] = C[:, fore] @ zyx(0.0, q(f"wrist_{side}"), 0.0)
     for side, thigh, shank, foot in (("r", 0, 2, 1), ("l", 12, 14, 13)):
-        C[:, thigh] = pelvis @ joint(q(f"hip_{side}_abd"), q(f"hip_{side}_flex"))
-        C[:, shank] = C[:, thigh] @ joint(pitch=-q(f"knee_{side}"))
-        C[:, foot] = C[:, shank] @ joint(pitch=q(f"ankle_{side}"))
+        C[:, thigh] = pelvis @ zyx(q(f"hip_{side}_abd"), q(f"hip_{side}_flex"), 0.0)
+        C[:, shank] = C[:, thigh] @ zyx(0.0, -q(f"knee_{side}"), 0.0)
+        C[:, foot] = C[:, shank] @ zyx(0.0, q(f"ankle_{side}"), 0.0)
     return C
 
 
