@@ -174,7 +174,9 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
 
         ctx = multiprocessing.get_context(start_method)  # default: spawn on Windows/macOS
         if ctx.get_start_method() == "fork":
-            _warm_up()  # forked workers inherit the loaded filter kernels
+            from bpms.filter.processor import BodyPoseProcessor
+
+            BodyPoseProcessor().load_kernels()  # forked workers inherit the loaded kernels
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
             futures = {pool.submit(process_one, job, str(out_dir), outputs, options,
                                    reset_zero): k
@@ -249,13 +251,6 @@ def _run_on_dask(scheduler, jobs: list[Job], out_dir: str, outputs: tuple[str, .
     finally:
         if own:
             client.close()
-
-
-def _warm_up() -> None:
-    """Load the compiled filter kernels in this process (whole-recording path)."""
-    from bpms.filter.processor import BodyPoseProcessor
-
-    BodyPoseProcessor().load_kernels()
 
 
 def write_table(path: str | Path, outcomes: list[Outcome]) -> int:

@@ -275,11 +275,10 @@ def to_raw(values: SensorValues, table, model: SensorModel | None = None,
     acc_b = _board(values.acc) * np.asarray(pol["accel"])  # g, board axes, chip polarity
     mag_b = _board(values.mag) * np.asarray(pol["mag"])
     gyr_b = _board(values.gyr) * np.asarray(pol["gyro"])
+    raw_acc = (acc_lo + acc_hi) / 2 + acc_b * (acc_hi - acc_lo) / 2
     if noise is not None:
         mag_b = mag_b + noise.mag  # isotropic: no need to rotate the noise
         gyr_b = gyr_b + noise.gyr
-    raw_acc = (acc_lo + acc_hi) / 2 + acc_b * (acc_hi - acc_lo) / 2
-    if noise is not None:
         raw_acc = raw_acc + noise.acc_counts
     raw_mag = (mag_lo + mag_hi) / 2 + (mag_b / 100.0) * (mag_hi - mag_lo) / 2
     for imu, ell in (mag_ellipsoids or {}).items():
