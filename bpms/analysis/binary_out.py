@@ -175,11 +175,10 @@ class ParquetWriter:
         fields = [pa.field("time_s", pa.float64()),
                   pa.field("utc", pa.timestamp("us", tz="UTC"))]
         fields += [pa.field(n, pa.float32()) for n in names[2:]]
-        schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
-        self._schema = schema
+        self._schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
         # Dictionary encoding of float columns costs 5× the write time and gains nothing on
         # continuous signals; statistics only where queries filter (time).
-        self._writer = pq.ParquetWriter(self.path, schema, compression=compression,
+        self._writer = pq.ParquetWriter(self.path, self._schema, compression=compression,
                                         use_dictionary=False,
                                         write_statistics=["time_s", "utc"])
 

@@ -299,14 +299,13 @@ class Arbiter:
         rate = self.faults.error_rate
         if rate <= 0:
             self._last = self.source.frame(j)
-            return self._last
-        raw, errors = self.source.reading(j)
-        raw = raw.copy()
-        fail = self._rng.random((N_IMUS, N_SENSORS)) < rate
-        errors = errors | fail
-        raw.reshape(N_IMUS, N_SENSORS, 3)[fail] = 0
-        self.stats.error_flags += int(fail.sum())
-        self._last = encode_frame(raw, errors)
+        else:
+            raw, errors = self.source.reading(j)
+            raw = raw.copy()
+            fail = self._rng.random((N_IMUS, N_SENSORS)) < rate
+            raw.reshape(N_IMUS, N_SENSORS, 3)[fail] = 0
+            self.stats.error_flags += int(fail.sum())
+            self._last = encode_frame(raw, errors | fail)
         return self._last
 
     def _damage(self, frame: bytes) -> bytes:
