@@ -174,20 +174,29 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
 
         ctx = multiprocessing.get_context(start_method)  # default: spawn on Windows/macOS
         if ctx.get_start_method() == "fork":
-            _warm_up()  # forked workers inherit the loaded filter kernels
+            from bpms.filter.processor import BodyPoseProcessor
+
+            BodyPoseProcessor().load_kernels()  # forked workers inherit the loaded kernels
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
             futures = {pool.submit(process_one, job, str(out_dir), outputs, options,
                                    reset_zero): k
                        for k, job in enumerate(jobs)}
-            for future in as_completed(futures):
-                k = futures[future]
-                try:
-                    results[k] = future.result()
-                except Exception as exc:  # the worker process itself died
-                    results[k] = Outcome(jobs[k], error=f"worker failed: {exc}")
-                if progress:
-                    progress(len(results), len(jobs), results[k])
+            _collect(futures, as_completed, jobs, results, progress)
     return [results[k] for k in range(len(jobs))]
+
+
+def _collect(futures: dict, completed, jobs: list[Job], results: dict[int, Outcome],
+             progress) -> None:
+    """Fill ``results`` from ``futures`` (future → job index) as ``completed`` yields them; a
+    future that raises (its worker process died, or was lost) becomes an error outcome."""
+    for future in completed(futures):
+        k = futures[future]
+        try:
+            results[k] = future.result()
+        except Exception as exc:
+            results[k] = Outcome(jobs[k], error=f"worker failed: {exc}")
+        if progress:
+            progress(len(results), len(jobs), results[k])
 
 
 def dask_client(scheduler: str, timeout_s: float = 30.0):
@@ -238,24 +247,10 @@ def _run_on_dask(scheduler, jobs: list[Job], out_dir: str, outputs: tuple[str, .
         futures = {client.submit(process_one, job, out_dir, outputs, options, reset_zero,
                                  pure=False): k
                    for k, job in enumerate(jobs)}
-        for future in dask_completed(futures):
-            k = futures[future]
-            try:
-                results[k] = future.result()
-            except Exception as exc:  # the worker itself failed (died, lost, ...)
-                results[k] = Outcome(jobs[k], error=f"worker failed: {exc}")
-            if progress:
-                progress(len(results), len(jobs), results[k])
+        _collect(futures, dask_completed, jobs, results, progress)
     finally:
         if own:
             client.close()
-
-
-def _warm_up() -> None:
-    """Load the compiled filter kernels in this process (whole-recording path)."""
-    from bpms.filter.processor import BodyPoseProcessor
-
-    BodyPoseProcessor().load_kernels()
 
 
 def write_table(path: str | Path, outcomes: list[Outcome]) -> int:

@@ -110,8 +110,7 @@ class MatWriter:
         if meta.n_frames is not None:
             self._stream = self._open(int(meta.n_frames))
         else:
-            with open(self.path, "wb"):  # fail early (folder missing, no permission)
-                pass
+            self.path.write_bytes(b"")  # fail early (folder missing, no permission)
 
     def _open(self, n: int):
         from bpms.analysis.mat5_stream import Mat5Stream
@@ -176,11 +175,10 @@ class ParquetWriter:
         fields = [pa.field("time_s", pa.float64()),
                   pa.field("utc", pa.timestamp("us", tz="UTC"))]
         fields += [pa.field(n, pa.float32()) for n in names[2:]]
-        schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
-        self._schema = schema
+        self._schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
         # Dictionary encoding of float columns costs 5× the write time and gains nothing on
         # continuous signals; statistics only where queries filter (time).
-        self._writer = pq.ParquetWriter(self.path, schema, compression=compression,
+        self._writer = pq.ParquetWriter(self.path, self._schema, compression=compression,
                                         use_dictionary=False,
                                         write_statistics=["time_s", "utc"])
 

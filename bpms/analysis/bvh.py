@@ -34,14 +34,6 @@ CM_PER_M = 100.0
 ROOT_IMU = 6
 
 
-def _children() -> dict[str, list[int]]:
-    """Point name → indices of the segments starting there."""
-    out: dict[str, list[int]] = {}
-    for k, p in enumerate(BODY_POINTS):
-        out.setdefault(p.parent, []).append(k)
-    return out
-
-
 def joint_name(k: int) -> str:
     """BVH joint name of body-model segment ``k`` (``BODY_POINTS[k]``)."""
     p = BODY_POINTS[k]
@@ -61,7 +53,9 @@ def hierarchy(body: BodyOptions | None = None) -> tuple[list[str], list[tuple[in
     """The HIERARCHY lines and the (imu of joint, imu of parent joint) order of the motion
     channels after the root's."""
     body = body or BodyOptions()
-    children = _children()
+    children: dict[str, list[int]] = {}  # point name → indices of the segments starting there
+    for k, p in enumerate(BODY_POINTS):
+        children.setdefault(p.parent, []).append(k)
     lines: list[str] = ["HIERARCHY"]
     order: list[tuple[int, int]] = []
 
@@ -71,10 +65,8 @@ def hierarchy(body: BodyOptions | None = None) -> tuple[list[str], list[tuple[in
     def emit(k: int, parent_imu: int, offset: np.ndarray, depth: int) -> None:
         p = BODY_POINTS[k]
         pad = "  " * depth
-        lines.append(f"{pad}JOINT {joint_name(k)}")
-        lines.append(f"{pad}{{")
-        lines.append(f"{pad}  OFFSET {fmt(offset)}")
-        lines.append(f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation")
+        lines.extend([f"{pad}JOINT {joint_name(k)}", f"{pad}{{", f"{pad}  OFFSET {fmt(offset)}",
+                      f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation"])
         order.append((p.imu, parent_imu))
         vec = NED_TO_BVH @ np.array(p.direction) * getattr(body, p.length) * CM_PER_M
         kids = children.get(p.name, [])

@@ -81,8 +81,7 @@ class C3dWriter(Closing):
         self.frames = 0
         self._positions: list[np.ndarray] = []
         self._angles: list[np.ndarray] = []
-        with open(self.path, "wb"):  # fail early (folder missing, no permission)
-            pass
+        self.path.write_bytes(b"")  # fail early (folder missing, no permission)
 
     def write(self, joint_positions: np.ndarray, joint_angles: np.ndarray) -> None:
         """``joint_positions[N, 21, 3]`` m NED and ``joint_angles[N, 28]`` rad."""
@@ -94,10 +93,8 @@ class C3dWriter(Closing):
     def close(self) -> None:
         ezc3d = self._ezc3d
         n = self.frames
-        pos = (np.concatenate(self._positions) if self._positions
-               else np.zeros((0, len(POINT_NAMES), 3)))
-        ang = (np.concatenate(self._angles) if self._angles
-               else np.zeros((0, len(ANGLE_JOINTS), 3)))
+        pos = np.concatenate([np.zeros((0, len(POINT_NAMES), 3)), *self._positions])
+        ang = np.concatenate([np.zeros((0, len(ANGLE_JOINTS), 3)), *self._angles])
         xyz = np.concatenate([pos, ang], axis=1)  # [N, P, 3]
         labels = point_labels()
         points = np.ones((4, len(labels), n))

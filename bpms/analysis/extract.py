@@ -50,17 +50,13 @@ def parse_imu_ids(specs: Sequence[str]) -> list[int]:
     return list(dict.fromkeys(ids))
 
 
-def _formats(columns: Sequence[str]) -> list[str]:
-    return ["%d" if c.endswith("_counts") else _HOST_FMT if c == "host_time_s" else _FMT
-            for c in columns]
-
-
 def write_csv(path: str | Path, columns: Sequence[str], data: np.ndarray | Iterable[np.ndarray]
               ) -> int:
     """A header row, then one row per sample (``nan`` for missing values); ``data`` an array
     or an iterable of row blocks (written as they come). Columns named ``*_counts`` are
     written as integers, ``host_time_s`` to the microsecond. Returns the rows written."""
-    fmt = _formats(columns)
+    fmt = ["%d" if c.endswith("_counts") else _HOST_FMT if c == "host_time_s" else _FMT
+           for c in columns]
     blocks = [data] if isinstance(data, np.ndarray) else data
     rows = 0
     with open(path, "w", encoding="utf-8", newline="\n") as f:

@@ -28,6 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from bpms.analysis.track import _keep_apart, _peaks
+from bpms.filter.rotations import rotation_vector
+
 #: Shank IMUs of the suit (numbering of docs/suit.md, 0-based).
 SHANK_IMUS = {"right": 2, "left": 14}
 #: The ADXL345 range of recordings that do not say (the original firmware's ±2 g).
@@ -52,15 +55,8 @@ def lateral_rate(C: np.ndarray, dt: float) -> np.ndarray:
     """``[N]`` angular velocity (rad/s) about the segment's own y (right) axis from the
     orientations ``C[N, 3, 3]`` (segment → world); 0 at the first sample, NaN where C is."""
     rel = np.einsum("nji,njk->nik", C[:-1], C[1:])  # C_{k-1}ᵀ C_k, segment axes
-    # rotation vector of a small rotation: ½ vee(M − Mᵀ) · θ / sin θ
-    vee = 0.5 * np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0],
-                          rel[:, 1, 0] - rel[:, 0, 1]], axis=-1)
-    s = np.linalg.norm(vee, axis=-1)
-    c = 0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0)
-    theta = np.arctan2(s, c)
-    scale = np.where(s > 1e-12, theta / np.where(s > 1e-12, s, 1.0), 1.0)
     out = np.zeros(len(C))
-    out[1:] = vee[:, 1] * scale / dt
+    out[1:] = rotation_vector(rel)[:, 1] / dt
     return out
 
 
@@ -76,22 +72,15 @@ def lateral_gyro_rate(C: np.ndarray, R: np.ndarray, gyro: np.ndarray) -> np.ndar
 def _swing_strikes(rate: np.ndarray, t: np.ndarray, min_swing_rate: float,
                    swing_fraction: float, min_gap_s: float) -> tuple[list[int], list[float]]:
     r = np.nan_to_num(rate)
-    if len(r) < 3:
-        return [], []
-    mid = r[1:-1]
-    peaks = np.flatnonzero((mid > min_swing_rate) & (mid >= r[:-2]) & (mid > r[2:])) + 1
+    peaks = _peaks(r, min_swing_rate)
     if len(peaks) == 0:
         return [], []
     typical = float(np.percentile(r[peaks], 90))
-    peaks = peaks[r[peaks] >= swing_fraction * typical]
     # minimum gap per foot: of two peaks closer than the gap, the larger stays
-    kept: list[int] = []
-    for k in peaks:
-        if kept and t[k] - t[kept[-1]] < min_gap_s:
-            if r[k] > r[kept[-1]]:
-                kept[-1] = int(k)
-            continue
-        kept.append(int(k))
+    apart: list[tuple[float, float, int]] = []
+    for k in peaks[r[peaks] >= swing_fraction * typical]:
+        _keep_apart(apart, (t[k], r[k], int(k)), min_gap_s)
+    kept = [k for _, _, k in apart]
     strikes, swing = [], []
     for n, k in enumerate(kept):
         end = kept[n + 1] if n + 1 < len(kept) else len(r)

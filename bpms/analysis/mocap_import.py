@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import groupby
 from pathlib import Path
 
 import numpy as np
@@ -112,21 +113,14 @@ def read_vicon(path: str | Path) -> MocapExport:
     lines = _read_lines(path)
     bodies: dict[str, BodyTrack] = {}
     rate = math.nan
-    i = 0
     found = False
-    while i < len(lines):
-        if not lines[i].strip(" ,"):
-            i += 1
-            continue
-        block = lines[i].split(",")[0].strip()
-        start = i + 1
-        end = start
-        while end < len(lines) and lines[end].strip(" ,"):
-            end += 1
-        if block in ("Segments", "Trajectories"):
+    # blocks: runs of non-blank lines, the first naming the block
+    for filled, run in groupby(range(len(lines)), key=lambda k: bool(lines[k].strip(" ,"))):
+        numbers = list(run)
+        block = lines[numbers[0]].split(",")[0].strip()
+        if filled and block in ("Segments", "Trajectories"):
             found = True
-            rate = _vicon_block(path, lines, start, end, block, bodies)
-        i = end
+            rate = _vicon_block(path, lines, numbers[0] + 1, numbers[-1] + 1, block, bodies)
     if not found:
         raise MocapFormatError(f"{path}: line 1: no 'Segments' or 'Trajectories' block "
                                "(not a Vicon Nexus CSV export)")
@@ -162,13 +156,12 @@ def _vicon_block(path: Path, lines: list[str], start: int, end: int, block: str,
     rows = []
     for number in range(start + 4, end):
         cells = lines[number].split(",")
-        if len(cells) < len(labels):
-            cells += [""] * (len(labels) - len(cells))
+        cells += [""] * (len(labels) - len(cells))  # trailing empty cells may be left out
         if len(cells) != len(labels):
             raise MocapFormatError(f"{path}: line {number + 1}: {len(cells)} values, expected "
                                    f"{len(labels)}")
-        rows.append([_number(c, str(path), number + 1, labels[k] if k < len(labels) else "?")
-                     for k, c in enumerate(cells)])
+        rows.append([_number(c, str(path), number + 1, label)
+                     for c, label in zip(cells, labels, strict=True)])
     data = np.array(rows, dtype=np.float64).reshape(-1, len(labels))
     frame = data[:, 0]
     if np.isnan(frame).any():

@@ -11,16 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.door import CHUNK_FRAMES, is_raw_recording, open_for_processing
-from bpms.filter.door import header_calibration as _header_calibration
-from bpms.filter.door import header_options as _header_options
-from bpms.io.calib_file import CalibrationTable
 from bpms.io.options import Options
-from bpms.io.rawfile import RawRecording
 
 Progress = Callable[[str, int, int], None]
 
-__all__ = ["CHUNK_FRAMES", "Processed", "header_calibration", "header_options",
-           "is_raw_recording", "process_recording", "stderr_progress"]
+__all__ = ["CHUNK_FRAMES", "Processed", "is_raw_recording", "process_recording",
+           "stderr_progress"]
 
 
 def stderr_progress(label: str, done: int, total: int) -> None:
@@ -31,16 +27,6 @@ def stderr_progress(label: str, done: int, total: int) -> None:
     from bpms.progress import report
 
     report(label, done, total, sys.stderr)
-
-
-def header_calibration(recording: RawRecording) -> CalibrationTable | None:
-    """The calibration table stored in the recording's header, or None."""
-    return _header_calibration(recording.header, str(recording.path))
-
-
-def header_options(recording: RawRecording) -> Options | None:
-    """The options stored in the recording's header, or None."""
-    return _header_options(recording.header, str(recording.path))
 
 
 @dataclass

@@ -101,9 +101,14 @@ def walked_path(t: np.ndarray, accel_g: dict[str, np.ndarray], joint_positions: 
 
 class _Chunks:
     """Consecutive chunks of frames seen as one run: two frames of history (times, joint
-    positions, each foot's signal) carry over, as a peak needs both its neighbours."""
+    positions, each foot's signal) carry over, as a peak needs both its neighbours. Holds
+    the path settings both accumulators share."""
 
-    def __init__(self) -> None:
+    def __init__(self, min_interval_s: float, declination_deg: float,
+                 include_hips: bool) -> None:
+        self.min_interval_s = min_interval_s
+        self.declination_deg = declination_deg
+        self.include_hips = include_hips
         self._next = 0  # global index of the next frame
         self._tail_t = np.zeros(0)
         self._tail_pos = np.zeros((0, len(POINT_INDEX), 3))
@@ -133,11 +138,8 @@ class TrackAccumulator(_Chunks):
 
     def __init__(self, threshold_g: float = 2.0, min_interval_s: float = 0.4,
                  declination_deg: float = 0.0, include_hips: bool = False) -> None:
-        super().__init__()
+        super().__init__(min_interval_s, declination_deg, include_hips)
         self.threshold_g = threshold_g
-        self.min_interval_s = min_interval_s
-        self.declination_deg = declination_deg
-        self.include_hips = include_hips
         # kept strikes per side: (time s, peak g, frame, side, joint positions [21, 3])
         self._kept: dict[str, list[tuple[float, float, int, str, np.ndarray]]] = {}
 
@@ -179,10 +181,7 @@ class GyroTrackAccumulator(_Chunks):
     def __init__(self, min_interval_s: float = 0.4, declination_deg: float = 0.0,
                  include_hips: bool = False, min_swing_rate: float = 0.5,
                  swing_fraction: float = 0.25) -> None:
-        super().__init__()
-        self.min_interval_s = min_interval_s
-        self.declination_deg = declination_deg
-        self.include_hips = include_hips
+        super().__init__(min_interval_s, declination_deg, include_hips)
         self.min_swing_rate = min_swing_rate
         self.swing_fraction = swing_fraction
         # per side: the peak whose strike is still to come (peak time s, peak rad/s, frame)

@@ -22,8 +22,7 @@ def load_existing(path: str | Path | None) -> ModernCalibration:
     None), with the ellipsoids and provenance of its modern companion when that exists and
     agrees with it (a stale companion — different numbers — contributes nothing)."""
     if path is None or not Path(path).exists():
-        table = load_calibration(None)
-        return ModernCalibration(table)
+        return ModernCalibration(load_calibration(None))
     table = load_calibration(path)
     ellipsoids, provenance, problems = ellipsoids_beside(path, table)
     return ModernCalibration(table, ellipsoids, provenance, [*table.problems, *problems])

@@ -136,13 +136,6 @@ class MotionSource:
 
 
 @dataclass
-class _Reading:
-    raw: np.ndarray
-    errors: np.ndarray
-    frame: bytes
-
-
-@dataclass
 class Arbiter:
     """The arbiter board's state machine. Times are ``clock()`` seconds (monotonic).
 
@@ -164,10 +157,10 @@ class Arbiter:
         self.streaming = False
         self._stream_start = 0.0
         self._stream_k = 0  # frames emitted (or silenced) in the current stream
-        zero = np.zeros((N_IMUS, 9), np.int16)
-        no_err = np.zeros((N_IMUS, N_SENSORS), bool)
-        self._last = _Reading(zero, no_err, encode_frame(zero, no_err))
-        self._queue: deque[tuple[float, bytes, bool]] = deque()  # (release time, bytes, frame?)
+        # the last frame sent (repeated by the stale first frame of a stream): all zero at first
+        self._last = encode_frame(np.zeros((N_IMUS, 9), np.int16),
+                                  np.zeros((N_IMUS, N_SENSORS), bool))
+        self._queue: deque[tuple[float, bytes]] = deque()  # (release time, bytes)
         self._last_release = 0.0
         self._hold_until = 0.0
         self._silent_until = 0.0
@@ -192,10 +185,10 @@ class Arbiter:
             if byte == CMD_START:
                 self._start(now)
             elif byte == CMD_BATTERY:
-                self._reply(f"V{self.battery_volts(now):.2f}\n".encode("ascii"), now)
+                self._send_at(f"V{self.battery_volts(now):.2f}\n".encode("ascii"), now)
                 self.stats.battery_replies += 1
             elif byte == CMD_IDENTIFY:
-                self._reply(IDENTITY, now)
+                self._send_at(IDENTITY, now)
                 self.stats.identify_replies += 1
             else:
                 self.stats.ignored_bytes += 1
@@ -270,10 +263,11 @@ class Arbiter:
         self._stream_start = now
         self._stream_k = 0
 
-    def _reply(self, data: bytes, now: float) -> None:
+    def _send_at(self, data: bytes, now: float) -> None:
+        """Queue ``data`` for release at ``now``, never before the bytes queued earlier."""
         release = max(now, self._last_release)
         self._last_release = release
-        self._queue.append((release, data, False))
+        self._queue.append((release, data))
 
     def _emit_due(self, now: float, max_frames: int | None = None) -> None:
         produced = 0
@@ -291,7 +285,7 @@ class Arbiter:
                 self.stats.silenced_frames += 1
                 continue
             if first:
-                frame = self._last.frame
+                frame = self._last
                 self.stats.stale_frames += 1
             else:
                 frame = self._next_reading()
@@ -304,17 +298,15 @@ class Arbiter:
         self.stats.motion_frames += 1
         rate = self.faults.error_rate
         if rate <= 0:
+            self._last = self.source.frame(j)
+        else:
             raw, errors = self.source.reading(j)
-            self._last = _Reading(raw, errors, self.source.frame(j))
-            return self._last.frame
-        raw, errors = self.source.reading(j)
-        raw = raw.copy()
-        fail = self._rng.random((N_IMUS, N_SENSORS)) < rate
-        errors = errors | fail
-        raw.reshape(N_IMUS, N_SENSORS, 3)[fail] = 0
-        self.stats.error_flags += int(fail.sum())
-        self._last = _Reading(raw, errors, encode_frame(raw, errors))
-        return self._last.frame
+            raw = raw.copy()
+            fail = self._rng.random((N_IMUS, N_SENSORS)) < rate
+            raw.reshape(N_IMUS, N_SENSORS, 3)[fail] = 0
+            self.stats.error_flags += int(fail.sum())
+            self._last = encode_frame(raw, errors | fail)
+        return self._last
 
     def _damage(self, frame: bytes) -> bytes:
         f = self.faults
@@ -344,6 +336,4 @@ class Arbiter:
                 release = self._hold_until
             else:
                 release = due + float(self._rng.uniform(*f.jitter_s))
-        release = max(release, self._last_release)
-        self._last_release = release
-        self._queue.append((release, data, True))
+        self._send_at(data, release)

@@ -98,9 +98,8 @@ class CalibrationSuit:
     mag_clip: int | None = None
 
     def __post_init__(self) -> None:
-        self.polarity = {"accel": tuple(self.sensors.accel_signs),
-                         "mag": tuple(self.sensors.mag_signs),
-                         "gyro": tuple(self.sensors.gyro_signs)}
+        self.polarity = {s: tuple(getattr(self.sensors, f"{s}_signs"))
+                         for s in ("accel", "mag", "gyro")}
         self._rng = np.random.default_rng(self.seed)
         self._rest = np.stack([_basis_with_row(np.array([0.0, 0.0, 1.0]), 0.3 * k)
                                for k in range(N_IMUS)])  # lying flat, spread headings

@@ -25,28 +25,13 @@ def _elementary(axis: int, angle: np.ndarray) -> np.ndarray:
     return out
 
 
-def about_x(angle: np.ndarray | float) -> np.ndarray:
-    """Rotation(s) about X by ``angle`` rad."""
-    return _elementary(0, angle)
-
-
-def about_y(angle: np.ndarray | float) -> np.ndarray:
-    """Rotation(s) about Y by ``angle`` rad."""
-    return _elementary(1, angle)
-
-
-def about_z(angle: np.ndarray | float) -> np.ndarray:
-    """Rotation(s) about Z by ``angle`` rad."""
-    return _elementary(2, angle)
-
-
 def zyx(roll: np.ndarray | float, pitch: np.ndarray | float,
         yaw: np.ndarray | float) -> np.ndarray:
     """``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` as a product of the three elementary rotations,
     ``[..., 3, 3]`` (broadcast over the angles' shapes)."""
     roll, pitch, yaw = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64)
                                              for v in (roll, pitch, yaw)))
-    return about_z(yaw) @ about_y(pitch) @ about_x(roll)
+    return _elementary(2, yaw) @ _elementary(1, pitch) @ _elementary(0, roll)
 
 
 def skew(w: np.ndarray) -> np.ndarray:

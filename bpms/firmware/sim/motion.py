@@ -181,27 +181,24 @@ def _dof_track(script: list[Step], t: np.ndarray, heading0: float, body: BodyOpt
     t0 = 0.0
     leg = body.thigh + body.shank
     for step in script:
+        if isinstance(step, Walk):
+            t1 = t0 + (step.steps + 1) * step.step_period
+        else:
+            t1 = t0 + step.duration + (step.hold if isinstance(step, Move) else 0.0)
+        sel = (t >= t0) & (t < t1)
+        phases.append((t0, t1, step.name))
         if isinstance(step, Still):
-            t1 = t0 + step.duration
-            sel = (t >= t0) & (t < t1)
             dofs[sel] = current
             walk_xy[sel] = walked
-            phases.append((t0, t1, step.name))
         elif isinstance(step, Move):
             target = current.copy() if step.keep else np.zeros(len(DOFS))
             for name, deg in step.target.items():
                 target[DOF_INDEX[name]] = deg * _D
-            t1 = t0 + step.duration + step.hold
-            sel = (t >= t0) & (t < t1)
             s = min_jerk((t[sel] - t0) / step.duration)
             dofs[sel] = current + s[:, None] * (target - current)
             walk_xy[sel] = walked
-            phases.append((t0, t1, step.name))
             current = target
         else:
-            t1 = t0 + (step.steps + 1) * step.step_period
-            sel = (t >= t0) & (t < t1)
-            phases.append((t0, t1, step.name))
             if not sel.any():  # the recording ends before the walk
                 t0 = t1
                 continue
@@ -257,26 +254,22 @@ def segment_orientations(dofs: np.ndarray, heading0: float) -> np.ndarray:
     def q(name: str) -> np.ndarray:
         return dofs[:, DOF_INDEX[name]]
 
-    zero = np.zeros(n)
-
-    def joint(roll=zero, pitch=zero, yaw=zero) -> np.ndarray:
-        return zyx(roll, pitch, yaw)
-
+    # each joint is zyx(roll, pitch, yaw) of its DOFs (0 where it has none: broadcast)
     C = np.empty((n, N_IMUS, 3, 3))
-    pelvis = joint(q("pelvis_roll"), q("pelvis_tilt"), heading0 + q("pelvis_turn"))
-    spine = pelvis @ joint(q("torso_lat"), q("torso_flex"), q("torso_rot"))
-    neck = spine @ joint(pitch=q("neck_flex"))
-    head = neck @ joint(pitch=q("head_nod"), yaw=q("head_turn"))
+    pelvis = zyx(q("pelvis_roll"), q("pelvis_tilt"), heading0 + q("pelvis_turn"))
+    spine = pelvis @ zyx(q("torso_lat"), q("torso_flex"), q("torso_rot"))
+    neck = spine @ zyx(0.0, q("neck_flex"), 0.0)
+    head = neck @ zyx(0.0, q("head_nod"), q("head_turn"))
     C[:, 6], C[:, 8], C[:, 7], C[:, 17] = pelvis, spine, neck, head
     for side, sh, arm, fore, hand in (("r", 15, 4, 5, 3), ("l", 16, 10, 11, 9)):
         C[:, sh] = spine
-        C[:, arm] = spine @ joint(q(f"sh_{side}_abd"), q(f"sh_{side}_flex"), q(f"sh_{side}_rot"))
-        C[:, fore] = C[:, arm] @ joint(pitch=q(f"elbow_{side}"))
-        C[:, hand] = C[:, fore] @ joint(pitch=q(f"wrist_{side}"))
+        C[:, arm] = spine @ zyx(q(f"sh_{side}_abd"), q(f"sh_{side}_flex"), q(f"sh_{side}_rot"))
+        C[:, fore] = C[:, arm] @ zyx(0.0, q(f"elbow_{side}"), 0.0)
+        C[:, hand] = C[:, fore] @ zyx(0.0, q(f"wrist_{side}"), 0.0)
     for side, thigh, shank, foot in (("r", 0, 2, 1), ("l", 12, 14, 13)):
-        C[:, thigh] = pelvis @ joint(q(f"hip_{side}_abd"), q(f"hip_{side}_flex"))
-        C[:, shank] = C[:, thigh] @ joint(pitch=-q(f"knee_{side}"))
-        C[:, foot] = C[:, shank] @ joint(pitch=q(f"ankle_{side}"))
+        C[:, thigh] = pelvis @ zyx(q(f"hip_{side}_abd"), q(f"hip_{side}_flex"), 0.0)
+        C[:, shank] = C[:, thigh] @ zyx(0.0, -q(f"knee_{side}"), 0.0)
+        C[:, foot] = C[:, shank] @ zyx(0.0, q(f"ankle_{side}"), 0.0)
     return C
 
 
@@ -289,19 +282,9 @@ def _still_windows(dofs: np.ndarray, pelvis: np.ndarray, t: np.ndarray,
     moving[1:] |= np.abs(np.diff(pelvis, axis=0)).max(axis=1) > 1e-12
     moving[:-1] |= moving[1:].copy()
     ok = posture & ~moving
-    windows = []
-    k = 0
-    while k < len(t):
-        if ok[k]:
-            j = k
-            while j + 1 < len(t) and ok[j + 1]:
-                j += 1
-            if t[j] - t[k] >= min_s:
-                windows.append((float(t[k]), float(t[j])))
-            k = j + 1
-        else:
-            k += 1
-    return windows
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))  # run starts, ends (past)
+    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True)
+            if t[b - 1] - t[a] >= min_s]
 
 
 def generate_motion(n_samples: int | None = None, *, script: list[Step] | None = None,

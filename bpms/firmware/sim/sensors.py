@@ -82,13 +82,9 @@ MOUNTING: tuple[str, ...] = (
 )
 
 
-def board_axes(imu: int) -> np.ndarray:
-    """``[3, 3]`` whose rows are the filter-frame directions of board x, y, z of ``imu``:
-    ``v_board = board_axes(imu) @ v_filter``."""
-    return np.array([DIRECTIONS[name] for name in MOUNTING_KINDS[MOUNTING[imu]]])
-
-
-BOARD_AXES = np.stack([board_axes(i) for i in range(N_IMUS)])  # [18, 3, 3]
+#: ``[18, 3, 3]``: per IMU, rows the filter-frame directions of board x, y, z
+#: (``v_board = BOARD_AXES[imu] @ v_filter``).
+BOARD_AXES = np.array([[DIRECTIONS[name] for name in MOUNTING_KINDS[kind]] for kind in MOUNTING])
 
 #: Chip polarity per board axis (accel, mag, gyro), what the host's sign vectors undo: the
 #: accelerometer reads +1 g on a board axis pointing down; the magnetometer's y and z and all
@@ -279,11 +275,10 @@ def to_raw(values: SensorValues, table, model: SensorModel | None = None,
     acc_b = _board(values.acc) * np.asarray(pol["accel"])  # g, board axes, chip polarity
     mag_b = _board(values.mag) * np.asarray(pol["mag"])
     gyr_b = _board(values.gyr) * np.asarray(pol["gyro"])
+    raw_acc = (acc_lo + acc_hi) / 2 + acc_b * (acc_hi - acc_lo) / 2
     if noise is not None:
         mag_b = mag_b + noise.mag  # isotropic: no need to rotate the noise
         gyr_b = gyr_b + noise.gyr
-    raw_acc = (acc_lo + acc_hi) / 2 + acc_b * (acc_hi - acc_lo) / 2
-    if noise is not None:
         raw_acc = raw_acc + noise.acc_counts
     raw_mag = (mag_lo + mag_hi) / 2 + (mag_b / 100.0) * (mag_hi - mag_lo) / 2
     for imu, ell in (mag_ellipsoids or {}).items():

@@ -105,9 +105,7 @@ def default_disturbance(motion: Motion) -> MagDisturbance:
     t0 = motion.phases[names.index("elbow flexion")][0] if "elbow flexion" in names else 10.0
     t1 = (motion.phases[names.index("arms relaxed")][1] if "arms relaxed" in names
           else t0 + 8.0)
-    k = min(int(t0 / DT), len(motion.t) - 1)
-    pos = motion.imu_pos[k, 5] + np.array([0.1, 0.15, 0.0])  # beside the right forearm
-    return MagDisturbance(t0=t0, t1=t1, position=tuple(float(v) for v in pos))
+    return magnet_near(motion, 5, t0, t1)  # the default offset: beside the right forearm
 
 
 def magnet_near(motion: Motion, imu: int, t0: float, t1: float,
