@@ -29,8 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, FilterBank, MahonyBank
-from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
-from bpms.filter.observer import run_batch as observer_batch
+from bpms.filter.observer import ADAPTIVE, Observer, ObserverGains
 from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.vqf_filter import VqfFilters, ned_dcm_of_enu
 from bpms.io.options import FilterOptions
@@ -70,16 +69,12 @@ def make_bank(gravity: np.ndarray, options: FilterOptions) -> AttitudeBank:
     """The bank of ``options.algorithm`` for IMUs with accelerometer ``gravity[n]`` counts/g.
     Raises ValueError for an unknown name and
     :class:`bpms.filter.vqf_filter.VqfMissingError` when ``vqf`` is chosen but not installed."""
+    banks = {"mahony": MahonyBank, "observer": ObserverBank, "vqf": VqfBank,
+             "adaptive": AdaptiveBank}
     name = options.algorithm
-    if name == "mahony":
-        return MahonyBank(gravity, options)
-    if name == "observer":
-        return ObserverBank(gravity, options)
-    if name == "vqf":
-        return VqfBank(gravity, options)
-    if name == "adaptive":
-        return AdaptiveBank(gravity, options)
-    raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
+    if name not in banks:
+        raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
+    return banks[name](gravity, options)
 
 
 def observer_gains(options: FilterOptions) -> ObserverGains:
@@ -159,11 +154,12 @@ class ObserverBank(_PhysicalBank):
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
         super().__init__(gravity, options)
-        self.state = ObserverState(self.n)
+        self.observer = Observer(self.n)
+        self.state = self.observer.state
         self._apply_options()
 
     def _apply_options(self) -> None:
-        self.params = self.gains_from(self.options).params()
+        self.observer.gains = self.gains_from(self.options)
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None, resets: np.ndarray | None = None,
@@ -172,21 +168,11 @@ class ObserverBank(_PhysicalBank):
         mag_trust ``[N, n]`` the heading trust 0–1, :mod:`bpms.filter.observer`)."""
         f, m, g = self.physical(acc, mag, gyr)
         n = f.shape[0]
-        err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
-               else np.ascontiguousarray(errors, dtype=np.bool_))
-        if self.relative:  # 6D: no heading correction at all
-            trust = np.zeros((n, self.n))
-        else:
-            trust = (np.ones((0, self.n)) if mag_trust is None
-                     else np.ascontiguousarray(mag_trust, dtype=np.float64))
-        rs = self._resets(n, resets)
-        out_R = np.empty((n, self.n, 3, 3))
-        out_e = np.empty((n, self.n, 3))
-        bias = np.empty((n, self.n, 3))
-        body_acc = np.empty((n, self.n, 3))
-        observer_batch(f, m, g, err, rs, trust, self.params, *self.state.arrays(), out_R, out_e,
-                       np.empty((0, self.n, 4)), bias, body_acc, np.empty((0, self.n), np.bool_))
-        return BankOutput(out_R, out_e, gyro_bias=bias, body_acc=body_acc)
+        # 6D: no heading correction at all
+        trust = np.zeros((n, self.n)) if self.relative else mag_trust
+        out = self.observer.process(f, m, g, errors, self._resets(n, resets), store_q=True,
+                                    trust=trust)
+        return BankOutput(out.R, out.euler, gyro_bias=out.bias, body_acc=out.acc)
 
 
 class AdaptiveBank(ObserverBank):
