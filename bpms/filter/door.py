@@ -465,15 +465,12 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
 def _count_rows(path: Path) -> int:
     """Data rows of a filtered file (lines neither blank, ``#`` nor the column row); for
     progress only."""
-    count = 0
-    header = 0
     with open(path, "rb") as f:
-        for line in f:
-            if line.strip() and not line.startswith(b"#"):
-                count += 1
-                if count == 1 and line.startswith(b"time_s"):
-                    header = 1
-    return count - header
+        rows = (line for line in f if line.strip() and not line.startswith(b"#"))
+        first = next(rows, None)
+        if first is None:
+            return 0
+        return sum(1 for _ in rows) + (not first.startswith(b"time_s"))
 
 
 #: Column groups of the state guard's and the disturbance indicators' per-IMU flags.
@@ -541,12 +538,9 @@ def filtered_arrays(result: Result, groups: Sequence[str]) -> dict[str, np.ndarr
             out[g] = result.corrected.astype(np.float64)[:, None]
         elif g == "joints":
             out[g] = result.joint_angles
-        elif g == "mag_disturbed":
+        elif g in ("mag_disturbed", "acc_disturbed"):
             if dist is not None:
-                out[g] = dist.mag
-        elif g == "acc_disturbed":
-            if dist is not None:
-                out[g] = dist.acc
+                out[g] = getattr(dist, g[:3])  # Disturbance.mag / .acc
         elif getattr(result, g, None) is not None:
             out[g] = getattr(result, g)
     return out

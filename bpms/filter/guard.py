@@ -129,13 +129,6 @@ class StateGuard:
         else:
             self.expected[imu] = False
 
-    def bad(self, R: np.ndarray, gyr: np.ndarray | None = None, c4: float = 0.0
-            ) -> np.ndarray:
-        """``[N, n]`` bool: frames where an IMU that should give a rotation does not (an IMU
-        is expected from the frame after its first finite output on); ``gyr[N, n, 3]`` rad/s
-        and ``c4`` give the rate allowance (:func:`renorm_allowance`)."""
-        return check_rotations(np.asarray(R, dtype=np.float64), gyr, c4, self.expected)[0]
-
     def accept(self, R: np.ndarray) -> None:
         """Outputs ``R[N, n, 3, 3]`` were delivered: IMUs with a finite one are expected."""
         if len(R):

@@ -384,10 +384,6 @@ class PoseCalibrator:
 
     def _capture(self, op: tuple, R: np.ndarray, k: int, first: int) -> Zero:
         kind = op[0]
-        if kind == "provisional":
-            zero = capture_zero(R[k:k + 1], self.zero, first + k, self.hip, self.heading,
-                                "provisional")
-            return zero
         if kind == "adopt":
             _, source, window, R0, yaw0, motion = op
             if self.zero is not None:
@@ -395,11 +391,13 @@ class PoseCalibrator:
                 R0[missing] = self.zero.R0[missing]
             return Zero(R0, yaw0, first + k, source, window, motion[0], motion[1], 0,
                         self.heading)
+        if kind == "provisional":
+            window, source = R[k:k + 1], "provisional"
+        elif kind == "automatic":
+            window, source = self._window_ending_at(R, k), "automatic"
+        else:  # ("capture", source, window)
+            window, source = self._window_ending_at(R, k, op[2]), op[1]
+        zero = capture_zero(window, self.zero, first + k, self.hip, self.heading, source)
         if kind == "automatic":
-            zero = capture_zero(self._window_ending_at(R, k), self.zero, first + k, self.hip,
-                                self.heading, "automatic")
             zero.waited = first + k - self.origin - self.auto_frame
-            return zero
-        _, source, window = op
-        return capture_zero(self._window_ending_at(R, k, window), self.zero, first + k,
-                            self.hip, self.heading, source)
+        return zero

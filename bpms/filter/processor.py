@@ -201,11 +201,6 @@ class BodyPoseProcessor:
         ``source``: who asked (:data:`bpms.io.session_events.ZERO_SOURCES`)."""
         self.pose.request(source)
 
-    def adopt_zero(self, R0: np.ndarray, yaw0: float, source: str = "network") -> None:
-        """Use a zero made elsewhere (``R0[18, 3, 3]``, heading ψ0 rad: e.g. the sender's,
-        received over UDP) from the next frame on."""
-        self.pose.adopt(R0, yaw0, source)
-
     def apply_event(self, event: SessionEvent) -> bool:
         """Apply a recorded event (:class:`bpms.io.session_events.SessionEvent`) before the
         next frame, through the same calls a live session makes: a Reset Zero captures over
