@@ -89,12 +89,10 @@ def observer_gains(options: FilterOptions) -> ObserverGains:
 def adaptive_gains(options: FilterOptions) -> ObserverGains:
     """The ``adaptive`` setting from the options (``adaptive_*`` plus the observer's bias
     gain, gravity low-pass and new-field time, which it shares)."""
-    return ObserverGains(
-        k_incl=options.adaptive_k_incl, k_head=options.adaptive_k_head,
-        k_bias=options.observer_k_bias, tau_acc=options.observer_tau_acc_s, dt=options.dt,
-        mag_norm_th=options.adaptive_mag_norm_th,
+    return dataclasses.replace(
+        observer_gains(options), k_incl=options.adaptive_k_incl,
+        k_head=options.adaptive_k_head, mag_norm_th=options.adaptive_mag_norm_th,
         mag_dip_th_deg=options.adaptive_mag_dip_th_deg,
-        mag_new_time_s=options.observer_mag_new_time_s,
         rest_gyr=math.radians(options.adaptive_rest_gyr_dps),
         rest_time=options.adaptive_rest_time_s, rest_tau=options.adaptive_rest_tau_s,
         trapezoid=ADAPTIVE["trapezoid"])

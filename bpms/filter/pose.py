@@ -135,8 +135,7 @@ def zero_values(data: dict) -> tuple[np.ndarray, float] | None:
     """(``R0[18, 3, 3]``, ψ0) stored in a ``reset_zero`` event's data (null → NaN), or None
     when they are missing or malformed."""
     try:
-        R0 = np.array([[[np.nan if v is None else float(v) for v in row] for row in imu]
-                       for imu in data["R0"]], dtype=np.float64)
+        R0 = np.array(data["R0"], dtype=np.float64)  # null (None) → NaN
         yaw0 = float(data["yaw0"])
     except (KeyError, TypeError, ValueError):
         return None
@@ -295,10 +294,6 @@ class PoseCalibrator:
             self._ring[self._next] = R[0]
         else:
             self._ring[(self._next + np.arange(n)) % keep] = R
-        self._advance(n)
-
-    def _advance(self, n: int) -> None:
-        keep = len(self._ring)
         self._next = (self._next + n) % keep
         self._held = min(self._held + n, keep)
 
