@@ -242,21 +242,19 @@ class VqfBank(_PhysicalBank):
         still in the processor's cache."""
         n = len(acc)
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
-        failed = None if err is None else err.any(axis=0)  # [n, 3]: any failed sample
         rs = self._resets(n, resets)
         R = np.empty((n, self.n, 3, 3))
         euler = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
         for i in range(self.n):
-            (f, m, g), valid = self._fill(i, self.physical(acc, mag, gyr, imu=i),
-                                          None if failed is None or not failed[i].any() else err)
+            (f, m, g), valid = self._fill(i, self.physical(acc, mag, gyr, imu=i), err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
             for a, b in pairwise(cuts):
                 if b <= a:
                     continue
                 if len(rs) and rs[a, i]:
                     self._init[i] = False
-                start = a
+                start = first = a
                 if not self._init[i]:
                     ok = np.flatnonzero(valid[a:b])
                     start = b if len(ok) == 0 else a + int(ok[0])
@@ -267,9 +265,7 @@ class VqfBank(_PhysicalBank):
                     self.vqf.reset(i)
                     self._init[i] = True
                     first = start + 1  # the aligning frame is not a step
-                else:
-                    first = start
-                if failed is not None and failed[i].any():
+                if err is not None:
                     self._held_count[i] += err[first:b, i].sum(axis=0)
                 quat, bias[start:b, i] = self.vqf.process_imu(
                     i, f[start:b], m[start:b], g[start:b], six_d=self.relative)

@@ -506,10 +506,8 @@ def filtered_layout(result: Result | type[Result] = Result,
     :data:`ESTIMATE_GROUPS` (gyro bias, body acceleration)."""
     groups = ["euler"]
     kind = "sensor"
-    if isinstance(result, type):
-        has_sensor = (hasattr(result, "euler_sensor")
-                      or "euler_sensor" in getattr(result, "__dataclass_fields__", {}))
-        has_flags = True
+    if isinstance(result, type):  # the class: every Result has euler_sensor and may have flags
+        has_sensor = has_flags = True
     else:
         has_sensor = getattr(result, "euler_sensor", None) is not None
         has_flags = getattr(result, "disturbance", None) is not None
