@@ -210,14 +210,6 @@ class OpenedRecording:
         for lo, host, frames, _ in self._raw_records(chunk_frames):
             yield lo, host, decode_frames(frames)
 
-    def _events_in(self, recorded: list[tuple[int, SessionEvent]], extra: list[int], lo: int,
-                   n: int) -> list[tuple[int, SessionEvent]]:
-        """The events to apply in frames ``lo .. lo+n-1``, as (index into the chunk, event)."""
-        planned = planned_events(recorded, self.reset_zero, self.settings_given,
-                                 [k for k in extra if lo <= k < lo + n], start=lo == 0)
-        self._skipped_settings += planned.skipped
-        return [(slot - lo, event) for slot, event in planned]
-
     def replay_events(self, recorded: list[tuple[int, SessionEvent]]
                       ) -> list[tuple[int, SessionEvent]]:
         """The events replay applies (``bpms replay``, GUI playback): the same rules as
@@ -228,15 +220,19 @@ class OpenedRecording:
 
     def _raw_chunks(self, extra: list[int], chunk_frames: int) -> Iterator[Chunk]:
         proc = self.processor
-        self._skipped_settings = 0
+        skipped = 0
         for lo, host, frames, recorded in self._raw_records(chunk_frames):
             decoded = decode_frames(frames)
-            events = self._events_in(recorded, extra, lo, len(host))
-            result = proc.process(decoded.raw, decoded.errors, events)
+            # the events to apply in frames lo .. lo+n-1, as (index into the chunk, event)
+            planned = planned_events(recorded, self.reset_zero, self.settings_given,
+                                     [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
+            skipped += planned.skipped
+            result = proc.process(decoded.raw, decoded.errors,
+                                  [(slot - lo, event) for slot, event in planned])
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
                         np.zeros(len(host), dtype=bool))
-        if self._skipped_settings:
-            self._note(f"{self.path}: {self._skipped_settings} recorded filter/gain change(s) "
+        if skipped:
+            self._note(f"{self.path}: {skipped} recorded filter/gain change(s) "
                        "not applied (a filter or options file was given)")
 
     def _raw_records(self, chunk_frames: int

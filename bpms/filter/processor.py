@@ -85,18 +85,6 @@ SETTLE_S = 0.5
 MAG_TRUST_FLAGGED = 0.1
 
 
-def _default_path() -> Path:
-    from bpms.io.userdirs import default_calibration_path
-
-    return default_calibration_path()
-
-
-def _load_table(calibration: str | Path | CalibrationTable | None) -> CalibrationTable:
-    if isinstance(calibration, CalibrationTable):  # checked at the door, whatever its origin
-        return checked(calibration)
-    return load_calibration(calibration)
-
-
 def _load_options(options: str | Path | Options | None) -> Options:
     if isinstance(options, Options):
         # the processor's own copy: nothing outside (a GUI form, another thread) writes it
@@ -123,10 +111,17 @@ class BodyPoseProcessor:
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
         # None: the user's default when one is saved (read as a path, so its ellipsoid fits
         # come along), else the factory table
-        user_default = calibration is None and _default_path().is_file()
-        if user_default:
-            calibration = _default_path()
-        self.table = _load_table(calibration)
+        user_default = False
+        if calibration is None:
+            from bpms.io.userdirs import default_calibration_path
+
+            user_default = default_calibration_path().is_file()
+            if user_default:
+                calibration = default_calibration_path()
+        if isinstance(calibration, CalibrationTable):  # checked at the door, whatever its origin
+            self.table = checked(calibration)
+        else:
+            self.table = load_calibration(calibration)
         if user_default and not self.table.problems:
             self.table.source = f"user default ({calibration})"
         self.options = _load_options(options)
