@@ -434,8 +434,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         changes.append(f"filter {algorithm}")
     if heading is not None and heading != opts.pose.heading_reference:
         changes.append(f"heading {heading}")
-    settings_given = options is not None or bool(algorithm is not None
-                                                 and "filter" in " ".join(changes))
+    settings_given = options is not None or any(c.startswith("filter") for c in changes)
     if changes:
         opts = dataclasses.replace(opts)  # never change the caller's object
         opts.filter = dataclasses.replace(opts.filter, algorithm=algorithm or opts.filter.algorithm)

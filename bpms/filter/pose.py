@@ -361,18 +361,16 @@ class PoseCalibrator:
                 self.waiting = None
         if not ops:  # most frames: no capture in this batch
             C = segment_orientations(R, self.zero)
-            self._remember(R)
-            self.frames += n
-            return C
-        C = np.empty_like(R)
-        start = 0
-        for k in sorted(ops):
-            C[start:k] = segment_orientations(R[start:k], self.zero)
-            for op in ops[k]:
-                self.zero = self._capture(op, R, k, first)
-                self.captures.append(self.zero)
-            start = k
-        C[start:] = segment_orientations(R[start:], self.zero)
+        else:
+            C = np.empty_like(R)
+            start = 0
+            for k in sorted(ops):
+                C[start:k] = segment_orientations(R[start:k], self.zero)
+                for op in ops[k]:
+                    self.zero = self._capture(op, R, k, first)
+                    self.captures.append(self.zero)
+                start = k
+            C[start:] = segment_orientations(R[start:], self.zero)
         self._remember(R)
         self.frames += n
         return C
