@@ -29,6 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, FilterBank, MahonyBank
+from bpms.filter.kernel_state import KernelState
 from bpms.filter.observer import ADAPTIVE, Observer, ObserverGains
 from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.vqf_filter import VqfFilters, ned_dcm_of_enu
@@ -180,6 +181,14 @@ class AdaptiveBank(ObserverBank):
     gains_from = staticmethod(adaptive_gains)
 
 
+class _VqfHold(KernelState):
+    """The suite's hold/reset bookkeeping beside ``n`` VQF filters: initialised ``[n]``, held
+    ``[n, 3 sensors, 3]`` the last good inputs (NaN before one), held_count ``[n, 3]``."""
+
+    LAYOUT = (("initialised", (), np.bool_, False), ("held", (3, 3), np.float64, np.nan),
+              ("held_count", (3,), np.int64, 0))
+
+
 class VqfBank(_PhysicalBank):
     """``n`` VQF filters (:mod:`bpms.filter.vqf_filter`) with the suite's hold/reset rules."""
 
@@ -187,34 +196,26 @@ class VqfBank(_PhysicalBank):
         super().__init__(gravity, options)
         o = self.options
         self.vqf = VqfFilters(self.n, o.dt, o.vqf_tau_acc_s, o.vqf_tau_mag_s)
-        self._init = np.zeros(self.n, dtype=np.bool_)
-        self._held = np.full((self.n, 3, 3), np.nan)
-        self._held_count = np.zeros((self.n, 3), dtype=np.int64)
+        self.state = _VqfHold(self.n)
 
     def _apply_options(self) -> None:
         o = self.options
         if o.dt != self.vqf.dt:  # a new sample period needs new filters
             self.vqf = VqfFilters(self.n, o.dt, o.vqf_tau_acc_s, o.vqf_tau_mag_s)
-            self._init[:] = False
+            self.state.initialised[:] = False
         else:
             self.vqf.set_time_constants(o.vqf_tau_acc_s, o.vqf_tau_mag_s)
-
-    @property
-    def held_count(self) -> np.ndarray:
-        return self._held_count.copy()
 
     def snapshot(self) -> tuple:
         """A copy of every VQF filter's state and the hold bookkeeping."""
         return ([{k: np.copy(v) for k, v in f.state.items()} for f in self.vqf.filters],
-                self._pending_reset.copy(), self._init.copy(), self._held.copy(),
-                self._held_count.copy())
+                super().snapshot())
 
     def restore(self, snap: tuple) -> None:
-        states, pending, init, held, held_count = snap
+        states, hold = snap
         for flt, state in zip(self.vqf.filters, states, strict=True):
             flt.state = state
-        self._pending_reset[:], self._init[:] = pending, init
-        self._held[:], self._held_count[:] = held, held_count
+        super().restore(hold)
 
     def _fill(self, i: int, data: tuple[np.ndarray, ...], err: np.ndarray | None
               ) -> tuple[list[np.ndarray], np.ndarray]:
@@ -228,10 +229,10 @@ class VqfBank(_PhysicalBank):
                 good = ~err[:, i, s]
                 valid &= good
                 idx = np.maximum.accumulate(np.where(good, np.arange(n), -1))
-                x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self._held[i, s])
+                x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self.state.held[i, s])
             filled.append(x)
             if n:
-                self._held[i, s] = x[-1]
+                self.state.held[i, s] = x[-1]
         return filled, valid
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
@@ -253,9 +254,9 @@ class VqfBank(_PhysicalBank):
                 if b <= a:
                     continue
                 if len(rs) and rs[a, i]:
-                    self._init[i] = False
+                    self.state.initialised[i] = False
                 start = first = a
-                if not self._init[i]:
+                if not self.state.initialised[i]:
                     ok = np.flatnonzero(valid[a:b])
                     start = b if len(ok) == 0 else a + int(ok[0])
                     for x in (R, euler, bias):  # no attitude before the aligning frame
@@ -263,10 +264,10 @@ class VqfBank(_PhysicalBank):
                     if start == b:
                         continue
                     self.vqf.reset(i)
-                    self._init[i] = True
+                    self.state.initialised[i] = True
                     first = start + 1  # the aligning frame is not a step
                 if err is not None:
-                    self._held_count[i] += err[first:b, i].sum(axis=0)
+                    self.state.held_count[i] += err[first:b, i].sum(axis=0)
                 quat, bias[start:b, i] = self.vqf.process_imu(
                     i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
                 R[start:b, i] = R_run = ned_dcm_of_enu(*quat.T)  # quat: body → ENU

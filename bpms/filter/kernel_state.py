@@ -8,7 +8,7 @@ from bpms.io.frames import N_IMUS
 
 
 class KernelState:
-    """The state of ``n`` IMUs, updated in place by a module's kernels.
+    """The state of ``n`` IMUs, updated in place by a module's kernels (or a bank's code).
 
     Each row ``(name, shape per IMU, dtype, initial value)`` of :attr:`LAYOUT` is one attribute,
     an array ``[n, *shape]`` filled with the initial value (a scalar, or an array broadcast
