@@ -266,8 +266,7 @@ class OpenedRecording:
 
         proc = self.processor
         reader = FilteredReader(self.path)
-        name = ("euler_sensor" if "euler_sensor" in reader.info.groups
-                else "euler")
+        name = "euler_sensor" if "euler_sensor" in reader.info.groups else "euler"
         if name == "euler" and reader.info.euler_kind == "segment":
             self._note(f"{self.path}: holds Reset-Zero-corrected angles only; Reset Zero is "
                        "redone on them")

@@ -90,8 +90,7 @@ def _motions(windows: np.ndarray) -> np.ndarray:
     trace = np.einsum("ciab,ciabw->ciw", first, windows)
     angle = np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
     with np.errstate(invalid="ignore"):
-        out = np.fmax.reduce(angle, axis=-1)
-    return out
+        return np.fmax.reduce(angle, axis=-1)
 
 
 @dataclass
