@@ -29,8 +29,8 @@ from typing import Protocol
 import numpy as np
 
 from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, FilterBank, MahonyBank
-from bpms.filter.observer import ADAPTIVE, ObserverGains, ObserverState
-from bpms.filter.observer import run_batch as observer_batch
+from bpms.filter.kernel_state import KernelState
+from bpms.filter.observer import ADAPTIVE, Observer, ObserverGains
 from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.vqf_filter import VqfFilters, ned_dcm_of_enu
 from bpms.io.options import FilterOptions
@@ -70,16 +70,12 @@ def make_bank(gravity: np.ndarray, options: FilterOptions) -> AttitudeBank:
     """The bank of ``options.algorithm`` for IMUs with accelerometer ``gravity[n]`` counts/g.
     Raises ValueError for an unknown name and
     :class:`bpms.filter.vqf_filter.VqfMissingError` when ``vqf`` is chosen but not installed."""
+    banks = {"mahony": MahonyBank, "observer": ObserverBank, "vqf": VqfBank,
+             "adaptive": AdaptiveBank}
     name = options.algorithm
-    if name == "mahony":
-        return MahonyBank(gravity, options)
-    if name == "observer":
-        return ObserverBank(gravity, options)
-    if name == "vqf":
-        return VqfBank(gravity, options)
-    if name == "adaptive":
-        return AdaptiveBank(gravity, options)
-    raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
+    if name not in banks:
+        raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
+    return banks[name](gravity, options)
 
 
 def observer_gains(options: FilterOptions) -> ObserverGains:
@@ -94,12 +90,10 @@ def observer_gains(options: FilterOptions) -> ObserverGains:
 def adaptive_gains(options: FilterOptions) -> ObserverGains:
     """The ``adaptive`` setting from the options (``adaptive_*`` plus the observer's bias
     gain, gravity low-pass and new-field time, which it shares)."""
-    return ObserverGains(
-        k_incl=options.adaptive_k_incl, k_head=options.adaptive_k_head,
-        k_bias=options.observer_k_bias, tau_acc=options.observer_tau_acc_s, dt=options.dt,
-        mag_norm_th=options.adaptive_mag_norm_th,
+    return dataclasses.replace(
+        observer_gains(options), k_incl=options.adaptive_k_incl,
+        k_head=options.adaptive_k_head, mag_norm_th=options.adaptive_mag_norm_th,
         mag_dip_th_deg=options.adaptive_mag_dip_th_deg,
-        mag_new_time_s=options.observer_mag_new_time_s,
         rest_gyr=math.radians(options.adaptive_rest_gyr_dps),
         rest_time=options.adaptive_rest_time_s, rest_tau=options.adaptive_rest_tau_s,
         trapezoid=ADAPTIVE["trapezoid"])
@@ -159,11 +153,12 @@ class ObserverBank(_PhysicalBank):
 
     def __init__(self, gravity: np.ndarray, options: FilterOptions | None = None) -> None:
         super().__init__(gravity, options)
-        self.state = ObserverState(self.n)
+        self.observer = Observer(self.n)
+        self.state = self.observer.state
         self._apply_options()
 
     def _apply_options(self) -> None:
-        self.params = self.gains_from(self.options).params()
+        self.observer.gains = self.gains_from(self.options)
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None, resets: np.ndarray | None = None,
@@ -172,21 +167,11 @@ class ObserverBank(_PhysicalBank):
         mag_trust ``[N, n]`` the heading trust 0–1, :mod:`bpms.filter.observer`)."""
         f, m, g = self.physical(acc, mag, gyr)
         n = f.shape[0]
-        err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
-               else np.ascontiguousarray(errors, dtype=np.bool_))
-        if self.relative:  # 6D: no heading correction at all
-            trust = np.zeros((n, self.n))
-        else:
-            trust = (np.ones((0, self.n)) if mag_trust is None
-                     else np.ascontiguousarray(mag_trust, dtype=np.float64))
-        rs = self._resets(n, resets)
-        out_R = np.empty((n, self.n, 3, 3))
-        out_e = np.empty((n, self.n, 3))
-        bias = np.empty((n, self.n, 3))
-        body_acc = np.empty((n, self.n, 3))
-        observer_batch(f, m, g, err, rs, trust, self.params, *self.state.arrays(), out_R, out_e,
-                       np.empty((0, self.n, 4)), bias, body_acc, np.empty((0, self.n), np.bool_))
-        return BankOutput(out_R, out_e, gyro_bias=bias, body_acc=body_acc)
+        # 6D: no heading correction at all
+        trust = np.zeros((n, self.n)) if self.relative else mag_trust
+        out = self.observer.process(f, m, g, errors, self._resets(n, resets), store_q=True,
+                                    trust=trust)
+        return BankOutput(out.R, out.euler, gyro_bias=out.bias, body_acc=out.acc)
 
 
 class AdaptiveBank(ObserverBank):
@@ -196,6 +181,14 @@ class AdaptiveBank(ObserverBank):
     gains_from = staticmethod(adaptive_gains)
 
 
+class _VqfHold(KernelState):
+    """The suite's hold/reset bookkeeping beside ``n`` VQF filters: initialised ``[n]``, held
+    ``[n, 3 sensors, 3]`` the last good inputs (NaN before one), held_count ``[n, 3]``."""
+
+    LAYOUT = (("initialised", (), np.bool_, False), ("held", (3, 3), np.float64, np.nan),
+              ("held_count", (3,), np.int64, 0))
+
+
 class VqfBank(_PhysicalBank):
     """``n`` VQF filters (:mod:`bpms.filter.vqf_filter`) with the suite's hold/reset rules."""
 
@@ -203,34 +196,26 @@ class VqfBank(_PhysicalBank):
         super().__init__(gravity, options)
         o = self.options
         self.vqf = VqfFilters(self.n, o.dt, o.vqf_tau_acc_s, o.vqf_tau_mag_s)
-        self._init = np.zeros(self.n, dtype=np.bool_)
-        self._held = np.full((self.n, 3, 3), np.nan)
-        self._held_count = np.zeros((self.n, 3), dtype=np.int64)
+        self.state = _VqfHold(self.n)
 
     def _apply_options(self) -> None:
         o = self.options
         if o.dt != self.vqf.dt:  # a new sample period needs new filters
             self.vqf = VqfFilters(self.n, o.dt, o.vqf_tau_acc_s, o.vqf_tau_mag_s)
-            self._init[:] = False
+            self.state.initialised[:] = False
         else:
             self.vqf.set_time_constants(o.vqf_tau_acc_s, o.vqf_tau_mag_s)
-
-    @property
-    def held_count(self) -> np.ndarray:
-        return self._held_count.copy()
 
     def snapshot(self) -> tuple:
         """A copy of every VQF filter's state and the hold bookkeeping."""
         return ([{k: np.copy(v) for k, v in f.state.items()} for f in self.vqf.filters],
-                self._pending_reset.copy(), self._init.copy(), self._held.copy(),
-                self._held_count.copy())
+                super().snapshot())
 
     def restore(self, snap: tuple) -> None:
-        states, pending, init, held, held_count = snap
+        states, hold = snap
         for flt, state in zip(self.vqf.filters, states, strict=True):
             flt.state = state
-        self._pending_reset[:], self._init[:] = pending, init
-        self._held[:], self._held_count[:] = held, held_count
+        super().restore(hold)
 
     def _fill(self, i: int, data: tuple[np.ndarray, ...], err: np.ndarray | None
               ) -> tuple[list[np.ndarray], np.ndarray]:
@@ -244,10 +229,10 @@ class VqfBank(_PhysicalBank):
                 good = ~err[:, i, s]
                 valid &= good
                 idx = np.maximum.accumulate(np.where(good, np.arange(n), -1))
-                x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self._held[i, s])
+                x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self.state.held[i, s])
             filled.append(x)
             if n:
-                self._held[i, s] = x[-1]
+                self.state.held[i, s] = x[-1]
         return filled, valid
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
@@ -258,22 +243,20 @@ class VqfBank(_PhysicalBank):
         still in the processor's cache."""
         n = len(acc)
         err = None if errors is None else np.asarray(errors, dtype=np.bool_)
-        failed = None if err is None else err.any(axis=0)  # [n, 3]: any failed sample
         rs = self._resets(n, resets)
         R = np.empty((n, self.n, 3, 3))
         euler = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
         for i in range(self.n):
-            (f, m, g), valid = self._fill(i, self.physical(acc, mag, gyr, imu=i),
-                                          None if failed is None or not failed[i].any() else err)
+            (f, m, g), valid = self._fill(i, self.physical(acc, mag, gyr, imu=i), err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
             for a, b in pairwise(cuts):
                 if b <= a:
                     continue
                 if len(rs) and rs[a, i]:
-                    self._init[i] = False
-                start = a
-                if not self._init[i]:
+                    self.state.initialised[i] = False
+                start = first = a
+                if not self.state.initialised[i]:
                     ok = np.flatnonzero(valid[a:b])
                     start = b if len(ok) == 0 else a + int(ok[0])
                     for x in (R, euler, bias):  # no attitude before the aligning frame
@@ -281,12 +264,10 @@ class VqfBank(_PhysicalBank):
                     if start == b:
                         continue
                     self.vqf.reset(i)
-                    self._init[i] = True
+                    self.state.initialised[i] = True
                     first = start + 1  # the aligning frame is not a step
-                else:
-                    first = start
-                if failed is not None and failed[i].any():
-                    self._held_count[i] += err[first:b, i].sum(axis=0)
+                if err is not None:
+                    self.state.held_count[i] += err[first:b, i].sum(axis=0)
                 quat, bias[start:b, i] = self.vqf.process_imu(
                     i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
                 R[start:b, i] = R_run = ned_dcm_of_enu(*quat.T)  # quat: body → ENU

@@ -69,20 +69,13 @@ class SensorCalibration:
         """Offsets ``(min+max)/2``; accel scale ``Gravity/(max-offset)``; mag scale
         ``100/(max-offset)`` (docs/units.md). ``ellipsoids``: optional per-IMU magnetometer
         ellipsoid fits that replace the min/max magnetometer values of those IMUs."""
-        cal = cls._from_table(table, sensors)
-        return cal.with_ellipsoids(ellipsoids) if ellipsoids else cal
-
-    @classmethod
-    def _from_table(
-        cls, table: CalibrationTable, sensors: SensorOptions | None = None
-    ) -> SensorCalibration:
         sensors = sensors or SensorOptions()
         acc = table.accel_min_max
         mag = table.mag_min_max
         acc_off = acc.mean(axis=-1)
         mag_off = mag.mean(axis=-1)
         gravity = table.gravity.copy()
-        return cls(
+        cal = cls(
             gravity=gravity,
             accel_offset=acc_off,
             accel_scale=gravity[:, None] / (acc[..., 1] - acc_off),
@@ -93,6 +86,7 @@ class SensorCalibration:
             mag_signs=np.asarray(sensors.mag_signs, dtype=np.float64),
             gyro_signs=np.asarray(sensors.gyro_signs, dtype=np.float64),
         )
+        return cal.with_ellipsoids(ellipsoids) if ellipsoids else cal
 
     # -- magnetometer ellipsoid ------------------------------------------------------------
     def with_ellipsoids(self, ellipsoids: dict[int, MagEllipsoid]) -> SensorCalibration:
@@ -177,9 +171,8 @@ class SensorCalibration:
         """Inverse of :meth:`calibrate`: pre-rotated filter-frame vectors ``[..., 18, 3]`` →
         raw counts ``[..., 18, 9]`` (float, not yet rounded or saturated)."""
         rot_t = np.swapaxes(self.pre_rotations, -1, -2)
-        acc_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(acc, dtype=np.float64))
-        mag_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(mag, dtype=np.float64))
-        gyr_b = np.einsum("kij,...kj->...ki", rot_t, np.asarray(gyr, dtype=np.float64))
+        acc_b, mag_b, gyr_b = (np.einsum("kij,...kj->...ki", rot_t, np.asarray(v, dtype=np.float64))
+                               for v in (acc, mag, gyr))
         raw_acc = acc_b * self.accel_signs / self.accel_scale + self.accel_offset
         if self.mag_matrix is None or self.mag_center is None:
             raw_mag = mag_b * self.mag_signs / self.mag_scale + self.mag_offset

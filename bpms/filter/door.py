@@ -210,14 +210,6 @@ class OpenedRecording:
         for lo, host, frames, _ in self._raw_records(chunk_frames):
             yield lo, host, decode_frames(frames)
 
-    def _events_in(self, recorded: list[tuple[int, SessionEvent]], extra: list[int], lo: int,
-                   n: int) -> list[tuple[int, SessionEvent]]:
-        """The events to apply in frames ``lo .. lo+n-1``, as (index into the chunk, event)."""
-        planned = planned_events(recorded, self.reset_zero, self.settings_given,
-                                 [k for k in extra if lo <= k < lo + n], start=lo == 0)
-        self._skipped_settings += planned.skipped
-        return [(slot - lo, event) for slot, event in planned]
-
     def replay_events(self, recorded: list[tuple[int, SessionEvent]]
                       ) -> list[tuple[int, SessionEvent]]:
         """The events replay applies (``bpms replay``, GUI playback): the same rules as
@@ -228,15 +220,19 @@ class OpenedRecording:
 
     def _raw_chunks(self, extra: list[int], chunk_frames: int) -> Iterator[Chunk]:
         proc = self.processor
-        self._skipped_settings = 0
+        skipped = 0
         for lo, host, frames, recorded in self._raw_records(chunk_frames):
             decoded = decode_frames(frames)
-            events = self._events_in(recorded, extra, lo, len(host))
-            result = proc.process(decoded.raw, decoded.errors, events)
+            # the events to apply in frames lo .. lo+n-1, as (index into the chunk, event)
+            planned = planned_events(recorded, self.reset_zero, self.settings_given,
+                                     [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
+            skipped += planned.skipped
+            result = proc.process(decoded.raw, decoded.errors,
+                                  [(slot - lo, event) for slot, event in planned])
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
                         np.zeros(len(host), dtype=bool))
-        if self._skipped_settings:
-            self._note(f"{self.path}: {self._skipped_settings} recorded filter/gain change(s) "
+        if skipped:
+            self._note(f"{self.path}: {skipped} recorded filter/gain change(s) "
                        "not applied (a filter or options file was given)")
 
     def _raw_records(self, chunk_frames: int
@@ -270,8 +266,7 @@ class OpenedRecording:
 
         proc = self.processor
         reader = FilteredReader(self.path)
-        name = ("euler_sensor" if "euler_sensor" in reader.info.groups
-                else "euler")
+        name = "euler_sensor" if "euler_sensor" in reader.info.groups else "euler"
         if name == "euler" and reader.info.euler_kind == "segment":
             self._note(f"{self.path}: holds Reset-Zero-corrected angles only; Reset Zero is "
                        "redone on them")
@@ -438,8 +433,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         changes.append(f"filter {algorithm}")
     if heading is not None and heading != opts.pose.heading_reference:
         changes.append(f"heading {heading}")
-    settings_given = options is not None or bool(algorithm is not None
-                                                 and "filter" in " ".join(changes))
+    settings_given = options is not None or any(c.startswith("filter") for c in changes)
     if changes:
         opts = dataclasses.replace(opts)  # never change the caller's object
         opts.filter = dataclasses.replace(opts.filter, algorithm=algorithm or opts.filter.algorithm)
@@ -465,15 +459,12 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
 def _count_rows(path: Path) -> int:
     """Data rows of a filtered file (lines neither blank, ``#`` nor the column row); for
     progress only."""
-    count = 0
-    header = 0
     with open(path, "rb") as f:
-        for line in f:
-            if line.strip() and not line.startswith(b"#"):
-                count += 1
-                if count == 1 and line.startswith(b"time_s"):
-                    header = 1
-    return count - header
+        rows = (line for line in f if line.strip() and not line.startswith(b"#"))
+        first = next(rows, None)
+        if first is None:
+            return 0
+        return sum(1 for _ in rows) + (not first.startswith(b"time_s"))
 
 
 #: Column groups of the state guard's and the disturbance indicators' per-IMU flags.
@@ -509,10 +500,8 @@ def filtered_layout(result: Result | type[Result] = Result,
     :data:`ESTIMATE_GROUPS` (gyro bias, body acceleration)."""
     groups = ["euler"]
     kind = "sensor"
-    if isinstance(result, type):
-        has_sensor = (hasattr(result, "euler_sensor")
-                      or "euler_sensor" in getattr(result, "__dataclass_fields__", {}))
-        has_flags = True
+    if isinstance(result, type):  # the class: every Result has euler_sensor and may have flags
+        has_sensor = has_flags = True
     else:
         has_sensor = getattr(result, "euler_sensor", None) is not None
         has_flags = getattr(result, "disturbance", None) is not None
@@ -541,12 +530,9 @@ def filtered_arrays(result: Result, groups: Sequence[str]) -> dict[str, np.ndarr
             out[g] = result.corrected.astype(np.float64)[:, None]
         elif g == "joints":
             out[g] = result.joint_angles
-        elif g == "mag_disturbed":
+        elif g in ("mag_disturbed", "acc_disturbed"):
             if dist is not None:
-                out[g] = dist.mag
-        elif g == "acc_disturbed":
-            if dist is not None:
-                out[g] = dist.acc
+                out[g] = getattr(dist, g[:3])  # Disturbance.mag / .acc
         elif getattr(result, g, None) is not None:
             out[g] = getattr(result, g)
     return out

@@ -129,13 +129,6 @@ class StateGuard:
         else:
             self.expected[imu] = False
 
-    def bad(self, R: np.ndarray, gyr: np.ndarray | None = None, c4: float = 0.0
-            ) -> np.ndarray:
-        """``[N, n]`` bool: frames where an IMU that should give a rotation does not (an IMU
-        is expected from the frame after its first finite output on); ``gyr[N, n, 3]`` rad/s
-        and ``c4`` give the rate allowance (:func:`renorm_allowance`)."""
-        return check_rotations(np.asarray(R, dtype=np.float64), gyr, c4, self.expected)[0]
-
     def accept(self, R: np.ndarray) -> None:
         """Outputs ``R[N, n, 3, 3]`` were delivered: IMUs with a finite one are expected."""
         if len(R):
@@ -186,11 +179,6 @@ def failed_inputs(acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
     return bad if errors is None else (np.asarray(errors, dtype=np.bool_) | bad)
 
 
-def _frames(bank_options: dict[str, Any], sl: slice) -> dict[str, Any]:
-    """The bank options of the frames ``sl``: per-frame arrays (``mag_trust``) sliced."""
-    return {k: v[sl] if isinstance(v, np.ndarray) else v for k, v in bank_options.items()}
-
-
 def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarray,
                     gyr: np.ndarray, errors: np.ndarray | None = None, **bank_options: Any
                     ) -> tuple[BankOutput, np.ndarray]:
@@ -210,16 +198,21 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
             guard.accept(out.R)
             _reinit(bank, guard, bad[0])
         return out, bad
+
+    def frames(sl: slice) -> BankOutput:
+        """``bank.process`` of the frames ``sl``, per-frame options (``mag_trust``) sliced."""
+        return bank.process(acc[sl], mag[sl], gyr[sl], None if errors is None else errors[sl],
+                            **{k: v[sl] if isinstance(v, np.ndarray) else v
+                               for k, v in bank_options.items()})
+
     flags = np.zeros((n_frames, guard.n), dtype=np.bool_)
     parts: list[BankOutput] = []
     pos, chunk = 0, max(n_frames, 1)
     while pos < n_frames:
         end = min(n_frames, pos + chunk)
         snap = bank.snapshot() if end - pos > 1 else None
-        sl = slice(pos, end)
-        out = bank.process(acc[sl], mag[sl], gyr[sl],
-                           None if errors is None else errors[sl], **_frames(bank_options, sl))
-        bad, seen = check_rotations(out.R, gyr[sl], c4, guard.expected)
+        out = frames(slice(pos, end))
+        bad, seen = check_rotations(out.R, gyr[pos:end], c4, guard.expected)
         if not bad.any():
             guard.expected[:] = seen
             parts.append(out)
@@ -228,10 +221,7 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
         k = int(np.argmax(bad.any(axis=1)))
         if k < end - pos - 1:  # rewind and filter up to the bad frame only
             bank.restore(snap)
-            sl = slice(pos, pos + k + 1)
-            out = bank.process(acc[sl], mag[sl], gyr[sl],
-                               None if errors is None else errors[sl],
-                               **_frames(bank_options, sl))
+            out = frames(slice(pos, pos + k + 1))
         imus = bad[k]
         _mark(out, np.array([k]), imus)
         guard.accept(out.R[:k + 1])

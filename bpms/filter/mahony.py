@@ -38,12 +38,11 @@ cosines of the previous roll and pitch (step 1) are taken algebraically from the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
-from bpms.io.frames import N_IMUS
+from bpms.filter.kernel_state import KernelState
 
 #: Indices into ``params``.
 KP_RP, KI_RP, KP_YAW, KI_YAW, DT = range(5)
@@ -168,7 +167,7 @@ def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, eu
 
 @njit(cache=True)
 def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
-           R, w_i, w_p, euler, trig, initialised, held, seen, held_count):
+           R, w_i, w_p, euler, trig, initialised, held, held_count):
     """One frame for all IMUs: reset flags, failed-sensor hold, initialise or step."""
     kp_rp, ki_rp = params[KP_RP], params[KI_RP]
     kp_y, ki_y, dt = params[KP_YAW], params[KI_YAW], params[DT]
@@ -176,22 +175,13 @@ def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
         if use_reset and reset[i]:
             initialised[i] = False
         valid = True
-        for k in range(3):
-            if use_err and err[i, 0]:
-                valid = False
-            else:
-                held[i, 0, k] = acc[i, k]
-            if use_err and err[i, 1]:
-                valid = False
-            else:
-                held[i, 1, k] = mag[i, k]
-            if use_err and err[i, 2]:
-                valid = False
-            else:
-                held[i, 2, k] = gyr[i, k]
         for s in range(3):
-            if not (use_err and err[i, s]):
-                seen[i, s] = True
+            if use_err and err[i, s]:
+                valid = False
+            else:
+                src = acc if s == 0 else (mag if s == 1 else gyr)
+                for k in range(3):
+                    held[i, s, k] = src[i, k]
         if not initialised[i]:
             if valid:
                 _init_imu(i, held[i, 0], held[i, 1], R, w_i, w_p, euler, trig)
@@ -221,7 +211,7 @@ def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
 
 @njit(cache=True, nogil=True)
 def run_batch(acc, mag, gyr, errors, resets, params, gravity,
-              R, w_i, w_p, euler, trig, initialised, held, seen, held_count,
+              R, w_i, w_p, euler, trig, initialised, held, held_count,
               out_R, out_euler, out_wi, out_wp):
     """Filter N frames × 18 IMUs, updating the state arrays in place.
 
@@ -243,46 +233,21 @@ def run_batch(acc, mag, gyr, errors, resets, params, gravity,
         e = errors[k] if use_err else no_err
         z = resets[k] if use_reset else no_reset
         _frame(acc[k], mag[k], gyr[k], e, use_err, z, use_reset, p, gravity,
-               R, w_i, w_p, euler, trig, initialised, held, seen, held_count)
+               R, w_i, w_p, euler, trig, initialised, held, held_count)
         _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
                store_terms)
 
 
-@dataclass
-class MahonyState:
+class MahonyState(KernelState):
     """The filter state of ``n`` IMUs (arrays updated in place by the kernels).
 
     R ``[n, 3, 3]`` DCM filter frame → NED; w_i, w_p ``[n, 3]`` rad/s; euler ``[n, 3]`` the
     last (roll, pitch, yaw) rad; trig ``[n, 4]`` cos, sin of that roll and pitch;
     initialised ``[n]``; held ``[n, 3 sensors, 3]`` the last good
-    calibrated value of each sensor; seen ``[n, 3]`` a good value has arrived;
-    held_count ``[n, 3]`` steps that used a held value.
+    calibrated value of each sensor; held_count ``[n, 3]`` steps that used a held value.
     """
 
-    n: int = N_IMUS
-    R: np.ndarray = field(init=False)
-    w_i: np.ndarray = field(init=False)
-    w_p: np.ndarray = field(init=False)
-    euler: np.ndarray = field(init=False)
-    trig: np.ndarray = field(init=False)
-    initialised: np.ndarray = field(init=False)
-    held: np.ndarray = field(init=False)
-    seen: np.ndarray = field(init=False)
-    held_count: np.ndarray = field(init=False)
-
-    def __post_init__(self) -> None:
-        n = self.n
-        self.R = np.tile(np.eye(3), (n, 1, 1))
-        self.w_i = np.zeros((n, 3))
-        self.w_p = np.zeros((n, 3))
-        self.euler = np.zeros((n, 3))
-        self.trig = np.zeros((n, 4))
-        self.initialised = np.zeros(n, dtype=np.bool_)
-        self.held = np.zeros((n, 3, 3))
-        self.seen = np.zeros((n, 3), dtype=np.bool_)
-        self.held_count = np.zeros((n, 3), dtype=np.int64)
-
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        """The state arrays in kernel argument order."""
-        return (self.R, self.w_i, self.w_p, self.euler, self.trig, self.initialised, self.held,
-                self.seen, self.held_count)
+    LAYOUT = (("R", (3, 3), np.float64, np.eye(3)), ("w_i", (3,), np.float64, 0.0),
+              ("w_p", (3,), np.float64, 0.0), ("euler", (3,), np.float64, 0.0),
+              ("trig", (4,), np.float64, 0.0), ("initialised", (), np.bool_, False),
+              ("held", (3, 3), np.float64, 0.0), ("held_count", (3,), np.int64, 0))

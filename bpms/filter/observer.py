@@ -50,11 +50,12 @@ never holds stale machine code.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
+from bpms.filter.kernel_state import KernelState
 from bpms.io.frames import N_IMUS
 
 #: Indices into ``params``.
@@ -421,8 +422,7 @@ class ObserverGains:
 ADAPTIVE = {"mag_norm_th": 0.03, "mag_dip_th_deg": 3.0, "rest_tau": 10.0, "trapezoid": True}
 
 
-@dataclass
-class ObserverState:
+class ObserverState(KernelState):
     """The state of ``n`` IMUs (arrays updated in place by the kernel).
 
     q ``[n, 4]`` body → NED (w, x, y, z); bias ``[n, 3]`` rad/s; lp ``[n, 3]`` low-passed
@@ -436,42 +436,13 @@ class ObserverState:
     held_count ``[n, 3]``; R ``[n, 3, 3]`` the DCM of q.
     """
 
-    n: int = N_IMUS
-    q: np.ndarray = field(init=False)
-    bias: np.ndarray = field(init=False)
-    lp: np.ndarray = field(init=False)
-    acc_est: np.ndarray = field(init=False)
-    mag_state: np.ndarray = field(init=False)
-    mag_dist: np.ndarray = field(init=False)
-    gprev: np.ndarray = field(init=False)
-    rest: np.ndarray = field(init=False)
-    rest_b: np.ndarray = field(init=False)
-    initialised: np.ndarray = field(init=False)
-    held: np.ndarray = field(init=False)
-    held_count: np.ndarray = field(init=False)
-    R: np.ndarray = field(init=False)
-
-    def __post_init__(self) -> None:
-        n = self.n
-        self.q = np.tile(np.array([1.0, 0.0, 0.0, 0.0]), (n, 1))
-        self.bias = np.zeros((n, 3))
-        self.lp = np.zeros((n, 3))
-        self.acc_est = np.zeros((n, 3))
-        self.mag_state = np.zeros((n, 6))
-        self.mag_dist = np.zeros(n, dtype=np.bool_)
-        self.gprev = np.zeros((n, 3))
-        self.rest = np.zeros(n)
-        self.rest_b = np.zeros((n, 9))
-        self.initialised = np.zeros(n, dtype=np.bool_)
-        self.held = np.zeros((n, 3, 3))
-        self.held_count = np.zeros((n, 3), dtype=np.int64)
-        self.R = np.tile(np.eye(3), (n, 1, 1))
-
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        """The state arrays in kernel argument order."""
-        return (self.q, self.bias, self.lp, self.acc_est, self.mag_state, self.mag_dist,
-                self.gprev, self.rest, self.rest_b, self.initialised, self.held,
-                self.held_count, self.R)
+    LAYOUT = (("q", (4,), np.float64, (1.0, 0.0, 0.0, 0.0)), ("bias", (3,), np.float64, 0.0),
+              ("lp", (3,), np.float64, 0.0), ("acc_est", (3,), np.float64, 0.0),
+              ("mag_state", (6,), np.float64, 0.0), ("mag_dist", (), np.bool_, False),
+              ("gprev", (3,), np.float64, 0.0), ("rest", (), np.float64, 0.0),
+              ("rest_b", (9,), np.float64, 0.0), ("initialised", (), np.bool_, False),
+              ("held", (3, 3), np.float64, 0.0), ("held_count", (3,), np.int64, 0),
+              ("R", (3, 3), np.float64, np.eye(3)))
 
     def set_attitude(self, imu: int, q: np.ndarray) -> None:
         """Force IMU ``imu``'s attitude (body → NED quaternion); it must be initialised.

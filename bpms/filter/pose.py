@@ -90,8 +90,7 @@ def _motions(windows: np.ndarray) -> np.ndarray:
     trace = np.einsum("ciab,ciabw->ciw", first, windows)
     angle = np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
     with np.errstate(invalid="ignore"):
-        out = np.fmax.reduce(angle, axis=-1)
-    return out
+        return np.fmax.reduce(angle, axis=-1)
 
 
 @dataclass
@@ -135,8 +134,7 @@ def zero_values(data: dict) -> tuple[np.ndarray, float] | None:
     """(``R0[18, 3, 3]``, ψ0) stored in a ``reset_zero`` event's data (null → NaN), or None
     when they are missing or malformed."""
     try:
-        R0 = np.array([[[np.nan if v is None else float(v) for v in row] for row in imu]
-                       for imu in data["R0"]], dtype=np.float64)
+        R0 = np.array(data["R0"], dtype=np.float64)  # null (None) → NaN
         yaw0 = float(data["yaw0"])
     except (KeyError, TypeError, ValueError):
         return None
@@ -295,10 +293,6 @@ class PoseCalibrator:
             self._ring[self._next] = R[0]
         else:
             self._ring[(self._next + np.arange(n)) % keep] = R
-        self._advance(n)
-
-    def _advance(self, n: int) -> None:
-        keep = len(self._ring)
         self._next = (self._next + n) % keep
         self._held = min(self._held + n, keep)
 
@@ -366,28 +360,22 @@ class PoseCalibrator:
                 self.waiting = None
         if not ops:  # most frames: no capture in this batch
             C = segment_orientations(R, self.zero)
-            self._remember(R)
-            self.frames += n
-            return C
-        C = np.empty_like(R)
-        start = 0
-        for k in sorted(ops):
-            C[start:k] = segment_orientations(R[start:k], self.zero)
-            for op in ops[k]:
-                self.zero = self._capture(op, R, k, first)
-                self.captures.append(self.zero)
-            start = k
-        C[start:] = segment_orientations(R[start:], self.zero)
+        else:
+            C = np.empty_like(R)
+            start = 0
+            for k in sorted(ops):
+                C[start:k] = segment_orientations(R[start:k], self.zero)
+                for op in ops[k]:
+                    self.zero = self._capture(op, R, k, first)
+                    self.captures.append(self.zero)
+                start = k
+            C[start:] = segment_orientations(R[start:], self.zero)
         self._remember(R)
         self.frames += n
         return C
 
     def _capture(self, op: tuple, R: np.ndarray, k: int, first: int) -> Zero:
         kind = op[0]
-        if kind == "provisional":
-            zero = capture_zero(R[k:k + 1], self.zero, first + k, self.hip, self.heading,
-                                "provisional")
-            return zero
         if kind == "adopt":
             _, source, window, R0, yaw0, motion = op
             if self.zero is not None:
@@ -395,11 +383,13 @@ class PoseCalibrator:
                 R0[missing] = self.zero.R0[missing]
             return Zero(R0, yaw0, first + k, source, window, motion[0], motion[1], 0,
                         self.heading)
+        if kind == "provisional":
+            window, source = R[k:k + 1], "provisional"
+        elif kind == "automatic":
+            window, source = self._window_ending_at(R, k), "automatic"
+        else:  # ("capture", source, window)
+            window, source = self._window_ending_at(R, k, op[2]), op[1]
+        zero = capture_zero(window, self.zero, first + k, self.hip, self.heading, source)
         if kind == "automatic":
-            zero = capture_zero(self._window_ending_at(R, k), self.zero, first + k, self.hip,
-                                self.heading, "automatic")
             zero.waited = first + k - self.origin - self.auto_frame
-            return zero
-        _, source, window = op
-        return capture_zero(self._window_ending_at(R, k, window), self.zero, first + k,
-                            self.hip, self.heading, source)
+        return zero

@@ -85,18 +85,6 @@ SETTLE_S = 0.5
 MAG_TRUST_FLAGGED = 0.1
 
 
-def _default_path() -> Path:
-    from bpms.io.userdirs import default_calibration_path
-
-    return default_calibration_path()
-
-
-def _load_table(calibration: str | Path | CalibrationTable | None) -> CalibrationTable:
-    if isinstance(calibration, CalibrationTable):  # checked at the door, whatever its origin
-        return checked(calibration)
-    return load_calibration(calibration)
-
-
 def _load_options(options: str | Path | Options | None) -> Options:
     if isinstance(options, Options):
         # the processor's own copy: nothing outside (a GUI form, another thread) writes it
@@ -123,10 +111,17 @@ class BodyPoseProcessor:
                  options: str | Path | Options | None = None, auto_zero: bool = True) -> None:
         # None: the user's default when one is saved (read as a path, so its ellipsoid fits
         # come along), else the factory table
-        user_default = calibration is None and _default_path().is_file()
-        if user_default:
-            calibration = _default_path()
-        self.table = _load_table(calibration)
+        user_default = False
+        if calibration is None:
+            from bpms.io.userdirs import default_calibration_path
+
+            user_default = default_calibration_path().is_file()
+            if user_default:
+                calibration = default_calibration_path()
+        if isinstance(calibration, CalibrationTable):  # checked at the door, whatever its origin
+            self.table = checked(calibration)
+        else:
+            self.table = load_calibration(calibration)
         if user_default and not self.table.problems:
             self.table.source = f"user default ({calibration})"
         self.options = _load_options(options)
@@ -200,11 +195,6 @@ class BodyPoseProcessor:
         """Reset Zero: capture at the next frame, averaged over the window ending there;
         ``source``: who asked (:data:`bpms.io.session_events.ZERO_SOURCES`)."""
         self.pose.request(source)
-
-    def adopt_zero(self, R0: np.ndarray, yaw0: float, source: str = "network") -> None:
-        """Use a zero made elsewhere (``R0[18, 3, 3]``, heading ψ0 rad: e.g. the sender's,
-        received over UDP) from the next frame on."""
-        self.pose.adopt(R0, yaw0, source)
 
     def apply_event(self, event: SessionEvent) -> bool:
         """Apply a recorded event (:class:`bpms.io.session_events.SessionEvent`) before the

@@ -11,6 +11,7 @@ live frame (N = 1) and a whole recording.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -95,13 +96,8 @@ class Result:
         values = {}
         for f in dataclasses.fields(cls):
             v = getattr(like, f.name)
-            if isinstance(v, np.ndarray) and f.name not in _RUNNING_FIELDS:
-                values[f.name] = np.empty((n, *v.shape[1:]), v.dtype)
-            elif isinstance(v, Disturbance):
-                values[f.name] = Disturbance(**{
-                    g.name: np.empty((n, *getattr(v, g.name).shape[1:]),
-                                     getattr(v, g.name).dtype)
-                    for g in dataclasses.fields(v)})
+            if isinstance(v, np.ndarray | Disturbance) and f.name not in _RUNNING_FIELDS:
+                values[f.name] = _per_frame(lambda a: np.empty((n, *a.shape[1:]), a.dtype), v)
             elif isinstance(v, list):
                 values[f.name] = []
             else:
@@ -116,11 +112,9 @@ class Result:
             mine, theirs = getattr(self, f.name), getattr(part, f.name)
             if f.name in _RUNNING_FIELDS:
                 setattr(self, f.name, theirs)
-            elif isinstance(mine, np.ndarray):
-                mine[start:stop] = theirs
-            elif isinstance(mine, Disturbance):
-                for g in dataclasses.fields(mine):
-                    getattr(mine, g.name)[start:stop] = getattr(theirs, g.name)
+            elif isinstance(mine, np.ndarray | Disturbance):
+                _per_frame(lambda a, b: np.copyto(a[start:stop], b, casting="unsafe"), mine,
+                           theirs)
             elif isinstance(mine, list):
                 mine.extend(theirs)
 
@@ -129,11 +123,8 @@ class Result:
         values = {}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if isinstance(v, np.ndarray) and f.name not in _RUNNING_FIELDS:
-                values[f.name] = v[:n]
-            elif isinstance(v, Disturbance):
-                values[f.name] = Disturbance(**{g.name: getattr(v, g.name)[:n]
-                                                for g in dataclasses.fields(v)})
+            if isinstance(v, np.ndarray | Disturbance) and f.name not in _RUNNING_FIELDS:
+                values[f.name] = _per_frame(lambda a: a[:n], v)
             else:
                 values[f.name] = v
         return Result(**values)
@@ -156,12 +147,8 @@ class Result:
                 values[f.name] = None
             elif isinstance(items[0], list):
                 values[f.name] = [x for v in items for x in v]
-            elif isinstance(items[0], Disturbance):
-                values[f.name] = dataclasses.replace(items[0], **{
-                    g.name: np.concatenate([getattr(v, g.name) for v in items])
-                    for g in dataclasses.fields(items[0])})
             else:
-                values[f.name] = np.concatenate(items)
+                values[f.name] = _per_frame(lambda *a: np.concatenate(a), *items)
         return Result(**values)
 
     @property
@@ -217,6 +204,15 @@ class Result:
     def segment_quaternions(self) -> np.ndarray:
         """``[N, 18, 4]`` (w, x, y, z) of the segment orientations ``C``."""
         return _quaternions(self.C)
+
+
+def _per_frame(fn: Callable, *values: np.ndarray | Disturbance) -> object:
+    """``fn`` of per-frame arrays, or, for disturbance records, a record of ``fn`` of their
+    corresponding arrays (one per field)."""
+    if isinstance(values[0], Disturbance):
+        return Disturbance(**{g.name: fn(*(getattr(v, g.name) for v in values))
+                              for g in dataclasses.fields(Disturbance)})
+    return fn(*values)
 
 
 def _quaternions(R: np.ndarray) -> np.ndarray:

@@ -43,11 +43,6 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0], axis=-1)
 
 
-def enu_to_ned(q_enu: np.ndarray) -> np.ndarray:
-    """Body → ENU quaternions ``[..., 4]`` → body → NED."""
-    return quat_mul(np.broadcast_to(Q_ENU_TO_NED, q_enu.shape), q_enu)
-
-
 def ned_dcm_of_enu(w: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
     """Unit body → ENU quaternions, as their components ``[...]`` each (NaN allowed) → body →
     NED DCMs ``[..., 3, 3]``: ``ENU_TO_NED @ R(q)``, i.e. the rows y, x, −z of ``R(q)``,
@@ -108,5 +103,5 @@ class VqfFilters:
         return out["quat6D" if six_d else "quat9D"], out["bias"]
 
 
-__all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "enu_to_ned",
-           "ned_dcm_of_enu", "quat_mul", "require_vqf"]
+__all__ = ["ENU_TO_NED", "Q_ENU_TO_NED", "VqfFilters", "VqfMissingError", "ned_dcm_of_enu",
+           "quat_mul", "require_vqf"]
