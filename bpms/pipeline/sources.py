@@ -386,21 +386,14 @@ class SuitFrameSource:
         elif state is LinkState.SILENT and now >= self._next_attempt:
             self._next_attempt = now + self.retry_s
             try:
-                answered = link.probe()
-            except (DeviceGoneError, LinkClosedError):
-                raise
-            except LinkError as exc:  # still away
-                self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
-                return
-            if not answered:  # frames came: it streams again (read() delivers them)
-                return
-            # It answered BPMS: power-cycled (idle), or our probe stopped its stream. Start
-            # anew; frames of a stream the probe just stopped stay pending, in order.
-            try:
+                if not link.probe():  # frames came: it streams again (read() delivers them)
+                    return
+                # It answered BPMS: power-cycled (idle), or our probe stopped its stream. Start
+                # anew; frames of a stream the probe just stopped stay pending, in order.
                 link.start()
             except (DeviceGoneError, LinkClosedError):
                 raise
-            except LinkError as exc:
+            except LinkError as exc:  # still away (no answer, or no frame after the start)
                 self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
                 return
             self.restarts += 1
