@@ -206,16 +206,12 @@ def load_calibration(path: str | Path | None) -> CalibrationTable:
     path = Path(path)
     try:
         text = read_config_bytes(path).decode("utf-8", errors="replace")
-    except BoundError as exc:
+    except (BoundError, OSError) as exc:
+        big = isinstance(exc, BoundError)
         table = load_factory_calibration().copy()
-        report(table.problems, path, "file", str(exc), "factory calibration used")
-        table.source = f"factory ({path} too big)"
-        return table
-    except OSError as exc:
-        table = load_factory_calibration().copy()
-        report(table.problems, path, "file", f"cannot be read ({exc.strerror or exc})",
-               "factory calibration used")
-        table.source = f"factory ({path} unreadable)"
+        report(table.problems, path, "file", str(exc) if big else
+               f"cannot be read ({exc.strerror or exc})", "factory calibration used")
+        table.source = f"factory ({path} {'too big' if big else 'unreadable'})"
         return table
     return parse_legacy(text, path)
 

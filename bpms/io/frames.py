@@ -169,8 +169,7 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
                              f"{bad[0]}")
     clusters = np.frombuffer(buf, dtype=FRAME_DTYPE)["clusters"]
     raw = clusters["imu"].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
-    errors = _FLAGS_OF_WORD[clusters["error"] & (len(_FLAGS_OF_WORD) - 1)]
-    return DecodedFrames(raw=raw, errors=errors.reshape(n, N_IMUS, N_SENSORS))
+    return DecodedFrames(raw=raw, errors=error_words_to_flags(clusters["error"]))
 
 
 def decode_frame(frame: bytes | bytearray | memoryview) -> DecodedFrames:

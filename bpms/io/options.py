@@ -374,12 +374,9 @@ def _attach_ranges() -> None:
     forms and parsers that read the metadata see the one table."""
     import types
 
-    for section in dataclasses.fields(Options):
-        if section.name in ("source", "problems"):
-            continue
-        cls = section.default_factory  # type: ignore[misc]
-        for f in dataclasses.fields(cls):
-            rng = option_range(section.name, f.name)
+    for name, section in Options().sections().items():
+        for f in dataclasses.fields(section):
+            rng = option_range(name, f.name)
             if rng is None:
                 continue
             bounds = {"min": rng.lo, "max": rng.hi, "choices": rng.choices}

@@ -534,12 +534,8 @@ class RawFrames:
         return stream_time(len(self))
 
     def _restart(self, lo: int) -> None:
-        point = None
-        for cp in self._checkpoints:
-            if cp.slot <= lo:
-                point = cp
-            else:
-                break
+        k = bisect.bisect_right(self._checkpoints, lo, key=lambda cp: cp.slot)
+        point = self._checkpoints[k - 1] if k else None
         if point is None:
             self._cursor = self.file.pieces(counts=_Counts())
             self._buffer_start = 0

@@ -92,10 +92,10 @@ class SessionEvent:
 
     def describe(self, dt: float = 0.02) -> str:
         """One line for the event log, the record command and the LSL marker text."""
-        at = f"{stream_time(self.frame, dt):.2f} s" if self.frame >= 0 else ""
+        at = f" at {stream_time(self.frame, dt):.2f} s" if self.frame >= 0 else ""
         d = self.data
         if self.kind == "reset_zero":
-            line = f"Reset Zero ({d.get('source', '?')})" + (f" at {at}" if at else "")
+            line = f"Reset Zero ({d.get('source', '?')}){at}"
             window = d.get("window")
             if isinstance(window, int | float) and window > 1:
                 line += f", window {window * dt:.2f} s"
@@ -112,25 +112,24 @@ class SessionEvent:
         if self.kind == "alignment":
             state = "on (segment angles)" if d.get("on") else "off (sensor angles)"
             force = " in force" if d.get("source") == "in force" else ""
-            return f"alignment {state}{force}" + (f" at {at}" if at else "")
+            return f"alignment {state}{force}{at}"
         if self.kind == "filter":
             force = " in force" if d.get("source") == "in force" else ""
-            return (f"filter {d.get('algorithm')}{force} on all 18 IMUs"
-                    + (f" at {at}" if at else ""))
+            return f"filter {d.get('algorithm')}{force} on all 18 IMUs{at}"
         if self.kind == "gains" and d.get("source") == "in force":
-            return "filter settings in force" + (f" at {at}" if at else "")
+            return f"filter settings in force{at}"
         if self.kind == "gains":
             values = d.get("values", {})
             text = ", ".join(f"{k} {v:g}" if isinstance(v, int | float) else f"{k} {v}"
                              for k, v in (values.items() if isinstance(values, dict) else ()))
-            return f"filter settings {text}" + (f" at {at}" if at else "")
+            return f"filter settings {text}{at}"
         if self.kind == "filters":
             what = ("filters restarted" if d.get("action") == "restart"
                     else "filters re-initialised")
             reason = d.get("reason")
-            return what + (f" ({reason})" if reason else "") + (f" at {at}" if at else "")
+            return what + (f" ({reason})" if reason else "") + at
         if self.kind == "marker":
-            return f"marker at {at}: {d.get('text', '')}" if at else f"marker: {d.get('text')}"
+            return f"marker{at}: {d.get('text', '')}" if at else f"marker: {d.get('text')}"
         if self.kind == "logging":
             return f"logging {d.get('action', '?')}"
         return str(d.get("text", self.kind))

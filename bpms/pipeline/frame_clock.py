@@ -93,7 +93,5 @@ class FrameClock:
 
     def stamp_many(self, indices, arrivals, discontinuity: bool = False) -> list[float]:
         """:meth:`stamp` for a run of frames (the first may carry ``discontinuity``)."""
-        out = []
-        for k, (i, a) in enumerate(zip(indices, arrivals, strict=True)):
-            out.append(self.stamp(int(i), float(a), discontinuity and k == 0))
-        return out
+        return [self.stamp(int(i), float(a), discontinuity and k == 0)
+                for k, (i, a) in enumerate(zip(indices, arrivals, strict=True))]

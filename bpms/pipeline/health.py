@@ -51,14 +51,10 @@ class PipelineHealth:
 
     def take_holes(self) -> list[Hole]:
         """The holes noted since the last call, in arrival order (processing thread)."""
-        if self._holes.empty():
-            return []
         out = []
-        while True:
-            try:
-                out.append(self._holes.get_nowait())
-            except queue.Empty:
-                return out
+        while not self._holes.empty():  # (one consumer: what it sees waiting stays there)
+            out.append(self._holes.get_nowait())
+        return out
 
 
 def merge_holes(indices: np.ndarray, holes: list[Hole]) -> tuple[np.ndarray, np.ndarray,
@@ -97,11 +93,10 @@ def write_with_holes(writer, indices: np.ndarray, host_times: np.ndarray,
     written, holes marked, holes after the last frame: pass them with the next block)."""
     from bpms.io.timebase import stream_time_of
 
-    if not holes:  # the usual case: nothing to merge
-        writer.write_block(stream_time_of(indices, dt), host_time=host_times, **arrays)
-        return len(indices), 0, []
-    order, hole_index, hole_host, later = merge_holes(indices, holes)
-    if not len(hole_index):
+    later: list[Hole] = []
+    if holes:  # (the usual case, none: nothing to merge)
+        order, hole_index, hole_host, later = merge_holes(indices, holes)
+    if not holes or not len(hole_index):
         writer.write_block(stream_time_of(indices, dt), host_time=host_times, **arrays)
         return len(indices), 0, later
     is_hole = order < 0

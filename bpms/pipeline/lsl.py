@@ -46,7 +46,7 @@ import numpy as np
 
 from bpms.filter.joints import CONVENTION_TEXT, JOINT_ANGLE_NAMES
 from bpms.io.frames import FRAME_PERIOD_S, IMU_NAMES
-from bpms.io.names import imu_column, joint_column
+from bpms.io.names import imu_column, joint_column, slug
 from bpms.pipeline.frame_clock import FrameClock
 
 log = logging.getLogger(__name__)
@@ -71,10 +71,6 @@ _SENSOR_AXES = (("Acceleration", "a", "m/s^2"), ("MagneticField", "m", "gauss"),
                 ("AngularVelocity", "g", "rad/s"))
 
 
-def _slug(text: str) -> str:
-    return text.lower().replace(" ", "_")
-
-
 @dataclass(frozen=True)
 class Channel:
     label: str
@@ -86,7 +82,7 @@ class Channel:
 def segment_channels() -> list[Channel]:
     """72 channels: per segment the quaternion w, x, y, z (XDF types OrientationA..D)."""
     return [Channel(imu_column(i, f"q{c.lower()}"), f"Orientation{'ABCD'[k]}",
-                    "normalized", _slug(name))
+                    "normalized", slug(name))
             for i, name in enumerate(IMU_NAMES) for k, c in enumerate(_QUAT)]
 
 
@@ -99,8 +95,7 @@ def joint_channels() -> list[Channel]:
 def sensor_channels() -> list[Channel]:
     """162 channels: per IMU accel x, y, z, mag x, y, z, gyro x, y, z (``imu0_right_leg_ax``
     … ``imu17_head_gz``, the names of ``bpms extract``'s columns)."""
-    return [Channel(imu_column(i, f"{short}{axis}"), f"{kind}{axis.upper()}", unit,
-                    _slug(name))
+    return [Channel(imu_column(i, f"{short}{axis}"), f"{kind}{axis.upper()}", unit, slug(name))
             for i, name in enumerate(IMU_NAMES) for kind, short, unit in _SENSOR_AXES
             for axis in "xyz"]
 
@@ -108,7 +103,7 @@ def sensor_channels() -> list[Channel]:
 def disturbance_channels() -> list[Channel]:
     """36 channels: the 18 magnetometer flags (IMU order), then the 18 acceleration flags."""
     return [Channel(imu_column(i, f"{kind}_disturbed"), f"{kind.capitalize()}Disturbed",
-                    "flag", _slug(name))
+                    "flag", slug(name))
             for kind in ("mag", "acc") for i, name in enumerate(IMU_NAMES)]
 
 

@@ -375,7 +375,7 @@ class LiveSession:
         """Hand a frame to processing. A file can wait for processing to catch up; a live
         source cannot (its bytes would be lost before the raw logger saw them), so after 60 s
         of backlog its frames skip processing, counted as dropped (they are still recorded)."""
-        if getattr(self.source, "can_wait", False):
+        if self.source_can_wait:
             while not self._stop.is_set():
                 try:
                     self._proc_queue.put_wait(event, 0.2)
@@ -424,11 +424,8 @@ class LiveSession:
     def _run_commands(self) -> None:
         for event in self.settings.apply(self.processor, self.note):
             self.events.at_next_frame(event)  # they hold from the next frame on
-        while not self._commands.empty():
-            try:
-                command = self._commands.get_nowait()
-            except queue.Empty:
-                return
+        while not self._commands.empty():  # (this thread is the only one taking)
+            command = self._commands.get_nowait()
             try:
                 command()
             except Exception as exc:

@@ -65,11 +65,8 @@ class SettingsQueue:
         Returns the session events of the changes applied (no frame yet: they hold from the
         next frame; a Reset Zero becomes an event when it is captured)."""
         done: list[SessionEvent] = []
-        while not self._queue.empty():  # (checked first: no exception per frame)
-            try:
-                change = self._queue.get_nowait()
-            except queue.Empty:
-                break
+        while not self._queue.empty():  # (checked first: no exception per frame; one consumer)
+            change = self._queue.get_nowait()
             try:
                 if change.kind == "gains":
                     processor.set_gains(**change.value)

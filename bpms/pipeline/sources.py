@@ -22,6 +22,7 @@ from bpms.io.link import (
 from bpms.io.link_states import LOST_STATES, LinkEvent, LinkState, next_state
 from bpms.io.options import SerialOptions
 from bpms.io.session_events import SessionEvent
+from bpms.io.timebase import frame_at
 from bpms.io.udp.auth import key_from_env
 from bpms.io.udp.gate import TAKEOVER_AFTER_S
 from bpms.io.udp.receiver import UdpSource
@@ -58,7 +59,7 @@ class UdpFrameSource:
         received = self.udp.read(timeout)
         while received is not None:
             # the receiver keeps suit times within 0..1e8 s, so this is a sane integer
-            index = round(received.suit_time / 0.02)
+            index = frame_at(received.suit_time)
             out.append(FrameEvent(received.recv_time, received.frame, index, received.restart,
                                   marks=self._sender_zero() if not out else ()))
             self._state = "streaming"
@@ -79,7 +80,7 @@ class UdpFrameSource:
         if taken is None:
             return ()
         suit_time, zero = taken
-        return (SessionEvent("reset_zero", round(suit_time / 0.02), data={
+        return (SessionEvent("reset_zero", frame_at(suit_time), data={
             "source": "network", "adopt": True, "sender_source": zero.source,
             "window": zero.window, "heading": zero.heading, "yaw0": zero.yaw0,
             "R0": zero.R0.tolist()}),)
@@ -97,10 +98,9 @@ class UdpFrameSource:
         return SourceStatus(
             f"UDP on {self.udp.listening}",
             "closed" if self.udp.closed else self._state,
-            counters={"lost": s.lost, "duplicated": s.duplicated, "reordered": s.reordered,
-                      "malformed": s.malformed, "restarts": s.restarts, "foreign": s.foreign,
-                      "unauthenticated": s.unauthenticated, "replayed": s.replayed,
-                      "implausible": s.implausible, "conflicts": s.conflicts},
+            counters={k: getattr(s, k) for k in (
+                "lost", "duplicated", "reordered", "malformed", "restarts", "foreign",
+                "unauthenticated", "replayed", "implausible", "conflicts")},
             warning="; ".join(warnings))
 
     def close(self) -> None:
@@ -386,21 +386,14 @@ class SuitFrameSource:
         elif state is LinkState.SILENT and now >= self._next_attempt:
             self._next_attempt = now + self.retry_s
             try:
-                answered = link.probe()
-            except (DeviceGoneError, LinkClosedError):
-                raise
-            except LinkError as exc:  # still away
-                self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
-                return
-            if not answered:  # frames came: it streams again (read() delivers them)
-                return
-            # It answered BPMS: power-cycled (idle), or our probe stopped its stream. Start
-            # anew; frames of a stream the probe just stopped stay pending, in order.
-            try:
+                if not link.probe():  # frames came: it streams again (read() delivers them)
+                    return
+                # It answered BPMS: power-cycled (idle), or our probe stopped its stream. Start
+                # anew; frames of a stream the probe just stopped stay pending, in order.
                 link.start()
             except (DeviceGoneError, LinkClosedError):
                 raise
-            except LinkError as exc:
+            except LinkError as exc:  # still away (no answer, or no frame after the start)
                 self._event(LinkEvent.PROBE_UNANSWERED, f"{self._reason_base()}; {exc}")
                 return
             self.restarts += 1

@@ -73,18 +73,21 @@ def column_groups() -> dict[str, ColumnGroup]:
     return dict(_GROUPS)
 
 
-def _imu_euler_names(infix: str) -> Callable[[str], list[str]]:
+def _imu_names(suffixes: Sequence[str], angular: bool = False) -> Callable[[str], list[str]]:
+    """The columns ``suffixes`` of every IMU, ending in the file's angle unit when
+    ``angular``."""
     def names(unit: str) -> list[str]:
-        return [imu_column(i, f"{infix}{e}", unit) for i in range(len(IMU_NAMES))
-                for e in EULER_NAMES]
+        return [imu_column(i, x, unit if angular else None) for i in range(len(IMU_NAMES))
+                for x in suffixes]
     return names
 
 
 register_column_group(ColumnGroup(
-    "euler", _imu_euler_names(""), (N_IMUS, 3), angular=True,
+    "euler", _imu_names(EULER_NAMES, angular=True), (N_IMUS, 3), angular=True,
     description="roll, pitch, yaw of IMU 0..17 (which ones: the 'euler' header line)"))
 register_column_group(ColumnGroup(
-    "euler_sensor", _imu_euler_names("sensor_"), (N_IMUS, 3), angular=True,
+    "euler_sensor", _imu_names([f"sensor_{e}" for e in EULER_NAMES], angular=True),
+    (N_IMUS, 3), angular=True,
     description="each IMU's uncorrected filter roll, pitch, yaw, when 'euler' holds the "
                 "Reset-Zero-corrected segment angles"))
 register_column_group(ColumnGroup(
@@ -95,12 +98,6 @@ register_column_group(ColumnGroup(
 register_column_group(ColumnGroup(
     "joints", lambda unit: [joint_column(j, unit) for j in JOINT_ANGLE_NAMES],
     (len(JOINT_ANGLE_NAMES),), angular=True, description="the 28 joint angles"))
-
-
-def _imu_names(suffixes: Sequence[str]) -> Callable[[str], list[str]]:
-    def names(unit: str) -> list[str]:
-        return [imu_column(i, x) for i in range(len(IMU_NAMES)) for x in suffixes]
-    return names
 
 
 register_column_group(ColumnGroup(

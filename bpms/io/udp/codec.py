@@ -170,7 +170,7 @@ def encode_zero_payload(zero: ZeroMessage) -> bytes:
     if R0.shape != (N_IMUS, 3, 3) or not math.isfinite(zero.yaw0):
         raise ValueError("a zero needs R0 [18, 3, 3] and a finite heading")
     finite = np.isfinite(R0).all(axis=(1, 2))
-    mask = int(sum(1 << int(i) for i in np.flatnonzero(finite)))
+    mask = disturbance_mask(finite)
     values = np.where(finite[:, None, None], R0, 0.0)
     source = ZERO_SOURCES.index(zero.source) if zero.source in ZERO_SOURCES else 0
     heading = HEADINGS.index(zero.heading) if zero.heading in HEADINGS else 0
@@ -201,7 +201,6 @@ def _decode_zero(payload: bytes) -> ZeroMessage:
         raise DatagramError("ZERO R0 is not a rotation")
     R0[~has] = np.nan
     return ZeroMessage(R0, yaw0, ZERO_SOURCES[source], HEADINGS[heading], window)
-
 
 
 def encode_header(mtype: int, session: int, seq: int, suit_time: float, send_time: float,
@@ -355,19 +354,18 @@ def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:
                                 "version 3 header")
         sender, epoch = FRESHNESS.unpack_from(data, HEADER_SIZE)
     payload = data[header_size(version):]
+    frame = pose = zero = None
     if mtype == MessageType.RAW_FRAME:
         if len(payload) != FRAME_SIZE:
             raise DatagramError(f"RAW_FRAME payload is {len(payload)} bytes, not {FRAME_SIZE}")
         if not is_frame(payload):
             raise DatagramError("RAW_FRAME payload lacks the $#/#$ frame markers")
-        return Datagram(MessageType.RAW_FRAME, flags, session, seq, suit_time, send_time,
-                        frame=payload, version=version, sender=sender, epoch=epoch)
-    if mtype == MessageType.POSE:
-        return Datagram(MessageType.POSE, flags, session, seq, suit_time, send_time,
-                        pose=_decode_pose(payload, version), version=version, sender=sender,
-                        epoch=epoch)
-    if mtype == MessageType.ZERO and version >= ZERO_SINCE:
-        return Datagram(MessageType.ZERO, flags, session, seq, suit_time, send_time,
-                        version=version, sender=sender, epoch=epoch,
-                        zero=_decode_zero(payload))
-    raise DatagramError(f"unknown message type {mtype}")
+        frame = payload
+    elif mtype == MessageType.POSE:
+        pose = _decode_pose(payload, version)
+    elif mtype == MessageType.ZERO and version >= ZERO_SINCE:
+        zero = _decode_zero(payload)
+    else:
+        raise DatagramError(f"unknown message type {mtype}")
+    return Datagram(MessageType(mtype), flags, session, seq, suit_time, send_time, frame, pose,
+                    version, zero, sender, epoch)

@@ -199,21 +199,18 @@ class UdpSource(Closing):
     def stats(self) -> SourceStats:
         with self._lock:
             t = self._tracker
-            c = self._counts
+            c = dict(self._counts)  # datagrams, malformed, ignored, socket errors, ... as kept
             now = time.monotonic()
             return SourceStats(
-                datagrams=c["datagrams"], received=t.unique + t.duplicated + t.implausible,
-                delivered=t.unique, lost=t.lost, pending=t.pending, duplicated=t.duplicated,
-                reordered=t.reordered, malformed=c["malformed"], ignored=c["ignored"],
-                stale=t.stale + c["stale"], restarts=t.restarts,
-                socket_errors=c["socket_errors"], last_malformed=self._last_malformed,
-                foreign=c["foreign"], unauthenticated=c["unauthenticated"],
+                received=t.unique + t.duplicated + t.implausible, delivered=t.unique,
+                lost=t.lost, pending=t.pending, duplicated=t.duplicated, reordered=t.reordered,
+                stale=t.stale + c.pop("stale"), restarts=t.restarts,
+                last_malformed=self._last_malformed,
                 another_sender=self._recent(self._foreign_sender, self._last_foreign, now),
-                replayed=c["replayed"], implausible=t.implausible, jumps=t.jumps,
-                conflicts=t.conflicts,
+                implausible=t.implausible, jumps=t.jumps, conflicts=t.conflicts,
                 same_session_sender=self._recent(self._conflict_sender, self._last_conflict,
                                                  now),
-                takeover=self._takeover_text(now), zeros=c["zeros"])
+                takeover=self._takeover_text(now), **c)
 
     @staticmethod
     def _recent(text: str, at: float, now: float) -> str:

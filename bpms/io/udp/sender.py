@@ -67,7 +67,6 @@ def new_epoch() -> int:
         return _last_epoch
 
 
-
 @dataclass(frozen=True)
 class ForwarderStats:
     """Counters of a :class:`UdpForwarder`. ``sent``, ``errors`` and ``refused`` count

@@ -60,13 +60,13 @@ class SequenceTracker:
 
     def __init__(self, window: int = REORDER_WINDOW) -> None:
         self.window = window
-        self.session: int | None = None
+        self.session: object | None = None
         self._first = 0  # unwrapped
         self._highest = 0  # unwrapped
         self._starts: list[int] = []  # open gaps [start, end), sorted, disjoint
         self._ends: list[int] = []
         self._open = 0  # sequence numbers inside the open gaps
-        self._retired: deque[int] = deque(maxlen=8)
+        self._retired: deque[object] = deque(maxlen=8)
         self.unique = 0
         self.duplicated = 0
         self.reordered = 0
@@ -98,7 +98,9 @@ class SequenceTracker:
         """Gaps still inside the reorder window (a late datagram may still fill them)."""
         return self._open
 
-    def _start(self, session: int, seq: int) -> None:
+    def _start(self, session: object, seq: int, digest: int | None) -> None:
+        """A session starts (anew) at number ``seq`` (unwrapped), received: the gaps left
+        open are final losses."""
         self.lost_final += self._open
         self._starts.clear()
         self._ends.clear()
@@ -108,6 +110,8 @@ class SequenceTracker:
         self._jump = None
         self._digests.clear()
         self._digest_order.clear()
+        self._remember(seq, digest)
+        self.unique += 1
 
     def _remember(self, u: int, digest: int | None) -> None:
         if digest is None:
@@ -140,9 +144,7 @@ class SequenceTracker:
             self.restarts += 1
         else:
             self.jumps += 1
-        self._start(self.session, self._highest + d)  # type: ignore[arg-type]
-        self._remember(self._highest, digest)
-        self.unique += 1
+        self._start(self.session, self._highest + d, digest)
         return Verdict.RESYNC
 
     def _add_gap(self, start: int, end: int) -> None:
@@ -194,20 +196,14 @@ class SequenceTracker:
         """Account for one well-formed datagram of ``session`` (any hashable identity) with
         number ``seq`` and, optionally, a ``digest`` of its contents; tell the caller what it
         was."""
-        if self.session is None:
-            self._start(session, seq)  # type: ignore[arg-type]
-            self._remember(seq, digest)
-            self.unique += 1
-            return Verdict.NEW
-        if session != self.session:
-            if session in self._retired:
-                self.stale += 1
-                return Verdict.STALE
-            self._retired.append(self.session)
-            self.restarts += 1
-            self._start(session, seq)  # type: ignore[arg-type]
-            self._remember(seq, digest)
-            self.unique += 1
+        if self.session is None or session != self.session:
+            if self.session is not None:
+                if session in self._retired:
+                    self.stale += 1
+                    return Verdict.STALE
+                self._retired.append(self.session)
+                self.restarts += 1
+            self._start(session, seq, digest)
             return Verdict.NEW
         d = _signed(seq - self._highest)
         u = self._highest + d
