@@ -169,8 +169,8 @@ class ObserverBank(_PhysicalBank):
         n = f.shape[0]
         # 6D: no heading correction at all
         trust = np.zeros((n, self.n)) if self.relative else mag_trust
-        out = self.observer.process(f, m, g, errors, self._resets(n, resets), store_q=True,
-                                    trust=trust)
+        out = self.observer.process(f, m, g, errors, self._resets(n, resets),
+                                    keep=("bias", "acc"), trust=trust)
         return BankOutput(out.R, out.euler, gyro_bias=out.bias, body_acc=out.acc)
 
 

@@ -476,25 +476,29 @@ class Observer:
 
     def process(self, f: np.ndarray, m: np.ndarray, g: np.ndarray,
                 errors: np.ndarray | None = None, resets: np.ndarray | None = None,
-                store_q: bool = False, trust: np.ndarray | None = None) -> ObserverOutput:
+                keep: tuple[str, ...] = (), trust: np.ndarray | None = None) -> ObserverOutput:
         """Filter ``[N, n, 3]`` inputs (units: module docstring), continuing the state;
-        ``trust`` ``[N, n]`` the heading trust (module docstring; None: 1)."""
+        ``keep`` names the optional outputs to fill (any of ``"q"``, ``"bias"``, ``"acc"``;
+        the others stay None and cost nothing); ``trust`` ``[N, n]`` the heading trust
+        (module docstring; None: 1)."""
         f, m, g = (np.ascontiguousarray(v, dtype=np.float64) for v in (f, m, g))
         N = f.shape[0]
         err = (np.zeros((0, self.n, 3), np.bool_) if errors is None
                else np.ascontiguousarray(errors, dtype=np.bool_))
         rs = (np.zeros((0, self.n), np.bool_) if resets is None
               else np.ascontiguousarray(resets, dtype=np.bool_))
-        kq = N if store_q else 0
+        unknown = set(keep) - {"q", "bias", "acc"}
+        if unknown:
+            raise ValueError(f"Observer.process cannot keep {sorted(unknown)}")
         out = ObserverOutput(np.empty((N, self.n, 3, 3)), np.empty((N, self.n, 3)),
-                             np.empty((kq, self.n, 4)), np.empty((kq, self.n, 3)),
-                             np.empty((kq, self.n, 3)))
+                             *(np.empty((N if name in keep else 0, self.n, width))
+                               for name, width in (("q", 4), ("bias", 3), ("acc", 3))))
         tr = (np.ones((0, self.n)) if trust is None
               else np.ascontiguousarray(trust, dtype=np.float64))
         run_batch(f, m, g, err, rs, tr, self.gains.params(), *self.state.arrays(), out.R,
                   out.euler, out.q, out.bias, out.acc, np.empty((0, self.n), np.bool_))
-        if not store_q:
-            out.q = out.bias = out.acc = None
+        for name in {"q", "bias", "acc"} - set(keep):
+            setattr(out, name, None)
         return out
 
 
