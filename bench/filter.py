@@ -139,8 +139,8 @@ def vqf_figures(minutes: float) -> tuple[float, float] | None:
     options = Options().filter
     options.algorithm = "vqf"
     bank = VqfBank(cal.gravity, options)
-    f, m, g = bank.physical(acc, mag, gyr)
-    columns = [tuple(np.ascontiguousarray(x[:, i]) for x in (g, f, m)) for i in range(N_IMUS)]
+    f, m, g = bank.physical(acc, mag, gyr, imu_major=True)
+    columns = [(g[i], f[i], m[i]) for i in range(N_IMUS)]
 
     def package() -> None:
         for gi, fi, mi in columns:

@@ -114,18 +114,24 @@ class _PhysicalBank(FilterBank):
         return self.options.heading == "relative"
 
     def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-                 imu: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 imu_major: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Suite units ``[N, n, 3]`` → (specific force m/s², mag ≈ unit, gyro rad/s), float64
-        contiguous ``[N, n, 3]``, or only IMU ``imu``'s ``[N, 3]``."""
-        factor = self._acc_factor
-        if imu is not None:
-            acc, mag, gyr, factor = acc[:, imu], mag[:, imu], gyr[:, imu], factor[imu]
-        f = np.multiply(acc, factor, out=np.empty(np.shape(acc)))
+        contiguous ``[N, n, 3]``, or ``[n, N, 3]`` (one contiguous block per IMU) when
+        ``imu_major``. The conversion reads the inputs in their own order either way."""
+        shape = np.shape(acc)
+        layout = (shape[1], shape[0], shape[2]) if imu_major else shape
+
+        def converted(x: np.ndarray, op: np.ufunc, arg) -> np.ndarray:
+            out = np.empty(layout)
+            op(x, arg, out=out.transpose(1, 0, 2) if imu_major else out)
+            return out
+
+        f = converted(acc, np.multiply, self._acc_factor)
         if self.relative:  # 6D: the magnetometer is not read
-            m = np.ascontiguousarray(np.broadcast_to(HEADING_FREE_FIELD, f.shape))
+            m = np.ascontiguousarray(np.broadcast_to(HEADING_FREE_FIELD, layout))
         else:
-            m = np.divide(mag, MAG_UNIT, out=np.empty(np.shape(mag)))
-        g = np.ascontiguousarray(gyr, dtype=np.float64)
+            m = converted(mag, np.divide, MAG_UNIT)
+        g = converted(gyr, np.multiply, 1.0)  # exact: a float64 copy in the asked layout
         return f, m, g
 
     def set_gains(self, **gains: float) -> None:
@@ -242,13 +248,15 @@ class VqfBank(_PhysicalBank):
         DCMs and Euler angles are computed as soon as VQF returns, while its quaternions are
         still in the processor's cache."""
         n = len(acc)
-        err = None if errors is None else np.asarray(errors, dtype=np.bool_)
+        # one pass over the flags spares the per-IMU checks of an error-free batch
+        err = None if errors is None or not np.any(errors) else np.asarray(errors, np.bool_)
         rs = self._resets(n, resets)
         R = np.empty((n, self.n, 3, 3))
         euler = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
+        by_imu = self.physical(acc, mag, gyr, imu_major=True)
         for i in range(self.n):
-            (f, m, g), valid = self._fill(i, self.physical(acc, mag, gyr, imu=i), err)
+            (f, m, g), valid = self._fill(i, tuple(x[i] for x in by_imu), err)
             cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
             for a, b in pairwise(cuts):
                 if b <= a:
@@ -270,8 +278,8 @@ class VqfBank(_PhysicalBank):
                     self.state.held_count[i] += err[first:b, i].sum(axis=0)
                 quat, bias[start:b, i] = self.vqf.process_imu(
                     i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
-                R[start:b, i] = R_run = ned_dcm_of_enu(*quat.T)  # quat: body → ENU
-                euler[start:b, i] = dcm_to_euler(R_run)
+                # quat: body → ENU
+                dcm_to_euler(ned_dcm_of_enu(*quat.T, out=R[start:b, i]), out=euler[start:b, i])
         return BankOutput(R, euler, gyro_bias=bias)
 
 

@@ -31,10 +31,11 @@ def euler_to_dcm(roll: np.ndarray | float, pitch: np.ndarray | float,
     return out
 
 
-def dcm_to_euler(R: np.ndarray) -> np.ndarray:
-    """``[..., 3, 3]`` → ``[..., 3]`` (roll, pitch, yaw) in radians (docs/filter.md step 5)."""
+def dcm_to_euler(R: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``[..., 3, 3]`` → ``[..., 3]`` (roll, pitch, yaw) in radians (docs/filter.md step 5),
+    into ``out`` when given."""
     R = np.asarray(R, dtype=np.float64)
-    euler = np.empty(R.shape[:-1])
+    euler = np.empty(R.shape[:-1]) if out is None else out
     np.arctan2(R[..., 2, 1], R[..., 2, 2], out=euler[..., 0])
     np.arcsin(np.clip(R[..., 2, 0], -1.0, 1.0), out=euler[..., 1])
     np.negative(euler[..., 1], out=euler[..., 1])

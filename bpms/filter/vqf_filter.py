@@ -43,11 +43,13 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0], axis=-1)
 
 
-def ned_dcm_of_enu(w: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+def ned_dcm_of_enu(w: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                   out: np.ndarray | None = None) -> np.ndarray:
     """Unit body → ENU quaternions, as their components ``[...]`` each (NaN allowed) → body →
     NED DCMs ``[..., 3, 3]``: ``ENU_TO_NED @ R(q)``, i.e. the rows y, x, −z of ``R(q)``,
-    each entry written once into the result (VQF's quaternions are unit: no normalisation)."""
-    R = np.empty((*w.shape, 3, 3))
+    each entry written once into the result (``out`` when given; VQF's quaternions are unit:
+    no normalisation)."""
+    R = np.empty((*w.shape, 3, 3)) if out is None else out
     x2, y2, z2 = 2.0 * x, 2.0 * y, 2.0 * z
     xx, yy, zz = x * x2, y * y2, z * z2
     xy, xz, yz = x * y2, x * z2, y * z2
