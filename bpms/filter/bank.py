@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpms.filter.mahony import N_PARAMS, MahonyState, run_batch
+from bpms.filter.rotations import dcm_to_euler
 from bpms.io.frames import N_IMUS
 from bpms.io.options import FilterOptions
 
@@ -159,12 +160,11 @@ class MahonyBank(FilterBank):
             prm = prm.copy()
             prm[:, 2:4] = 0.0
         out_R = np.empty((n, self.n, 3, 3))
-        out_e = np.empty((n, self.n, 3))
         out_wi = np.empty((n, self.n, 3)) if store_terms else self._no_terms
         out_wp = np.empty((n, self.n, 3)) if store_terms else self._no_terms
         run_batch(acc, mag, gyr, err, rs, prm, self.gravity, *self.state.arrays(),
-                  out_R, out_e, out_wi, out_wp)
-        return BankOutput(out_R, out_e, out_wi if store_terms else None,
+                  out_R, out_wi, out_wp)
+        return BankOutput(out_R, dcm_to_euler(out_R), out_wi if store_terms else None,
                           out_wp if store_terms else None)
 
 

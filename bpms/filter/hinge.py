@@ -55,6 +55,7 @@ import numba
 import numpy as np
 
 from bpms.filter.joints import HINGE_JOINTS
+from bpms.filter.rotations import dcm_to_euler
 from bpms.io.frames import N_IMUS
 
 #: (proximal, distal) IMU ids of the hinges: right and left elbow, right and left knee.
@@ -155,7 +156,7 @@ def _turn_about_vertical(M, t, i, angle):
 
 
 @numba.njit(cache=True, nogil=True)
-def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn, euler, apply):
+def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn, apply):
     """N frames: R ``[N, n, 3, 3]`` sensor → NED, C ``[N, n, 3, 3]`` segment orientations
     (Reset Zero; only their first finite frame is used, for the starting axis), gyr
     ``[N, n, 3]`` rad/s sensor axes, mag_flag ``[N, n]`` bool and mag_heading ``[N, n]`` rad
@@ -163,8 +164,7 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn, eul
     ``[h, 2]`` (proximal, distal), p (:meth:`HingeSettings.params`), state hs
     ``[h, N_HINGE_STATE]`` / sigma ``[n]`` updated in place. Writes turn ``[N, n]`` rad: the
     rotation about the world vertical (NED z) to apply to each segment (0 elsewhere); with
-    ``apply``, also turns R and C of those segments and writes their Euler angles
-    ``euler[N, n, 3]`` (roll, pitch, yaw rad) anew, in place, frame by frame (a frame's turn
+    ``apply``, also turns R and C of those segments in place, frame by frame (a frame's turn
     depends only on that frame's and earlier attitudes)."""
     tau, recover, dt, prior, min_rate = p[0], p[1], p[2], p[3], p[4]
     follow, drift, floor, clean = p[5], p[6], p[7], p[8]
@@ -251,10 +251,6 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn, eul
                 if turn[t, i] != 0.0:
                     _turn_about_vertical(R, t, i, turn[t, i])
                     _turn_about_vertical(C, t, i, turn[t, i])
-                    r20 = min(1.0, max(-1.0, R[t, i, 2, 0]))
-                    euler[t, i, 0] = math.atan2(R[t, i, 2, 1], R[t, i, 2, 2])
-                    euler[t, i, 1] = -math.asin(r20)
-                    euler[t, i, 2] = math.atan2(R[t, i, 1, 0], R[t, i, 0, 0])
 
 
 class HingeConstraint:
@@ -278,7 +274,7 @@ class HingeConstraint:
         """``[N, 18]`` rad: the turn about the vertical for each segment (R, C
         ``[N, 18, 3, 3]``, gyr ``[N, 18, 3]`` rad/s, the flags' mag ``[N, 18]`` bool and
         mag_heading_deg ``[N, 18]``); R and C are left as they are."""
-        return self._run(R, C, np.empty((0, 0, 3)), gyr, mag_flag, mag_heading_deg, False)
+        return self._run(R, C, gyr, mag_flag, mag_heading_deg, False)
 
     def apply_in_place(self, R: np.ndarray, C: np.ndarray, euler: np.ndarray,
                        gyr: np.ndarray, mag_flag: np.ndarray, mag_heading_deg: np.ndarray
@@ -289,7 +285,10 @@ class HingeConstraint:
         for a in (R, C, euler):
             if a.dtype != np.float64 or not a.flags.c_contiguous or not a.flags.writeable:
                 raise ValueError("apply_in_place needs writeable C-contiguous float64 arrays")
-        return self._run(R, C, euler, gyr, mag_flag, mag_heading_deg, True)
+        turns = self._run(R, C, gyr, mag_flag, mag_heading_deg, True)
+        turned = turns != 0.0
+        euler[turned] = dcm_to_euler(R[turned])
+        return turns
 
     def apply(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray,
               mag_heading_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -301,14 +300,14 @@ class HingeConstraint:
                             mag_heading_deg)
         return R2, C2
 
-    def _run(self, R, C, euler, gyr, mag_flag, mag_heading_deg, apply: bool) -> np.ndarray:
+    def _run(self, R, C, gyr, mag_flag, mag_heading_deg, apply: bool) -> np.ndarray:
         out = np.zeros(np.shape(R)[:2])
         run_hinges(np.ascontiguousarray(R, dtype=np.float64),
                    np.ascontiguousarray(C, dtype=np.float64),
                    np.ascontiguousarray(gyr, dtype=np.float64),
                    np.ascontiguousarray(mag_flag, dtype=np.bool_),
                    np.ascontiguousarray(np.radians(mag_heading_deg), dtype=np.float64),
-                   HINGES, self.params, self.state.hinges, self.state.sigma, out, euler, apply)
+                   HINGES, self.params, self.state.hinges, self.state.sigma, out, apply)
         return out
 
 

@@ -17,7 +17,9 @@ Per frame and IMU (all docs/filter.md):
   from the frame ("Reset_Mahony": ωI = ωP = 0, roll/pitch from the accelerometer, yaw from the
   tilt-compensated magnetometer heading); no filter step runs on that frame;
 - otherwise one step: heading with the previous roll/pitch, matrix update with the previous
-  ωI + ωP, renormalisation, drift correction, Euler angles.
+  ωI + ωP, renormalisation, drift correction. The Euler angles are not part of the loop: the
+  bank takes them from the output DCMs (:func:`bpms.filter.rotations.dcm_to_euler`, the one
+  place every filter's Euler angles come from).
 
 Failed sensors (error bits of the frame, ``errors[..., imu, sensor]``, sensor 0 accel, 1 mag,
 2 gyro): the filter *holds* that sensor's last good calibrated value and runs its step with it;
@@ -27,12 +29,13 @@ never had a good value stays uninitialised. Outputs of an uninitialised IMU are 
 
 Gains and dt are ``params = [kp_rollpitch, ki_rollpitch, kp_yaw, ki_yaw, dt]``; the batch path
 takes ``params[1, 5]`` (constant) or ``params[N, 5]`` (per frame) so they can change between
-frames. ``asin`` of ``R[2][0]`` is clamped to [-1, 1] (rounding can push it past 1 by 1e-16).
+frames. ``R[2][0]`` is clamped to [-1, 1] for the next heading's pitch (rounding can push it
+past 1 by 1e-16).
 
-Speed: the step needs only 2 ``atan2`` and 1 ``asin`` (the Euler outputs). The sines and
-cosines of the previous roll and pitch (step 1) are taken algebraically from the DCM
-(``cos φ = R22/√(R21²+R22²)``, ``sin θ = -R20``, ...) and ``sin H``, ``cos H`` from
-``(-my, mx)/√(mx²+my²)`` instead of ``sin(atan2(..))``: the same numbers up to ~1e-16.
+Speed: the step needs no ``atan2`` or ``asin`` at all. The sines and cosines of the previous
+roll and pitch (step 1) are taken algebraically from the DCM (``cos φ = R22/√(R21²+R22²)``,
+``sin θ = -R20``, ...) and ``sin H``, ``cos H`` from ``(-my, mx)/√(mx²+my²)`` instead of
+``sin(atan2(..))``: the same numbers up to ~1e-16.
 """
 
 from __future__ import annotations
@@ -62,7 +65,7 @@ def _heading(m0: float, m1: float, m2: float, roll: float, pitch: float) -> floa
 
 
 @njit(cache=True)
-def _init_imu(i, a, m, R, w_i, w_p, euler, trig):
+def _init_imu(i, a, m, R, w_i, w_p, trig):
     """"Reset_Mahony" of IMU ``i`` from accel ``a[3]`` and mag ``m[3]``."""
     for k in range(3):
         w_i[i, k] = 0.0
@@ -84,14 +87,11 @@ def _init_imu(i, a, m, R, w_i, w_p, euler, trig):
     R[i, 2, 0] = -s2
     R[i, 2, 1] = c2 * s1
     R[i, 2, 2] = c1 * c2
-    euler[i, 0] = roll
-    euler[i, 1] = pitch
-    euler[i, 2] = yaw
     trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = c1, s1, c2, s2
 
 
 @njit(cache=True)
-def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, euler, trig):
+def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, trig):
     """One filter step (docs/filter.md steps 1–5) of IMU ``i``; scalars only, no allocation."""
     # 1. heading with the previous roll and pitch; their sines and cosines were cached by the
     # previous step (or the initialisation), and sin H, cos H come without atan2.
@@ -151,12 +151,10 @@ def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, eu
     w_i[i, 0] = (w_i[i, 0] + ki * e0) + ki_y * ey0
     w_i[i, 1] = (w_i[i, 1] + ki * e1) + ki_y * ey1
     w_i[i, 2] = (w_i[i, 2] + ki * e2) + ki_y * ey2
-    # 5. Euler angles, and the sines/cosines of roll and pitch for the next heading:
+    # 5. the sines/cosines of roll and pitch for the next heading (the Euler angles
+    # themselves come from the DCM outside the loop, bpms.filter.rotations.dcm_to_euler):
     # roll = atan2(r21, r22) → cos = r22/h, sin = r21/h; pitch = -asin(r20) → sin = -r20.
     s20 = min(max(r20, -1.0), 1.0)
-    euler[i, 0] = math.atan2(r21, r22)
-    euler[i, 1] = -math.asin(s20)
-    euler[i, 2] = math.atan2(r10, r00)
     hr = math.sqrt(r21 * r21 + r22 * r22)
     if hr > 0.0:
         trig[i, 0], trig[i, 1] = r22 / hr, r21 / hr
@@ -167,7 +165,7 @@ def _step_imu(i, a, m, g, gravity, kp_rp, ki_rp, kp_y, ki_y, dt, R, w_i, w_p, eu
 
 @njit(cache=True)
 def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
-           R, w_i, w_p, euler, trig, initialised, held, held_count):
+           R, w_i, w_p, trig, initialised, held, held_count):
     """One frame for all IMUs: reset flags, failed-sensor hold, initialise or step."""
     kp_rp, ki_rp = params[KP_RP], params[KI_RP]
     kp_y, ki_y, dt = params[KP_YAW], params[KI_YAW], params[DT]
@@ -184,7 +182,7 @@ def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
                     held[i, s, k] = src[i, k]
         if not initialised[i]:
             if valid:
-                _init_imu(i, held[i, 0], held[i, 1], R, w_i, w_p, euler, trig)
+                _init_imu(i, held[i, 0], held[i, 1], R, w_i, w_p, trig)
                 initialised[i] = True
             continue
         if use_err:
@@ -192,16 +190,15 @@ def _frame(acc, mag, gyr, err, use_err, reset, use_reset, params, gravity,
                 if err[i, s]:
                     held_count[i, s] += 1
         _step_imu(i, held[i, 0], held[i, 1], held[i, 2], gravity[i], kp_rp, ki_rp, kp_y, ki_y,
-                  dt, R, w_i, w_p, euler, trig)
+                  dt, R, w_i, w_p, trig)
 
 
 @njit(cache=True)
-def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp, store_terms):
+def _store(k, R, w_i, w_p, initialised, out_R, out_wi, out_wp, store_terms):
     nan = np.nan
     for i in range(R.shape[0]):
         ok = initialised[i]
         for r in range(3):
-            out_euler[k, i, r] = euler[i, r] if ok else nan
             for c in range(3):
                 out_R[k, i, r, c] = R[i, r, c] if ok else nan
             if store_terms:
@@ -211,14 +208,13 @@ def _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
 
 @njit(cache=True, nogil=True)
 def run_batch(acc, mag, gyr, errors, resets, params, gravity,
-              R, w_i, w_p, euler, trig, initialised, held, held_count,
-              out_R, out_euler, out_wi, out_wp):
+              R, w_i, w_p, trig, initialised, held, held_count, out_R, out_wi, out_wp):
     """Filter N frames × 18 IMUs, updating the state arrays in place.
 
     acc, mag, gyr: float64 ``[N, 18, 3]`` filter inputs. errors: bool ``[N, 18, 3]`` or
     ``[0, 18, 3]`` (no error flags). resets: bool ``[N, 18]`` (re-initialise that IMU from
     frame k on) or ``[0, 18]``. params: ``[1, 5]`` or ``[N, 5]``. gravity: ``[18]`` counts/g.
-    out_R ``[N, 18, 3, 3]``, out_euler ``[N, 18, 3]``; out_wi, out_wp ``[N, 18, 3]`` or
+    out_R ``[N, 18, 3, 3]`` (NaN while an IMU is not initialised); out_wi, out_wp ``[N, 18, 3]`` or
     ``[0, 18, 3]`` to skip storing ωI, ωP.
     """
     n = acc.shape[0]
@@ -233,21 +229,20 @@ def run_batch(acc, mag, gyr, errors, resets, params, gravity,
         e = errors[k] if use_err else no_err
         z = resets[k] if use_reset else no_reset
         _frame(acc[k], mag[k], gyr[k], e, use_err, z, use_reset, p, gravity,
-               R, w_i, w_p, euler, trig, initialised, held, held_count)
-        _store(k, R, euler, w_i, w_p, initialised, out_R, out_euler, out_wi, out_wp,
-               store_terms)
+               R, w_i, w_p, trig, initialised, held, held_count)
+        _store(k, R, w_i, w_p, initialised, out_R, out_wi, out_wp, store_terms)
 
 
 class MahonyState(KernelState):
     """The filter state of ``n`` IMUs (arrays updated in place by the kernels).
 
-    R ``[n, 3, 3]`` DCM filter frame → NED; w_i, w_p ``[n, 3]`` rad/s; euler ``[n, 3]`` the
-    last (roll, pitch, yaw) rad; trig ``[n, 4]`` cos, sin of that roll and pitch;
+    R ``[n, 3, 3]`` DCM filter frame → NED; w_i, w_p ``[n, 3]`` rad/s; trig ``[n, 4]`` cos,
+    sin of the roll and pitch of R;
     initialised ``[n]``; held ``[n, 3 sensors, 3]`` the last good
     calibrated value of each sensor; held_count ``[n, 3]`` steps that used a held value.
     """
 
     LAYOUT = (("R", (3, 3), np.float64, np.eye(3)), ("w_i", (3,), np.float64, 0.0),
-              ("w_p", (3,), np.float64, 0.0), ("euler", (3,), np.float64, 0.0),
-              ("trig", (4,), np.float64, 0.0), ("initialised", (), np.bool_, False),
+              ("w_p", (3,), np.float64, 0.0), ("trig", (4,), np.float64, 0.0),
+              ("initialised", (), np.bool_, False),
               ("held", (3, 3), np.float64, 0.0), ("held_count", (3,), np.int64, 0))

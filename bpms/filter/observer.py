@@ -56,6 +56,7 @@ import numpy as np
 from numba import njit
 
 from bpms.filter.kernel_state import KernelState
+from bpms.filter.rotations import dcm_to_euler
 from bpms.io.frames import N_IMUS
 
 #: Indices into ``params``.
@@ -340,16 +341,17 @@ def _frame(f, m, g, err, use_err, reset, use_reset, p, q, bias, lp, acc_est, mag
 @njit(cache=True, nogil=True)
 def run_batch(f, m, g, errors, resets, trust, params, q, bias, lp, acc_est, mag_state,
               mag_dist, gprev, rest, rest_b, initialised, held, held_count, R, out_R,
-              out_euler, out_q, out_bias, out_acc, out_mag_dist):
+              out_q, out_bias, out_acc, out_mag_dist):
     """Filter N samples × n IMUs, updating the state arrays in place.
 
     f (m/s²), m (any unit), g (rad/s): float64 ``[N, n, 3]``; errors bool ``[N, n, 3]`` or
     ``[0, n, 3]``; resets bool ``[N, n]`` or ``[0, n]``; trust float ``[N, n]`` (heading trust
     0–1) or ``[0, n]`` (1 everywhere); params ``[N_PARAMS]``. Outputs
-    (NaN while an IMU is not initialised): out_R ``[N, n, 3, 3]`` body → NED, out_euler
-    ``[N, n, 3]`` rad; optional (``[0, …]`` to skip, each on its own): out_q ``[N, n, 4]``,
-    out_bias ``[N, n, 3]`` rad/s, out_acc ``[N, n, 3]`` body acceleration m/s² (NED),
-    out_mag_dist ``[N, n]`` bool (heading correction skipped on that sample).
+    (NaN while an IMU is not initialised): out_R ``[N, n, 3, 3]`` body → NED (its Euler
+    angles: :func:`bpms.filter.rotations.dcm_to_euler`); optional (``[0, …]`` to skip, each
+    on its own): out_q ``[N, n, 4]``, out_bias ``[N, n, 3]`` rad/s, out_acc ``[N, n, 3]``
+    body acceleration m/s² (NED), out_mag_dist ``[N, n]`` bool (heading correction skipped
+    on that sample).
     """
     use_err = errors.shape[0] > 0
     use_reset = resets.shape[0] > 0
@@ -367,13 +369,7 @@ def run_batch(f, m, g, errors, resets, trust, params, q, bias, lp, acc_est, mag_
                held_count, R)
         for i in range(f.shape[1]):
             ok = initialised[i]
-            if ok:
-                out_euler[k, i, 0] = math.atan2(R[i, 2, 1], R[i, 2, 2])
-                out_euler[k, i, 1] = -math.asin(min(1.0, max(-1.0, R[i, 2, 0])))
-                out_euler[k, i, 2] = math.atan2(R[i, 1, 0], R[i, 0, 0])
             for r in range(3):
-                if not ok:
-                    out_euler[k, i, r] = nan
                 for c in range(3):
                     out_R[k, i, r, c] = R[i, r, c] if ok else nan
             if out_q.shape[0] > 0:
@@ -490,13 +486,14 @@ class Observer:
         unknown = set(keep) - {"q", "bias", "acc"}
         if unknown:
             raise ValueError(f"Observer.process cannot keep {sorted(unknown)}")
-        out = ObserverOutput(np.empty((N, self.n, 3, 3)), np.empty((N, self.n, 3)),
+        out = ObserverOutput(np.empty((N, self.n, 3, 3)), np.empty(0),
                              *(np.empty((N if name in keep else 0, self.n, width))
                                for name, width in (("q", 4), ("bias", 3), ("acc", 3))))
         tr = (np.ones((0, self.n)) if trust is None
               else np.ascontiguousarray(trust, dtype=np.float64))
         run_batch(f, m, g, err, rs, tr, self.gains.params(), *self.state.arrays(), out.R,
-                  out.euler, out.q, out.bias, out.acc, np.empty((0, self.n), np.bool_))
+                  out.q, out.bias, out.acc, np.empty((0, self.n), np.bool_))
+        out.euler = dcm_to_euler(out.R)
         for name in {"q", "bias", "acc"} - set(keep):
             setattr(out, name, None)
         return out
