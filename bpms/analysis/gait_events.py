@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from bpms.analysis.track import _keep_apart, _peaks
+from bpms.analysis.track import keep_apart, local_peaks
 from bpms.filter.rotations import rotation_vector
 
 #: Shank IMUs of the suit (numbering of docs/suit.md, 0-based).
@@ -72,14 +72,14 @@ def lateral_gyro_rate(C: np.ndarray, R: np.ndarray, gyro: np.ndarray) -> np.ndar
 def _swing_strikes(rate: np.ndarray, t: np.ndarray, min_swing_rate: float,
                    swing_fraction: float, min_gap_s: float) -> tuple[list[int], list[float]]:
     r = np.nan_to_num(rate)
-    peaks = _peaks(r, min_swing_rate)
+    peaks = local_peaks(r, min_swing_rate)
     if len(peaks) == 0:
         return [], []
     typical = float(np.percentile(r[peaks], 90))
     # minimum gap per foot: of two peaks closer than the gap, the larger stays
     apart: list[tuple[float, float, int]] = []
     for k in peaks[r[peaks] >= swing_fraction * typical]:
-        _keep_apart(apart, (t[k], r[k], int(k)), min_gap_s)
+        keep_apart(apart, (t[k], r[k], int(k)), min_gap_s)
     kept = [k for _, _, k in apart]
     strikes, swing = [], []
     for n, k in enumerate(kept):

@@ -43,7 +43,7 @@ class Track:
         return float(np.linalg.norm(self.steps[:, :2], axis=1).sum())
 
 
-def _peaks(mag: np.ndarray, threshold: float) -> np.ndarray:
+def local_peaks(mag: np.ndarray, threshold: float) -> np.ndarray:
     """Indices of local maxima above ``threshold``."""
     if len(mag) < 3:
         return np.zeros(0, dtype=int)
@@ -52,7 +52,7 @@ def _peaks(mag: np.ndarray, threshold: float) -> np.ndarray:
     return idx
 
 
-def _keep_apart(kept: list[tuple], item: tuple, min_interval_s: float) -> None:
+def keep_apart(kept: list[tuple], item: tuple, min_interval_s: float) -> None:
     """Append ``item`` (time s, peak, ...) to ``kept``, one foot's strikes in time order,
     unless it comes less than ``min_interval_s`` after the last one: then the larger peak of
     the two stays."""
@@ -74,8 +74,8 @@ def heel_strikes(accel_g: dict[str, np.ndarray], t: np.ndarray, threshold_g: flo
     cand: list[tuple[float, float, int, str]] = []
     for side, mag in accel_g.items():
         kept: list[tuple[float, float, int, str]] = []
-        for k in _peaks(np.nan_to_num(mag), threshold_g):
-            _keep_apart(kept, (t[k], float(mag[k]), int(k), side), min_interval_s)
+        for k in local_peaks(np.nan_to_num(mag), threshold_g):
+            keep_apart(kept, (t[k], float(mag[k]), int(k), side), min_interval_s)
         cand += kept
     cand.sort(key=lambda c: (c[2], c[3]))
     return (np.array([c[2] for c in cand], dtype=int), [c[3] for c in cand],
@@ -152,8 +152,8 @@ class TrackAccumulator(_Chunks):
         base, t_ext, mags, pos_ext = self._extend(t, accel_g, joint_positions)
         for side, m in mags.items():  # the minimum gap holds per foot, as in heel_strikes
             kept = self._kept.setdefault(side, [])
-            for k in _peaks(m, self.threshold_g):
-                _keep_apart(kept, (float(t_ext[k]), float(m[k]), int(base + k), side,
+            for k in local_peaks(m, self.threshold_g):
+                keep_apart(kept, (float(t_ext[k]), float(m[k]), int(base + k), side,
                                    pos_ext[k].copy()), self.min_interval_s)
 
     def track(self) -> Track:
@@ -242,7 +242,7 @@ class GyroTrackAccumulator(_Chunks):
             kept: list[tuple[float, float, int, float, np.ndarray]] = []
             for s in swings:
                 if s[1] >= self.swing_fraction * typical:
-                    _keep_apart(kept, s, self.min_interval_s)
+                    keep_apart(kept, s, self.min_interval_s)
             events += [(s[3], side, s[1], s[4]) for s in kept]
         events.sort(key=lambda e: (e[0], e[1]))
         return _track(np.array([e[0] for e in events]), [e[1] for e in events],

@@ -14,7 +14,6 @@ chunk (memory stays flat). Progress goes to stderr for long files.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -22,10 +21,7 @@ from pathlib import Path
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
 from bpms.commands._shared import add_sources, refuse_existing
-from bpms.io.options import FilterOptions
-
-FILTER_CHOICES = tuple(next(f for f in dataclasses.fields(FilterOptions)
-                            if f.name == "algorithm").metadata["choices"])
+from bpms.io.options import ALGORITHMS
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -47,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_sources(parser)
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     parser.add_argument("--filter", metavar="NAME",
-                        help="attitude filter for all 18 IMUs: " + ", ".join(FILTER_CHOICES)
+                        help="attitude filter for all 18 IMUs: " + ", ".join(ALGORITHMS)
                              + " (default: the options' [filter] algorithm, normally mahony; "
                              "docs/filters.md)")
     add_reset_zero_option(parser)
@@ -66,8 +62,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.io.filtered_file.writer import FilteredWriter, default_output_path
 
     t_start = time.perf_counter()
-    if args.filter is not None and args.filter not in FILTER_CHOICES:
-        raise CliError(f"unknown filter '{args.filter}' (choose {', '.join(FILTER_CHOICES)})")
+    if args.filter is not None and args.filter not in ALGORITHMS:
+        raise CliError(f"unknown filter '{args.filter}' (choose {', '.join(ALGORITHMS)})")
     out_path = refuse_existing(Path(args.output) if args.output
                                else default_output_path(args.raw_file), args.force)
     opened = open_recording_for("filter", args.raw_file, args.calibration, args.options,

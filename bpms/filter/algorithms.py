@@ -33,9 +33,8 @@ from bpms.filter.kernel_state import KernelState
 from bpms.filter.observer import ADAPTIVE, Observer, ObserverGains
 from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.vqf_filter import VqfFilters, ned_dcm_of_enu
-from bpms.io.options import FilterOptions
+from bpms.io.options import ALGORITHMS, FilterOptions
 
-ALGORITHMS = ("mahony", "observer", "vqf", "adaptive")
 G_MS2 = 9.81
 MAG_UNIT = 100.0
 

@@ -61,10 +61,12 @@ HEADING_TEXT: dict[str, str] = {
     "relative": "relative to the start (6D: no magnetometer)",
 }
 HEADINGS = tuple(HEADING_TEXT)
+#: the attitude filters by their option names (bpms.filter.algorithms builds each)
+ALGORITHMS = ("mahony", "observer", "vqf", "adaptive")
 
 VALID_RANGES: dict[str, dict[str, Range]] = {
     "filter": {
-        "algorithm": Range(choices=("mahony", "observer", "vqf", "adaptive")),
+        "algorithm": Range(choices=ALGORITHMS),
         "kp_rollpitch": Range(0.0, 0.18, why="monotone correction: kp·Gravity·dt ≤ 1 "
                                              "(Gravity ≤ 275 counts, dt 0.02 s)"),
         "ki_rollpitch": Range(0.0, 0.002, why="PI loop stable while ki ≪ kp; 100× factory"),
