@@ -287,7 +287,8 @@ class HingeConstraint:
                 raise ValueError("apply_in_place needs writeable C-contiguous float64 arrays")
         turns = self._run(R, C, gyr, mag_flag, mag_heading_deg, True)
         turned = turns != 0.0
-        euler[turned] = dcm_to_euler(R[turned])
+        if turned.any():  # most live frames turn nothing: no call at all
+            euler[turned] = dcm_to_euler(R[turned])
         return turns
 
     def apply(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray,
