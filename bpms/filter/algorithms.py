@@ -31,7 +31,6 @@ import numpy as np
 from bpms.filter.bank import HEADING_FREE_FIELD, BankOutput, FilterBank, MahonyBank
 from bpms.filter.kernel_state import KernelState
 from bpms.filter.observer import ADAPTIVE, Observer, ObserverGains
-from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.vqf_filter import VqfFilters, ned_dcm_of_enu
 from bpms.io.options import ALGORITHMS, FilterOptions
 
@@ -176,7 +175,7 @@ class ObserverBank(_PhysicalBank):
         trust = np.zeros((n, self.n)) if self.relative else mag_trust
         out = self.observer.process(f, m, g, errors, self._resets(n, resets),
                                     keep=("bias", "acc"), trust=trust)
-        return BankOutput(out.R, out.euler, gyro_bias=out.bias, body_acc=out.acc)
+        return BankOutput(out.R, gyro_bias=out.bias, body_acc=out.acc)
 
 
 class AdaptiveBank(ObserverBank):
@@ -244,14 +243,13 @@ class VqfBank(_PhysicalBank):
                 errors: np.ndarray | None = None,
                 resets: np.ndarray | None = None) -> BankOutput:
         """Filter N frames (VQF's batch API per IMU and per run between resets). Each run's
-        DCMs and Euler angles are computed as soon as VQF returns, while its quaternions are
+        DCMs are computed as soon as VQF returns, while its quaternions are
         still in the processor's cache."""
         n = len(acc)
         # one pass over the flags spares the per-IMU checks of an error-free batch
         err = None if errors is None or not np.any(errors) else np.asarray(errors, np.bool_)
         rs = self._resets(n, resets)
         R = np.empty((n, self.n, 3, 3))
-        euler = np.empty((n, self.n, 3))
         bias = np.empty((n, self.n, 3))
         by_imu = self.physical(acc, mag, gyr, imu_major=True)
         for i in range(self.n):
@@ -266,7 +264,7 @@ class VqfBank(_PhysicalBank):
                 if not self.state.initialised[i]:
                     ok = np.flatnonzero(valid[a:b])
                     start = b if len(ok) == 0 else a + int(ok[0])
-                    for x in (R, euler, bias):  # no attitude before the aligning frame
+                    for x in (R, bias):  # no attitude before the aligning frame
                         x[a:start, i] = np.nan
                     if start == b:
                         continue
@@ -277,9 +275,8 @@ class VqfBank(_PhysicalBank):
                     self.state.held_count[i] += err[first:b, i].sum(axis=0)
                 quat, bias[start:b, i] = self.vqf.process_imu(
                     i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
-                # quat: body → ENU
-                dcm_to_euler(ned_dcm_of_enu(*quat.T, out=R[start:b, i]), out=euler[start:b, i])
-        return BankOutput(R, euler, gyro_bias=bias)
+                ned_dcm_of_enu(*quat.T, out=R[start:b, i])  # quat: body → ENU
+        return BankOutput(R, gyro_bias=bias)
 
 
 __all__ = ["ALGORITHMS", "AdaptiveBank", "AttitudeBank", "ObserverBank", "VqfBank",

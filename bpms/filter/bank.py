@@ -3,8 +3,10 @@
 
 Inputs are calibrated filter-frame vectors (``SensorCalibration.calibrate``): accel in Gravity
 counts pointing down, mag ±100, gyro rad/s, ``[N, 18, 3]`` (a live frame is N = 1).
-Outputs: DCM ``[N, 18, 3, 3]`` (filter frame → NED), Euler ``[N, 18, 3]`` (roll, pitch, yaw)
-rad, ωI and ωP ``[N, 18, 3]`` rad/s; NaN for an IMU that is not initialised.
+Outputs: DCM ``[N, 18, 3, 3]`` (filter frame → NED) and ωI, ωP ``[N, 18, 3]`` rad/s; NaN for
+an IMU that is not initialised. The Euler angles are not a filter output: they are computed
+once per batch from the final DCMs (:meth:`bpms.filter.processor.BodyPoseProcessor.process`),
+or on read from :attr:`BankOutput.euler`.
 """
 
 from __future__ import annotations
@@ -24,13 +26,17 @@ class BankOutput:
     """Filter outputs of N frames (see the module docstring for units)."""
 
     R: np.ndarray
-    euler: np.ndarray
     w_i: np.ndarray | None = None
     w_p: np.ndarray | None = None
     #: gyro-bias estimate ``[.., n, 3]`` rad/s (body axes) of the filters that have one
     gyro_bias: np.ndarray | None = None
     #: body (linear) acceleration estimate ``[.., n, 3]`` m/s², NED, where estimated
     body_acc: np.ndarray | None = None
+
+    @property
+    def euler(self) -> np.ndarray:
+        """Roll, pitch, yaw ``[.., n, 3]`` rad of :attr:`R`, computed on each read."""
+        return dcm_to_euler(self.R)
 
 
 def checked_gravity(gravity: np.ndarray) -> np.ndarray:
@@ -164,7 +170,7 @@ class MahonyBank(FilterBank):
         out_wp = np.empty((n, self.n, 3)) if store_terms else self._no_terms
         run_batch(acc, mag, gyr, err, rs, prm, self.gravity, *self.state.arrays(),
                   out_R, out_wi, out_wp)
-        return BankOutput(out_R, dcm_to_euler(out_R), out_wi if store_terms else None,
+        return BankOutput(out_R, out_wi if store_terms else None,
                           out_wp if store_terms else None)
 
 

@@ -146,7 +146,6 @@ def renorm_allowance(bank: Any) -> float:
 # -- the guarded batch ------------------------------------------------------------------------
 def _mark(out: BankOutput, rows: np.ndarray, imus: np.ndarray) -> None:
     out.R[rows, imus] = np.nan
-    out.euler[rows, imus] = np.nan
 
 
 def _concat(parts: list[BankOutput]) -> BankOutput:

@@ -55,7 +55,6 @@ import numba
 import numpy as np
 
 from bpms.filter.joints import HINGE_JOINTS
-from bpms.filter.rotations import dcm_to_euler
 from bpms.io.frames import N_IMUS
 
 #: (proximal, distal) IMU ids of the hinges: right and left elbow, right and left knee.
@@ -276,20 +275,14 @@ class HingeConstraint:
         mag_heading_deg ``[N, 18]``); R and C are left as they are."""
         return self._run(R, C, gyr, mag_flag, mag_heading_deg, False)
 
-    def apply_in_place(self, R: np.ndarray, C: np.ndarray, euler: np.ndarray,
-                       gyr: np.ndarray, mag_flag: np.ndarray, mag_heading_deg: np.ndarray
-                       ) -> np.ndarray:
+    def apply_in_place(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray,
+                       mag_flag: np.ndarray, mag_heading_deg: np.ndarray) -> np.ndarray:
         """Turn the segments of ``R``, ``C`` (C-contiguous float64 ``[N, 18, 3, 3]``) by
-        :meth:`turns`, in place, and write the turned ones' ``euler[N, 18, 3]`` anew; the
-        turns."""
-        for a in (R, C, euler):
+        :meth:`turns`, in place; the turns."""
+        for a in (R, C):
             if a.dtype != np.float64 or not a.flags.c_contiguous or not a.flags.writeable:
                 raise ValueError("apply_in_place needs writeable C-contiguous float64 arrays")
-        turns = self._run(R, C, gyr, mag_flag, mag_heading_deg, True)
-        turned = turns != 0.0
-        if turned.any():  # most live frames turn nothing: no call at all
-            euler[turned] = dcm_to_euler(R[turned])
-        return turns
+        return self._run(R, C, gyr, mag_flag, mag_heading_deg, True)
 
     def apply(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray, mag_flag: np.ndarray,
               mag_heading_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -297,8 +290,7 @@ class HingeConstraint:
         :meth:`turns`."""
         R2 = np.array(R, dtype=np.float64)
         C2 = np.array(C, dtype=np.float64)
-        self.apply_in_place(R2, C2, np.empty((*R2.shape[:2], 3)), gyr, mag_flag,
-                            mag_heading_deg)
+        self.apply_in_place(R2, C2, gyr, mag_flag, mag_heading_deg)
         return R2, C2
 
     def _run(self, R, C, gyr, mag_flag, mag_heading_deg, apply: bool) -> np.ndarray:

@@ -17,9 +17,9 @@ Per frame and IMU (all docs/filter.md):
   from the frame ("Reset_Mahony": ωI = ωP = 0, roll/pitch from the accelerometer, yaw from the
   tilt-compensated magnetometer heading); no filter step runs on that frame;
 - otherwise one step: heading with the previous roll/pitch, matrix update with the previous
-  ωI + ωP, renormalisation, drift correction. The Euler angles are not part of the loop: the
-  bank takes them from the output DCMs (:func:`bpms.filter.rotations.dcm_to_euler`, the one
-  place every filter's Euler angles come from).
+  ωI + ωP, renormalisation, drift correction. The Euler angles are not part of the loop: they
+  come from the final DCMs (:func:`bpms.filter.rotations.dcm_to_euler`, the one place every
+  filter's Euler angles come from, called once per batch by the processor).
 
 Failed sensors (error bits of the frame, ``errors[..., imu, sensor]``, sensor 0 accel, 1 mag,
 2 gyro): the filter *holds* that sensor's last good calibrated value and runs its step with it;

@@ -451,14 +451,18 @@ class ObserverState(KernelState):
 
 @dataclass
 class ObserverOutput:
-    """R ``[N, n, 3, 3]`` body → NED, euler ``[N, n, 3]`` rad; when asked for: q
-    ``[N, n, 4]``, bias ``[N, n, 3]`` rad/s, acc ``[N, n, 3]`` body acceleration (NED, m/s²)."""
+    """R ``[N, n, 3, 3]`` body → NED; when asked for: q ``[N, n, 4]``, bias ``[N, n, 3]``
+    rad/s, acc ``[N, n, 3]`` body acceleration (NED, m/s²)."""
 
     R: np.ndarray
-    euler: np.ndarray
     q: np.ndarray | None = None
     bias: np.ndarray | None = None
     acc: np.ndarray | None = None
+
+    @property
+    def euler(self) -> np.ndarray:
+        """Roll, pitch, yaw ``[N, n, 3]`` rad of :attr:`R`, computed on each read."""
+        return dcm_to_euler(self.R)
 
 
 class Observer:
@@ -486,14 +490,13 @@ class Observer:
         unknown = set(keep) - {"q", "bias", "acc"}
         if unknown:
             raise ValueError(f"Observer.process cannot keep {sorted(unknown)}")
-        out = ObserverOutput(np.empty((N, self.n, 3, 3)), np.empty(0),
+        out = ObserverOutput(np.empty((N, self.n, 3, 3)),
                              *(np.empty((N if name in keep else 0, self.n, width))
                                for name, width in (("q", 4), ("bias", 3), ("acc", 3))))
         tr = (np.ones((0, self.n)) if trust is None
               else np.ascontiguousarray(trust, dtype=np.float64))
         run_batch(f, m, g, err, rs, tr, self.gains.params(), *self.state.arrays(), out.R,
                   out.q, out.bias, out.acc, np.empty((0, self.n), np.bool_))
-        out.euler = dcm_to_euler(out.R)
         for name in {"q", "bias", "acc"} - set(keep):
             setattr(out, name, None)
         return out

@@ -68,6 +68,7 @@ from bpms.filter.guard import StateGuard, failed_inputs, guarded_process
 from bpms.filter.hinge import HingeConstraint
 from bpms.filter.pose import PoseCalibrator, zero_values
 from bpms.filter.result import Result
+from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.warmup import ensure_kernels, kernels_ready
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
@@ -327,7 +328,8 @@ class BodyPoseProcessor:
                                              **terms)
         before = len(self.pose.captures)
         C = self.pose.apply(out.R)
-        R, euler, C = self._hinge(out.R, out.euler, C, gyr, disturbance)
+        R, C = self._hinge(out.R, C, gyr, disturbance)
+        euler = dcm_to_euler(R)  # once, from the final DCMs (after the hinge turned them)
         n = len(raw)
         t = stream_times(self.frames, n, self.options.filter.dt)
         self.frames += n
@@ -344,16 +346,16 @@ class BodyPoseProcessor:
                       reinitialised=reinitialised, reinit_count=self.guard.count.copy(),
                       corrected=corrected, convention=self.options.joints.convention)
 
-    def _hinge(self, R: np.ndarray, euler: np.ndarray, C: np.ndarray, gyr: np.ndarray,
-               disturbance: Disturbance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The knees' and elbows' heading constraint: (R, euler, C) with the segments it turns
+    def _hinge(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray,
+               disturbance: Disturbance) -> tuple[np.ndarray, np.ndarray]:
+        """The knees' and elbows' heading constraint: (R, C) with the segments it turns
         turned about the vertical. A segment's heading is uncertain while its magnetometer is
         flagged, by as much as this filter follows a flagged field (its heading gain, or the
         gyro's drift for the observers, which coast); in the 6D mode every heading is, by its
         drift alone."""
         f = self.options.filter
         if self.hinge is None:
-            return R, euler, C
+            return R, C
         if f.heading == "relative":
             flagged, deviation = np.ones_like(disturbance.mag), np.zeros(disturbance.mag.shape)
             rate = 0.0
@@ -363,9 +365,9 @@ class BodyPoseProcessor:
             # observers coast on the gyro (a tenth of their gain, and their own rejection)
             rate = {"mahony": f.kp_yaw, "vqf": 1.0 / f.vqf_tau_mag_s}.get(f.algorithm, 0.0)
         self.hinge.set_follow_rate(rate)
-        # R, euler (the bank's) and C (Reset Zero's) are this batch's own arrays
-        self.hinge.apply_in_place(R, C, euler, gyr, flagged, deviation)
-        return R, euler, C
+        # R (the bank's) and C (Reset Zero's) are this batch's own arrays
+        self.hinge.apply_in_place(R, C, gyr, flagged, deviation)
+        return R, C
 
     def step(self, raw: np.ndarray, errors: np.ndarray | None = None) -> Result:
         """Filter one live frame (``raw[18, 9]``, ``errors[18, 3]``): :meth:`process` of a

@@ -220,8 +220,8 @@ def _run_part(part: str) -> None:
         flagged[1, 0] = True
         heading_deg = np.where(flagged, 10.0, 0.0)
         level = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, N_IMUS, 3, 3)))
-        HingeConstraint(0.02).apply_in_place(level.copy(), level.copy(),
-                                             np.zeros((n, N_IMUS, 3)), gyr, flagged, heading_deg)
+        HingeConstraint(0.02).apply_in_place(level.copy(), level.copy(), gyr, flagged,
+                                             heading_deg)
     _done_parts.add(part)
 
 
