@@ -174,6 +174,15 @@ class OpenedRecording:
         """The recording stores its session's events (raw format version 2)."""
         return self.file is not None and self.file.has_events
 
+    def use_reset_zero(self, choice: ResetZeroChoice | None = None) -> None:
+        """Set which Reset Zero applies (``choice``, or the current :attr:`reset_zero`): the
+        processor's own provisional and automatic captures follow from it (in force from its
+        next restart)."""
+        if choice is not None:
+            self.reset_zero = choice
+        self.processor.pose.auto = self.reset_zero.automatic(self.has_events)
+        self.processor.pose.provisional = self.reset_zero.provisional(self.has_events)
+
     def chunks(self, zero_at_s: Sequence[float] = (), progress: Progress | None = None,
                chunk_frames: int = CHUNK_FRAMES,
                zero_at_frames: Sequence[int] = ()) -> Iterator[Chunk]:
@@ -188,8 +197,7 @@ class OpenedRecording:
         extra = sorted({round(t / dt) for t in zero_at_s} | {int(k) for k in zero_at_frames}
                        | set(choice.frames(dt)))
         label = f"filtering {self.path.name}"
-        proc.pose.auto = choice.automatic(self.has_events)
-        proc.pose.provisional = choice.provisional(self.has_events)
+        self.use_reset_zero()
         proc.restart()
         if self.kind == "filtered":
             source = self._filtered_chunks(extra, chunk_frames)
@@ -447,13 +455,12 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         cal, calibration_source = resolve_calibration(calibration, header, str(path), problems)
     processor = BodyPoseProcessor(cal, opts)
     processor.calibration_source, processor.options_source = calibration_source, options_source
-    has_events = file is not None and file.has_events
-    processor.pose.auto = choice.automatic(has_events)  # (in force from its next restart)
-    processor.pose.provisional = choice.provisional(has_events)
     problems.extend(processor.problems)
-    return OpenedRecording(path, kind, header, int(n), processor, calibration_source,
-                           options_source, problems, recording, file, choice, settings_given,
-                           first_time)
+    opened = OpenedRecording(path, kind, header, int(n), processor, calibration_source,
+                             options_source, problems, recording, file, choice, settings_given,
+                             first_time)
+    opened.use_reset_zero()
+    return opened
 
 
 def _count_rows(path: Path) -> int:

@@ -238,10 +238,7 @@ class SessionRunner:
         opened, replay = self._opened, self.replay
         if opened is None or replay is None:
             return
-        opened.reset_zero = ResetZeroChoice.parse(choice)
-        proc = opened.processor
-        proc.pose.auto = opened.reset_zero.automatic(opened.has_events)
-        proc.pose.provisional = opened.reset_zero.provisional(opened.has_events)
+        opened.use_reset_zero(ResetZeroChoice.parse(choice))
         replay.set_events(opened.replay_events(replay.recording.events))
         replay.seek(0)  # a new stream: the filters and Reset Zero start again
 
