@@ -19,7 +19,7 @@ Per frame and IMU (all docs/filter.md):
 - otherwise one step: heading with the previous roll/pitch, matrix update with the previous
   ωI + ωP, renormalisation, drift correction. The Euler angles are not part of the loop: they
   come from the final DCMs (:func:`bpms.filter.rotations.dcm_to_euler`, the one place every
-  filter's Euler angles come from, called once per batch by the processor).
+  filter's Euler angles come from, called for a whole Result when they are first read).
 
 Failed sensors (error bits of the frame, ``errors[..., imu, sensor]``, sensor 0 accel, 1 mag,
 2 gyro): the filter *holds* that sensor's last good calibrated value and runs its step with it;

@@ -68,7 +68,6 @@ from bpms.filter.guard import StateGuard, failed_inputs, guarded_process
 from bpms.filter.hinge import HingeConstraint
 from bpms.filter.pose import PoseCalibrator, zero_values
 from bpms.filter.result import Result
-from bpms.filter.rotations import dcm_to_euler
 from bpms.filter.warmup import ensure_kernels, kernels_ready
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
@@ -329,7 +328,6 @@ class BodyPoseProcessor:
         before = len(self.pose.captures)
         C = self.pose.apply(out.R)
         R, C = self._hinge(out.R, C, gyr, disturbance)
-        euler = dcm_to_euler(R)  # once, from the final DCMs (after the hinge turned them)
         n = len(raw)
         t = stream_times(self.frames, n, self.options.filter.dt)
         self.frames += n
@@ -339,7 +337,8 @@ class BodyPoseProcessor:
         # corrected from the first Reset Zero capture on (C is all NaN before it; a segment
         # orientation is finite or NaN as a whole)
         corrected = self.corrected_output & np.isfinite(C[..., 0, 0]).any(axis=1)
-        return Result(t=t, R=R, euler=euler, C=C, body=self.options.body,
+        # the Euler angles follow from the final R (after the hinge turned it) when read
+        return Result(t=t, R=R, C=C, body=self.options.body,
                       held_count=self.bank.held_count, zeros=self.pose.captures[before:],
                       gyro_bias=bias, body_acc=out.body_acc,
                       disturbance=disturbance,

@@ -19,12 +19,39 @@ import numpy as np
 
 from bpms.filter.disturbance import Disturbance
 from bpms.filter.pose import Zero, body_outputs, segment_angles
-from bpms.filter.rotations import dcm_to_quaternion
+from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
 from bpms.io.frames import N_IMUS
 from bpms.io.options import BodyOptions
 
 #: Result fields that are running totals (the last part's value stands for the whole stream).
 _RUNNING_FIELDS = frozenset({"held_count", "reinit_count"})
+
+
+class _SensorEuler:
+    """The field ``Result.euler``: the array given to the constructor, else the Euler angles
+    of ``R`` (:func:`bpms.filter.rotations.dcm_to_euler`) computed for the whole batch when
+    first read, as every other number derived from a Result is. A live frame whose angles
+    nobody reads (the filtered file reads them once a second, for its whole batch) costs no
+    Euler call. A data descriptor used as a dataclass field (Python's "descriptor-typed
+    fields"): ``Result(..., euler=None)`` or no ``euler`` leaves it to be computed."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = f"_{name}_value"
+
+    def __get__(self, result: Result | None, owner: type | None = None) -> np.ndarray | None:
+        if result is None:
+            return None  # the dataclass field's default
+        value = result.__dict__.get(self.slot)
+        if value is None:
+            value = result.__dict__[self.slot] = dcm_to_euler(result.R)
+        return value
+
+    def __set__(self, result: Result, value: np.ndarray | None) -> None:
+        result.__dict__[self.slot] = value
+
+    def known(self, result: Result) -> bool:
+        """Whether the value is there without computing it (given, or read before)."""
+        return result.__dict__.get(self.slot) is not None
 
 
 @dataclass
@@ -33,7 +60,8 @@ class Result:
 
     t: ``[N]`` s since the stream started, on the fixed filter clock (frame index × dt);
     R: ``[N, 18, 3, 3]`` DCM filter frame → NED; euler (= :attr:`euler_sensor`):
-    ``[N, 18, 3]`` (roll, pitch, yaw) of R, the uncorrected sensor angles;
+    ``[N, 18, 3]`` (roll, pitch, yaw) of R, the uncorrected sensor angles (computed from R
+    when first read, unless given);
     C: ``[N, 18, 3, 3]`` segment orientations after Reset Zero (NaN before the first capture);
     :attr:`euler_segment` their Euler angles; :attr:`euler_output` the per-IMU angles to show,
     write and stream (segment angles when ``corrected``, docs/filter.md);
@@ -49,8 +77,8 @@ class Result:
 
     t: np.ndarray
     R: np.ndarray
-    euler: np.ndarray
     C: np.ndarray
+    euler: np.ndarray = _SensorEuler()  # type: ignore[assignment]
     body: BodyOptions = field(repr=False, default_factory=BodyOptions)
     held_count: np.ndarray = field(default_factory=lambda: np.zeros((N_IMUS, 3), np.int64))
     zeros: list[Zero] = field(default_factory=list, repr=False)
@@ -85,8 +113,7 @@ class Result:
     def empty(cls, body: BodyOptions, convention: str) -> Result:
         """A Result of no frames."""
         z = np.zeros((0, N_IMUS, 3, 3))
-        return cls(t=np.zeros(0), R=z, euler=np.zeros((0, N_IMUS, 3)), C=z.copy(), body=body,
-                   convention=convention)
+        return cls(t=np.zeros(0), R=z, C=z.copy(), body=body, convention=convention)
 
     @classmethod
     def allocate(cls, n: int, like: Result) -> Result:
@@ -139,6 +166,8 @@ class Result:
         last = parts[-1]
         values = {}
         for f in dataclasses.fields(Result):
+            if f.name == "euler" and not all(_EULER.known(p) for p in parts):
+                continue  # computed from the joined R when read, in one call
             items = [getattr(p, f.name) for p in parts]
             if f.name in _RUNNING_FIELDS or not isinstance(items[0], np.ndarray | list
                                                              | Disturbance):
@@ -204,6 +233,9 @@ class Result:
     def segment_quaternions(self) -> np.ndarray:
         """``[N, 18, 4]`` (w, x, y, z) of the segment orientations ``C``."""
         return _quaternions(self.C)
+
+
+_EULER: _SensorEuler = Result.__dict__["euler"]
 
 
 def _per_frame(fn: Callable, *values: np.ndarray | Disturbance) -> object:
