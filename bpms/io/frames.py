@@ -68,6 +68,12 @@ FRAME_DTYPE = np.dtype(
 assert _CLUSTER_DTYPE.itemsize == CLUSTER_SIZE
 assert FRAME_DTYPE.itemsize == FRAME_SIZE
 
+#: 16-bit words of a frame and of a cluster; the markers as big-endian words.
+FRAME_WORDS = FRAME_SIZE // 2
+_CLUSTER_WORDS = CLUSTER_SIZE // 2
+_START_WORD = int.from_bytes(START, "big")
+_END_WORD = int.from_bytes(END, "big")
+
 _ERROR_BITS = np.arange(IMUS_PER_CLUSTER * N_SENSORS, dtype=np.uint16)
 #: ``_FLAGS_OF_WORD[w]``: the 9 flags (bit ``3·slot + sensor``) of error word ``w`` (bits 9–15
 #: are zero by definition and ignored), so decoding a word is one table look-up.
@@ -158,18 +164,21 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
     if len(buf) % FRAME_SIZE:
         raise FrameError(f"{len(buf)} bytes is not a whole number of {FRAME_SIZE}-byte frames")
     n = len(buf) // FRAME_SIZE
+    # A frame is 170 big-endian 16-bit words: the start marker, 6 clusters of 28 (27 counts
+    # and the error word), the end marker. Plain words, not FRAME_DTYPE's nested fields: a live
+    # frame pays each numpy call's fixed cost, and structured fields cost several.
+    words = np.frombuffer(buf, dtype=">u2").reshape(n, FRAME_WORDS)
     if n == 1:  # a live frame: the markers compared as bytes
         if not is_frame(buf):
             raise FrameError("1 frame(s) lack the $#/#$ markers, first at index 0")
     else:
-        frames = np.frombuffer(buf, dtype=FRAME_DTYPE)
-        bad = np.flatnonzero((frames["start"] != START) | (frames["end"] != END))
+        bad = np.flatnonzero((words[:, 0] != _START_WORD) | (words[:, -1] != _END_WORD))
         if bad.size:
             raise FrameError(f"{bad.size} frame(s) lack the $#/#$ markers, first at index "
                              f"{bad[0]}")
-    clusters = np.frombuffer(buf, dtype=FRAME_DTYPE)["clusters"]
-    raw = clusters["imu"].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
-    return DecodedFrames(raw=raw, errors=error_words_to_flags(clusters["error"]))
+    clusters = words[:, 1:-1].reshape(n, N_CLUSTERS, _CLUSTER_WORDS)
+    raw = clusters[..., :-1].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
+    return DecodedFrames(raw=raw, errors=error_words_to_flags(clusters[..., -1]))
 
 
 def decode_frame(frame: bytes | bytearray | memoryview) -> DecodedFrames:
