@@ -69,6 +69,7 @@ class FilterBank:
         self.gravity = checked_gravity(gravity)
         self.n = len(self.gravity)
         self._pending_reset = np.zeros(self.n, dtype=np.bool_)
+        self._any_pending = False  # = self._pending_reset.any(), kept as a plain bool
         self._no_resets = np.zeros((0, self.n), np.bool_)
 
     def reset(self, imu: int | None = None) -> None:
@@ -77,17 +78,19 @@ class FilterBank:
             self._pending_reset[:] = True
         else:
             self._pending_reset[imu] = True
+        self._any_pending = True
 
     def _resets(self, n: int, resets: np.ndarray | None) -> np.ndarray:
         """The kernels' ``resets`` of the next ``n`` frames: ``resets[N, n]`` with the pending
         resets taken at the first frame, or ``[0, n]`` when there are none."""
-        if resets is None and not self._pending_reset.any():
+        if resets is None and not self._any_pending:
             return self._no_resets
         rs = (np.zeros((n, self.n), np.bool_) if resets is None
               else np.array(resets, dtype=np.bool_))
         if n:
             rs[0] |= self._pending_reset
             self._pending_reset[:] = False
+            self._any_pending = False
         return rs
 
     @property
@@ -106,6 +109,7 @@ class FilterBank:
         for target, saved in zip(self.state.arrays(), arrays, strict=True):
             target[...] = saved
         self._pending_reset[:] = pending
+        self._any_pending = bool(pending.any())
 
 
 class MahonyBank(FilterBank):

@@ -110,26 +110,27 @@ def _turn(vx, vy, vz, x, y, z):
 def _hold(s, t, i, acc_th, flags, values):
     """Outputs of a frame whose sensor failed: the state's."""
     ready = s[F_READY] > 0.0
-    flags[t, i, 0] = s[F_MAG_FLAG] > 0.0
-    flags[t, i, 1] = math.sqrt(s[F_ACC_MS]) > acc_th
-    values[t, i, V_NORM_RATIO] = s[F_NORM_LP] - 1.0 if ready else np.nan
-    values[t, i, V_DIP_DEV] = (s[F_DIP_LP] - s[F_REF_DIP]) * DEG if ready else np.nan
-    values[t, i, V_ACC_MEAN] = s[F_ACC_MEAN]
-    values[t, i, V_MAG_DEV] = s[F_DEV_LP] if ready else np.nan
-    values[t, i, V_MAG_HEADING] = s[F_HEAD_LP] * DEG if ready else np.nan
-    values[t, i, V_ACC_LIN] = math.sqrt(s[F_ACC_MS])
-    values[t, i, V_MAG_UP] = s[F_MAG_UP]
-    values[t, i, V_ACC_UP] = s[F_ACC_UP]
+    flags[0, t, i] = s[F_MAG_FLAG] > 0.0
+    flags[1, t, i] = math.sqrt(s[F_ACC_MS]) > acc_th
+    values[V_NORM_RATIO, t, i] = s[F_NORM_LP] - 1.0 if ready else np.nan
+    values[V_DIP_DEV, t, i] = (s[F_DIP_LP] - s[F_REF_DIP]) * DEG if ready else np.nan
+    values[V_ACC_MEAN, t, i] = s[F_ACC_MEAN]
+    values[V_MAG_DEV, t, i] = s[F_DEV_LP] if ready else np.nan
+    values[V_MAG_HEADING, t, i] = s[F_HEAD_LP] * DEG if ready else np.nan
+    values[V_ACC_LIN, t, i] = math.sqrt(s[F_ACC_MS])
+    values[V_MAG_UP, t, i] = s[F_MAG_UP]
+    values[V_ACC_UP, t, i] = s[F_ACC_UP]
 
 
 @numba.njit(cache=True, nogil=True)
-def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
+def run_disturbance(acc, mag, gyr, gravity, errors, p, state, counts, flags, values):
     """N frames × n IMUs. acc ``[N, n, 3]`` (``gravity[n]`` units per g, pointing down),
-    mag ``[N, n, 3]`` any unit, gyr ``[N, n, 3]`` rad/s; valid ``[N, n, 3]`` bool per sensor
-    (False: failed, its last good value is used, as the filters do); p
-    ``[N_FLAG_PARAMS]``; state ``[n, N_FLAG_STATE]`` (zeros: a new stream). Writes flags
-    ``[N, n, 2]`` (mag, acc) and values ``[N, n, N_VALUES]`` (columns ``V_*``; NaN where the
-    field reference is not learnt yet)."""
+    mag ``[N, n, 3]`` any unit, gyr ``[N, n, 3]`` rad/s; errors ``[N, n, 3]`` bool per sensor
+    (True: failed, its last good value is used, as the filters do) or ``[0, n, 3]`` (none
+    failed); p ``[N_FLAG_PARAMS]``; state ``[n, N_FLAG_STATE]`` (zeros: a new stream). Writes
+    flags ``[2, N, n]`` (mag, acc) and values ``[N_VALUES, N, n]`` (rows ``V_*``; NaN where
+    the field reference is not learnt yet), each row a contiguous ``[N, n]`` array, and adds
+    the flagged frames to counts ``[n, 2]``."""
     mag_th, acc_th, skew, gate = p[P_MAG_TH], p[P_ACC_TH], p[P_SKEW], p[P_ACC_GATE]
     dt = p[P_DT]
     km = 1.0 - math.exp(-dt / p[P_TAU_M])
@@ -139,10 +140,14 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
     kb = 1.0 - math.exp(-dt / p[P_BIAS_TAU])
     kmean = 1.0 - math.exp(-dt / ACC_MEAN_TAU_S)
     c12 = dt * dt / 12.0
+    use_err = errors.shape[0] > 0
     for t in range(acc.shape[0]):
         for i in range(acc.shape[1]):
             s = state[i]
-            if not valid[t, i, 2]:  # gyro failed: its last good sample (held, as the banks)
+            acc_ok = not (use_err and errors[t, i, 0])
+            mag_ok = not (use_err and errors[t, i, 1])
+            gyr_ok = not (use_err and errors[t, i, 2])
+            if not gyr_ok:  # gyro failed: its last good sample (held, as the banks)
                 gx, gy, gz = s[F_W0], s[F_W1], s[F_W2]
             else:
                 gx, gy, gz = gyr[t, i, 0], gyr[t, i, 1], gyr[t, i, 2]
@@ -154,7 +159,7 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
                 continue
             snap = s[F_INIT] == 0.0  # (re-)aligned: ĝ from the accelerometer, ĥ from the field
             if snap:
-                if not valid[t, i, 0]:
+                if not acc_ok:
                     _hold(s, t, i, acc_th, flags, values)
                     continue
                 an = math.sqrt(acc[t, i, 0] ** 2 + acc[t, i, 1] ** 2 + acc[t, i, 2] ** 2)
@@ -177,7 +182,7 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
             h0, h1, h2 = _turn(-vx, -vy, -vz, s[F_H0], s[F_H1], s[F_H2])
             rate = math.sqrt(gx * gx + gy * gy + gz * gz)
             # 2. acceleration: a (g) against ĝ
-            if valid[t, i, 0]:
+            if acc_ok:
                 a0, a1, a2 = (acc[t, i, 0] / gravity[i], acc[t, i, 1] / gravity[i],
                               acc[t, i, 2] / gravity[i])
                 an = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
@@ -214,11 +219,11 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
                 s[F_G0], s[F_G1], s[F_G2] = g0, g1, g2
                 s[F_ACC_MS] = 0.0
                 snap = True
-            if rested and valid[t, i, 2]:
+            if rested and gyr_ok:
                 s[F_B0] += kb * (gx - s[F_B0])
                 s[F_B1] += kb * (gy - s[F_B1])
                 s[F_B2] += kb * (gz - s[F_B2])
-            mok = valid[t, i, 1]
+            mok = mag_ok
             m0, m1, m2 = mag[t, i, 0], mag[t, i, 1], mag[t, i, 2]
             mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
             mok = mok and mn > 0.0
@@ -293,7 +298,10 @@ def run_disturbance(acc, mag, gyr, gravity, valid, p, state, flags, values):
                 s[F_MAG_UP] = s[F_MAG_UP] + dt if mflag else 0.0
             s[F_H0], s[F_H1], s[F_H2] = h0, h1, h2
             _hold(s, t, i, acc_th, flags, values)
-            flags[t, i, 1] = aflag
+            flags[1, t, i] = aflag
+        for i in range(acc.shape[1]):
+            counts[i, 0] += flags[0, t, i]
+            counts[i, 1] += flags[1, t, i]
 
 
 @dataclass
@@ -343,6 +351,7 @@ class DisturbanceTracker:
         self.params = self.settings.params(dt)
         self.state = np.zeros((self.n, N_FLAG_STATE))
         self._counts = np.zeros((self.n, 2), np.int64)  # flagged frames: mag, acc
+        self._no_errors = np.zeros((0, self.n, 3), np.bool_)
 
     @property
     def mag_count(self) -> np.ndarray:
@@ -377,14 +386,13 @@ class DisturbanceTracker:
         mag = np.ascontiguousarray(mag, dtype=np.float64)
         gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         N = acc.shape[0]
-        valid = (np.ones((N, self.n, 3), np.bool_) if errors is None
-                 else np.ascontiguousarray(~np.asarray(errors, dtype=np.bool_)))
-        flags = np.zeros((N, self.n, 2), np.bool_)
-        values = np.empty((N, self.n, N_VALUES))
-        run_disturbance(acc, mag, gyr, self.gravity, valid, self.params, self.state, flags, values)
-        self._counts += flags.sum(axis=0)
-        v = values.transpose(2, 0, 1)
-        return Disturbance(flags[..., 0], flags[..., 1], v[V_MAG_DEV], v[V_MAG_HEADING],
+        errors = (self._no_errors if errors is None
+                  else np.ascontiguousarray(errors, dtype=np.bool_))
+        flags = np.empty((2, N, self.n), np.bool_)
+        v = np.empty((N_VALUES, N, self.n))
+        run_disturbance(acc, mag, gyr, self.gravity, errors, self.params, self.state,
+                        self._counts, flags, v)
+        return Disturbance(flags[0], flags[1], v[V_MAG_DEV], v[V_MAG_HEADING],
                            v[V_ACC_LIN], v[V_MAG_UP], v[V_ACC_UP], v[V_NORM_RATIO],
                            v[V_DIP_DEV], v[V_ACC_MEAN])
 

@@ -54,11 +54,12 @@ def so3_error(R: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _check(R, gyr, c4, tol, expected, bad, seen):
-    """The loop of :func:`check_rotations` (``gyr`` may be ``[0, n, 3]``: no allowance)."""
+def _check(R, gyr, c4, tol, expected, bad):
+    """The loop of :func:`check_rotations` (``gyr`` may be ``[0, n, 3]``: no allowance);
+    returns the number of bad entries."""
     use_rate = c4 > 0.0 and gyr.shape[0] > 0
-    for i in range(R.shape[1]):
-        seen[i] = expected[i]
+    n_bad = 0
+    seen = expected.copy()
     for k in range(R.shape[0]):
         for i in range(R.shape[1]):
             finite = True
@@ -68,6 +69,7 @@ def _check(R, gyr, c4, tol, expected, bad, seen):
                         finite = False
             if not finite:
                 bad[k, i] = seen[i]
+                n_bad += seen[i]
                 continue
             err2 = 0.0
             for a in range(3):
@@ -83,25 +85,29 @@ def _check(R, gyr, c4, tol, expected, bad, seen):
                 if math.isfinite(w2):
                     limit += c4 * w2 * w2
             bad[k, i] = not (err2 <= limit * limit)  # NaN / overflow count as bad
+            n_bad += bad[k, i]
             seen[i] = True
+    if n_bad == 0:
+        expected[:] = seen
+    return n_bad
 
 
 def check_rotations(R: np.ndarray, gyr: np.ndarray | None, c4: float, expected: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """(bad ``[N, n]``, seen ``[n]``) of the DCMs ``R[N, n, 3, 3]``: bad[k, i] when IMU i
-    should give a rotation at frame k (``expected[i]``, or a finite frame before k) and R[k, i]
-    is non-finite, or finite with ``‖RᵀR − I‖_F`` > ``SO3_TOLERANCE + c4·|ω|⁴`` (``gyr[N, n,
-    3]`` rad/s; ``c4`` = 0 or ``gyr`` None: no allowance). seen: ``expected`` or'ed with "a
-    finite frame in the batch".
+                    ) -> tuple[np.ndarray, bool]:
+    """(bad ``[N, n]``, any bad) of the DCMs ``R[N, n, 3, 3]``: bad[k, i] when IMU i should
+    give a rotation at frame k (``expected[i]``, or a finite frame before k) and R[k, i] is
+    non-finite, or finite with ``‖RᵀR − I‖_F`` > ``SO3_TOLERANCE + c4·|ω|⁴`` (``gyr[N, n,
+    3]`` rad/s; ``c4`` = 0 or ``gyr`` None: no allowance). When nothing is bad, ``expected``
+    (bool ``[n]``) is updated in place: or'ed with "a finite frame in the batch"; otherwise
+    it is left for the caller, who re-runs the batch up to the bad frame.
 
     A compiled loop because "should give a rotation" carries from frame to frame (and from
     batch to batch through ``expected``); a live frame is N = 1."""
     R = np.ascontiguousarray(R, dtype=np.float64)
     gyr = _NO_RATE if gyr is None else np.ascontiguousarray(gyr, dtype=np.float64)
     bad = np.empty(R.shape[:2], dtype=np.bool_)
-    seen = np.empty(R.shape[1], dtype=np.bool_)
-    _check(R, gyr, float(c4), SO3_TOLERANCE, expected, bad, seen)
-    return bad, seen
+    n_bad = _check(R, gyr, float(c4), SO3_TOLERANCE, expected, bad)
+    return bad, n_bad > 0
 
 
 _NO_RATE = np.zeros((0, 0, 3))
@@ -189,10 +195,8 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
     c4 = renorm_allowance(bank)
     if n_frames == 1:  # a live frame: nothing to rewind, no parts to join
         out = bank.process(acc, mag, gyr, errors, **bank_options)
-        bad, seen = check_rotations(out.R, gyr, c4, guard.expected)
-        if not bad.any():
-            guard.expected[:] = seen
-        else:  # as the loop below at k = 0
+        bad, any_bad = check_rotations(out.R, gyr, c4, guard.expected)
+        if any_bad:  # as the loop below at k = 0
             _mark(out, np.array([0]), bad[0])
             guard.accept(out.R)
             _reinit(bank, guard, bad[0])
@@ -211,9 +215,8 @@ def guarded_process(bank: Any, guard: StateGuard, acc: np.ndarray, mag: np.ndarr
         end = min(n_frames, pos + chunk)
         snap = bank.snapshot() if end - pos > 1 else None
         out = frames(slice(pos, end))
-        bad, seen = check_rotations(out.R, gyr[pos:end], c4, guard.expected)
-        if not bad.any():
-            guard.expected[:] = seen
+        bad, any_bad = check_rotations(out.R, gyr[pos:end], c4, guard.expected)
+        if not any_bad:  # (expected updated)
             parts.append(out)
             pos, chunk = end, chunk * 2
             continue

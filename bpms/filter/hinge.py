@@ -155,10 +155,10 @@ def _turn_about_vertical(M, t, i, angle):
 
 
 @numba.njit(cache=True, nogil=True)
-def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn, apply):
+def run_hinges(R, C, gyr, mag_flag, mag_heading_deg, hinges, p, hs, sigma, turn, apply):
     """N frames: R ``[N, n, 3, 3]`` sensor → NED, C ``[N, n, 3, 3]`` segment orientations
     (Reset Zero; only their first finite frame is used, for the starting axis), gyr
-    ``[N, n, 3]`` rad/s sensor axes, mag_flag ``[N, n]`` bool and mag_heading ``[N, n]`` rad
+    ``[N, n, 3]`` rad/s sensor axes, mag_flag ``[N, n]`` bool and mag_heading_deg ``[N, n]`` °
     (:class:`bpms.filter.disturbance.Disturbance` ``mag``, ``mag_heading_deg``), hinges
     ``[h, 2]`` (proximal, distal), p (:meth:`HingeSettings.params`), state hs
     ``[h, N_HINGE_STATE]`` / sigma ``[n]`` updated in place. Writes turn ``[N, n]`` rad: the
@@ -174,7 +174,8 @@ def run_hinges(R, C, gyr, mag_flag, mag_heading, hinges, p, hs, sigma, turn, app
         for i in range(R.shape[1]):
             turn[t, i] = 0.0
             if mag_flag[t, i]:
-                dev = abs(mag_heading[t, i]) if math.isfinite(mag_heading[t, i]) else 0.0
+                heading = mag_heading_deg[t, i]
+                dev = abs(heading) * (math.pi / 180.0) if math.isfinite(heading) else 0.0
                 # towards the field's deviation as the filter follows it, plus the drift
                 sigma[i] = min(sigma[i] + follow * dev * dt, max(sigma[i], dev)) + drift * dt
             else:
@@ -299,7 +300,7 @@ class HingeConstraint:
                    np.ascontiguousarray(C, dtype=np.float64),
                    np.ascontiguousarray(gyr, dtype=np.float64),
                    np.ascontiguousarray(mag_flag, dtype=np.bool_),
-                   np.ascontiguousarray(np.radians(mag_heading_deg), dtype=np.float64),
+                   np.ascontiguousarray(mag_heading_deg, dtype=np.float64),
                    HINGES, self.params, self.state.hinges, self.state.sigma, out, apply)
         return out
 

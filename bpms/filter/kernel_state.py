@@ -22,10 +22,12 @@ class KernelState:
         self.n = n
         for name, shape, dtype, initial in self.LAYOUT:
             setattr(self, name, np.full((n, *shape), initial, dtype=dtype))
+        self._arrays = tuple(getattr(self, name) for name, *_ in self.LAYOUT)
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        """The state arrays in kernel argument order."""
-        return tuple(getattr(self, name) for name, *_ in self.LAYOUT)
+        """The state arrays in kernel argument order (the same objects for the state's life:
+        they are updated in place, never replaced)."""
+        return self._arrays
 
 
 __all__ = ["KernelState"]
