@@ -31,6 +31,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from bpms.io.events import FrameEvent, FrameSource
 from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import decode_frames
@@ -461,11 +463,12 @@ class LiveSession:
         if self.events.waiting:
             self.events.frame_reached(head.index)
         # one frame live at 50 Hz, several when behind: the same call
-        result, raw, errors = proc.step_wire(b"".join(e.frame for e in events),
-                                             [(k, m) for k, m in marks if m.changes_numbers])
+        wire = events[0].frame if len(events) == 1 else b"".join(e.frame for e in events)
+        result, raw, errors = proc.step_wire(wire, [(k, m) for k, m in marks
+                                                    if m.changes_numbers])
         done = time.perf_counter()
-        samples = [PoseSample(e.index, e.host_time, e.frame, raw[k], errors[k],
-                              latency_s=done - e.arrival, arrival=e.arrival, result=result, k=k)
+        samples = [PoseSample.row(result, k, e.index, e.host_time, e.frame, raw[k], errors[k],
+                                  done - e.arrival, e.arrival)
                    for k, e in enumerate(events)]
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
@@ -479,7 +482,7 @@ class LiveSession:
             at = proc.pose.origin + proc.pose.auto_frame - first  # the frame it first could
             self._note_zero_wait(head.index + min(max(at, 0), len(events) - 1))
         self._processed += len(events)
-        self._error_bits += int(errors.sum())
+        self._error_bits += int(np.count_nonzero(errors))
         forwarder = self._forwarder
         if forwarder is not None:
             forward_poses(forwarder, events, result)
