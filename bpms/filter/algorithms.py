@@ -185,6 +185,11 @@ class AdaptiveBank(ObserverBank):
     gains_from = staticmethod(adaptive_gains)
 
 
+#: Frames that :class:`VqfBank` filters at a time: a block's inputs, quaternions and DCMs of
+#: all IMUs (≈ 1.3 MB of DCMs) stay in the processor's cache.
+VQF_BLOCK = 1024
+
+
 class _VqfHold(KernelState):
     """The suite's hold/reset bookkeeping beside ``n`` VQF filters: initialised ``[n]``, held
     ``[n, 3 sensors, 3]`` the last good inputs (NaN before one), held_count ``[n, 3]``."""
@@ -242,41 +247,53 @@ class VqfBank(_PhysicalBank):
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None,
                 resets: np.ndarray | None = None) -> BankOutput:
-        """Filter N frames (VQF's batch API per IMU and per run between resets). Each run's
-        DCMs are computed as soon as VQF returns, while its quaternions are
-        still in the processor's cache."""
+        """Filter N frames through VQF's batch API, :data:`VQF_BLOCK` frames at a time: the
+        block's inputs converted for all IMUs at once, each IMU's run handed to VQF (cut at
+        its resets), and the block's DCMs computed at once from the quaternions gathered. A
+        block's arrays stay in the processor's cache from conversion to output; VQF's state
+        carries from block to block, so the numbers are those of one call."""
         n = len(acc)
         # one pass over the flags spares the per-IMU checks of an error-free batch
         err = None if errors is None or not np.any(errors) else np.asarray(errors, np.bool_)
         rs = self._resets(n, resets)
         R = np.empty((n, self.n, 3, 3))
         bias = np.empty((n, self.n, 3))
-        by_imu = self.physical(acc, mag, gyr, imu_major=True)
-        for i in range(self.n):
-            (f, m, g), valid = self._fill(i, tuple(x[i] for x in by_imu), err)
-            cuts = [0, *(np.flatnonzero(rs[:, i]) if len(rs) else []), n]
-            for a, b in pairwise(cuts):
-                if b <= a:
-                    continue
-                if len(rs) and rs[a, i]:
-                    self.state.initialised[i] = False
-                start = first = a
-                if not self.state.initialised[i]:
-                    ok = np.flatnonzero(valid[a:b])
-                    start = b if len(ok) == 0 else a + int(ok[0])
-                    for x in (R, bias):  # no attitude before the aligning frame
-                        x[a:start, i] = np.nan
-                    if start == b:
-                        continue
-                    self.vqf.reset(i)
-                    self.state.initialised[i] = True
-                    first = start + 1  # the aligning frame is not a step
-                if err is not None:
-                    self.state.held_count[i] += err[first:b, i].sum(axis=0)
-                quat, bias[start:b, i] = self.vqf.process_imu(
-                    i, f[start:b], m[start:b], g[start:b], six_d=self.relative)
-                ned_dcm_of_enu(*quat.T, out=R[start:b, i])  # quat: body → ENU
+        for a in range(0, n, VQF_BLOCK):
+            b = min(n, a + VQF_BLOCK)
+            by_imu = self.physical(acc[a:b], mag[a:b], gyr[a:b], imu_major=True)
+            quat = np.full((b - a, self.n, 4), np.nan)  # body → ENU; NaN: no attitude yet
+            for i in range(self.n):
+                (f, m, g), valid = self._fill(i, tuple(x[i] for x in by_imu),
+                                              None if err is None else err[a:b])
+                cuts = [0, *(np.flatnonzero(rs[a:b, i]) if len(rs) else []), b - a]
+                for lo, hi in pairwise(cuts):
+                    if hi > lo:
+                        self._run(i, lo, hi, f, m, g, valid, err, rs, a, quat, bias)
+            ned_dcm_of_enu(*np.moveaxis(quat, -1, 0), out=R[a:b])
         return BankOutput(R, gyro_bias=bias)
+
+    def _run(self, i: int, lo: int, hi: int, f: np.ndarray, m: np.ndarray, g: np.ndarray,
+             valid: np.ndarray, err: np.ndarray | None, rs: np.ndarray, a: int,
+             quat: np.ndarray, bias: np.ndarray) -> None:
+        """IMU ``i``'s frames ``lo .. hi-1`` of the block starting at batch frame ``a`` (no
+        reset after ``lo``): its quaternions into ``quat`` (block rows), its bias estimate
+        into ``bias`` (batch rows)."""
+        if len(rs) and rs[a + lo, i]:
+            self.state.initialised[i] = False
+        start = first = lo
+        if not self.state.initialised[i]:
+            ok = np.flatnonzero(valid[lo:hi])
+            start = hi if len(ok) == 0 else lo + int(ok[0])
+            bias[a + lo:a + start, i] = np.nan  # no attitude before the aligning frame
+            if start == hi:
+                return
+            self.vqf.reset(i)
+            self.state.initialised[i] = True
+            first = start + 1  # the aligning frame is not a step
+        if err is not None:
+            self.state.held_count[i] += err[a + first:a + hi, i].sum(axis=0)
+        quat[start:hi, i], bias[a + start:a + hi, i] = self.vqf.process_imu(
+            i, f[start:hi], m[start:hi], g[start:hi], six_d=self.relative)
 
 
 __all__ = ["ALGORITHMS", "AdaptiveBank", "AttitudeBank", "ObserverBank", "VqfBank",
