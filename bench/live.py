@@ -13,8 +13,12 @@ The simulated suit streams in real time (50 Hz) on a pty, read by the project's 
   (warm-up and frozen heap, :mod:`bpms.pipeline.steady`);
 - with ``--untuned``, also the pipeline with warm-up and gc freezing switched off;
 - **reference**: the relay and the pipeline of the tree at
-  :data:`reference.BEFORE_ONE_IMPLEMENTATION` (a ``git worktree`` in the temporary folder), run
-  in a child process (``--reference-minutes`` each, default: as long as ``--minutes``).
+  :data:`reference.BEFORE_ONE_IMPLEMENTATION` (a ``git worktree`` in the temporary folder)
+  (``--reference-minutes`` each, default: as long as ``--minutes``).
+
+Every run, of either tree, is a fresh child process (a process that already ran sessions would
+carry their leftovers into the next: a larger heap for the collector, warm dispatchers), and
+with ``--rounds`` the runs take turns.
 
 Printed for each: frame → pose latency (host took the frame in → sample ready) p50, p99,
 p99.9 and max in ms, the worst of the first 10 frames, the longest garbage-collection pause
@@ -225,29 +229,22 @@ def pipeline(seconds: float, tuned: bool = True) -> Run:
     return Run(lat, watch.counted(), cpu / max(n, 1))
 
 
-def reference(tree: str, seconds: float) -> tuple[Run, Run] | str:
-    """(relay, pipeline) of the reference tree in child processes, or why not."""
-    if tree == "auto":
-        sys.path.insert(0, str(Path(__file__).parent))
-        from reference import reference_tree
-
-        try:
-            tree = str(reference_tree())
-        except RuntimeError as exc:
-            return f"reference not measured: {exc}"
-    runs = []
-    for what in ("relay", "pipeline"):
-        with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as out:
-            path = out.name
-        env = {**os.environ, "PYTHONPATH": tree}
-        done = subprocess.run([sys.executable, __file__, "--tree", tree, "--child", what,
-                               "--minutes", str(seconds / 60), "--out", path],
-                              env=env, cwd=tree, capture_output=True, text=True)
-        if done.returncode:
-            return f"reference {what} failed: {done.stderr.strip().splitlines()[-1:]}"
-        runs.append(Run.from_json(Path(path).read_text()))
-        os.unlink(path)
-    return runs[0], runs[1]
+def in_child(tree: str, what: str, seconds: float) -> Run | str:
+    """One run (``relay``, ``pipeline`` or ``untuned``) of ``tree``'s bpms in a fresh child
+    process, or why it failed. Both trees are measured this way: a process that has already
+    run sessions holds their leftovers (a larger heap for the collector to scan, numba's
+    dispatchers warm), which a fresh one does not."""
+    with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as out:
+        path = out.name
+    env = {**os.environ, "PYTHONPATH": tree}
+    done = subprocess.run([sys.executable, __file__, "--tree", tree, "--child", what,
+                           "--minutes", str(seconds / 60), "--out", path],
+                          env=env, cwd=tree, capture_output=True, text=True)
+    if done.returncode:
+        return f"{what} of {tree} failed: {done.stderr.strip().splitlines()[-1:]}"
+    run = Run.from_json(Path(path).read_text())
+    os.unlink(path)
+    return run
 
 
 def report(name: str, run: Run) -> None:
@@ -276,12 +273,14 @@ def main() -> None:
                         help="split each run into this many turns, taking turns with the "
                              "reference")
     parser.add_argument("--tree", help=argparse.SUPPRESS)
-    parser.add_argument("--child", choices=("relay", "pipeline"), help=argparse.SUPPRESS)
+    parser.add_argument("--child", choices=("relay", "pipeline", "untuned"),
+                        help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args()
     seconds = args.minutes * 60.0
     if args.child:
-        run = relay(seconds) if args.child == "relay" else pipeline(seconds)
+        run = (relay(seconds) if args.child == "relay"
+               else pipeline(seconds, tuned=args.child == "pipeline"))
         Path(args.out).write_text(run.to_json())
         return
     ref_minutes = args.reference_minutes or args.minutes
@@ -298,21 +297,24 @@ def main() -> None:
             except RuntimeError as exc:
                 tree, ref = None, f"reference not measured: {exc}"
     # This tree and the reference take turns (``--rounds``), so that load from elsewhere on the
-    # machine falls on both alike.
+    # machine falls on both alike; every run is a fresh child process, for both trees.
+    plan = [("relay", "relay", str(ROOT), seconds), ("pipeline", "pipeline", str(ROOT), seconds)]
+    if args.untuned:
+        plan.insert(1, ("pipeline untuned", "untuned", str(ROOT), seconds))
+    if tree is not None:
+        plan += [("reference relay", "relay", tree, ref_minutes * 60.0),
+                 ("reference pipeline", "pipeline", tree, ref_minutes * 60.0)]
     parts: dict[str, list[Run]] = {}
     for _ in range(args.rounds):
-        parts.setdefault("relay", []).append(relay(seconds / args.rounds))
-        if args.untuned:
-            parts.setdefault("pipeline untuned", []).append(
-                pipeline(seconds / args.rounds, tuned=False))
-        parts.setdefault("pipeline", []).append(pipeline(seconds / args.rounds))
-        if tree is not None:
-            got = reference(tree, ref_minutes * 60.0 / args.rounds)
+        for name, what, where, length in plan:
+            got = in_child(where, what, length / args.rounds)
             if isinstance(got, str):
-                ref, tree = got, None
+                if not name.startswith("reference"):
+                    raise SystemExit(got)
+                ref = got
+                plan = [step for step in plan if not step[0].startswith("reference")]
                 continue
-            parts.setdefault("reference relay", []).append(got[0])
-            parts.setdefault("reference pipeline", []).append(got[1])
+            parts.setdefault(name, []).append(got)
     runs = [(name, Run.join(found)) for name, found in parts.items()]
     if "reference pipeline" in parts:
         ref = (dict(runs)["reference relay"], dict(runs)["reference pipeline"])
