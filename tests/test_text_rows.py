@@ -142,3 +142,27 @@ def test_a_text_stream_receives_text():
     with FilteredWriter(out) as w:
         w.write_block(np.arange(3) * 0.02, np.zeros((3, 18, 3)))
     assert out.getvalue().splitlines()[-1].startswith("0.04,nan,0,0,0,")
+
+
+@pytest.mark.parametrize("precision", [1, 6, 10, 15, 17])
+def test_decimal_exponent_table_is_exact(precision):
+    """The %g path's table of decimal exponents per binary exponent, computed in floating
+    point, equals the one computed with exact fractions: X the largest with 10**X ≤ 2**e."""
+    from fractions import Fraction
+
+    from bpms.io.text_rows import _general_scales
+
+    scales, exps = _general_scales(precision)
+    for b in range(1, 2047):
+        e = b - 1022
+        bound = Fraction(2) ** e
+        x = 0
+        while Fraction(10) ** (x + 1) <= bound:
+            x += 1
+        while Fraction(10) ** x > bound:
+            x -= 1
+        assert exps[b] == x, b
+        power = precision - 1 - x
+        usable = x - 1 >= -13 and x <= min(precision, 7) and 0 <= power <= 21
+        assert (scales[b] == 10.0 ** power) if usable else np.isnan(scales[b]), b
+    assert np.isnan(scales[[0, 2047]]).all()

@@ -29,7 +29,6 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from functools import cache
 
 import numpy as np
@@ -305,21 +304,18 @@ def _general_scales(precision: int) -> tuple[np.ndarray, np.ndarray]:
     """Per biased binary exponent b of a double (its bits 52..62): 10**(P-1-X) and X, for X
     the largest decimal exponent with 10**X ≤ 2**(b-1022) (a value with that b has exponent
     X or X-1). NaN where the vectorised path does not go (zero, subnormal, |v| < 1e-13,
-    |v| ≥ 1e7 or beyond 10**P, infinity, nan)."""
-    scales = np.full(2048, np.nan)
-    exps = np.zeros(2048, np.int64)
-    for b in range(1, 2047):
-        e = b - 1022
-        x_exp = int(np.floor(e * np.log10(2.0)))
-        bound = Fraction(2) ** e
-        while Fraction(10) ** (x_exp + 1) <= bound:
-            x_exp += 1
-        while Fraction(10) ** x_exp > bound:
-            x_exp -= 1
-        power = precision - 1 - x_exp
-        if x_exp - 1 >= -13 and x_exp <= min(precision, 7) and 0 <= power <= 21:
-            scales[b] = float(10 ** power)
-        exps[b] = x_exp
+    |v| ≥ 1e7 or beyond 10**P, infinity, nan).
+
+    X = ⌊(b − 1022) · log10 2⌋ in floating point is exact: 2**e is a power of ten only at
+    e = 0, and over this range e · log10 2 is never closer than 1e-5 to an integer, far beyond
+    the product's rounding (tests/test_text_rows.py checks every b with exact fractions)."""
+    b = np.arange(2048)
+    exps = np.floor((b - 1022) * np.log10(2.0)).astype(np.int64)
+    exps[[0, 2047]] = 0
+    power = precision - 1 - exps
+    ok = ((exps - 1 >= -13) & (exps <= min(precision, 7)) & (power >= 0) & (power <= 21)
+          & (b >= 1) & (b <= 2046))
+    scales = np.where(ok, 10.0 ** np.clip(power, 0, 21), np.nan)
     return scales, exps
 
 
