@@ -102,3 +102,21 @@ def test_streamed_mat_arrays_equal_the_whole_arrays(tmp_path):
     np.testing.assert_array_equal(m["b"], b)
     np.testing.assert_array_equal(m["c"], c)
     assert str(m["label"][0]) == "x"
+
+
+def test_a_damaged_start_time_gives_null_timestamps_not_wrapped_integers(tmp_path):
+    """A recording whose first receive time is damaged (1e300 s, NaN) still exports: its UTC
+    column is null where no timestamp exists, and the stream times are written as they are."""
+    from bpms.analysis.binary_out import ExportMeta, ParquetWriter
+    from bpms.filter.processor import BodyPoseProcessor
+
+    result = BodyPoseProcessor().process(simulate(0.4, seed=1).raw)
+    for start in (1e300, float("nan")):
+        path = tmp_path / f"damaged_{start}.parquet"
+        writer = ParquetWriter(path, ExportMeta(utc_start=start))
+        writer.write(result)
+        writer.close()
+        table = pq.read_table(path)
+        assert table.num_rows == len(result)
+        assert table.column("utc").null_count == len(result)
+        np.testing.assert_array_equal(table.column("time_s").to_numpy(), result.t)

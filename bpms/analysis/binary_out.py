@@ -188,10 +188,14 @@ class ParquetWriter:
         n = len(t)
         if n == 0:
             return
-        utc = np.round((self.meta.utc_start + t) * 1e6).astype("int64")
+        us = np.round((self.meta.utc_start + t) * 1e6)
+        # a damaged receive time (NaN, 1e300 s) has no timestamp: null, not a wrapped integer
+        known = np.isfinite(us) & (np.abs(us) < 2.0 ** 63)
+        utc = pa.array(np.where(known, us, 0.0).astype("int64"), mask=~known,
+                       type=pa.timestamp("us", tz="UTC"))
         block = np.concatenate([q.reshape(n, -1), a, p.reshape(n, -1)], axis=1)
         block = np.asfortranarray(block)  # contiguous columns: no copy per column
-        cols = [pa.array(t), pa.array(utc, type=pa.timestamp("us", tz="UTC"))]
+        cols = [pa.array(t), utc]
         cols += [pa.array(block[:, k]) for k in range(block.shape[1])]
         self._writer.write_table(pa.Table.from_arrays(cols, schema=self._schema))
         self.rows += n
