@@ -324,7 +324,7 @@ def _figure(path: Path, names: list[str], ranges) -> bool:
     except ImportError:
         return False
     fig, ax = plt.subplots(figsize=(10, 7))
-    ax.boxplot(ranges, vert=False, tick_labels=names)
+    ax.boxplot(ranges, orientation="horizontal", tick_labels=names)
     ax.set_xlabel("range of motion per recording, deg")
     ax.invert_yaxis()
     fig.tight_layout()
