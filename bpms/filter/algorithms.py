@@ -261,39 +261,45 @@ class VqfBank(_PhysicalBank):
         for a in range(0, n, VQF_BLOCK):
             b = min(n, a + VQF_BLOCK)
             by_imu = self.physical(acc[a:b], mag[a:b], gyr[a:b], imu_major=True)
-            quat = np.full((b - a, self.n, 4), np.nan)  # body → ENU; NaN: no attitude yet
+            # the block's outputs IMU by IMU (each IMU's rows contiguous); NaN: no attitude yet
+            quat = np.full((self.n, b - a, 4), np.nan)  # body → ENU
+            block_bias = np.full((self.n, b - a, 3), np.nan)
             for i in range(self.n):
                 (f, m, g), valid = self._fill(i, tuple(x[i] for x in by_imu),
                                               None if err is None else err[a:b])
-                cuts = [0, *(np.flatnonzero(rs[a:b, i]) if len(rs) else []), b - a]
-                for lo, hi in pairwise(cuts):
+                resets_at = np.flatnonzero(rs[a:b, i]) if len(rs) else []
+                for lo, hi in pairwise([0, *resets_at, b - a]):
                     if hi > lo:
-                        self._run(i, lo, hi, f, m, g, valid, err, rs, a, quat, bias)
-            ned_dcm_of_enu(*np.moveaxis(quat, -1, 0), out=R[a:b])
+                        self._run(i, lo, hi, lo in resets_at, (f, m, g), valid,
+                                  None if err is None else err[a:b], quat[i], block_bias[i])
+            ned_dcm_of_enu(*np.moveaxis(quat, -1, 0), out=R[a:b].transpose(1, 0, 2, 3))
+            bias[a:b] = block_bias.transpose(1, 0, 2)
         return BankOutput(R, gyro_bias=bias)
 
-    def _run(self, i: int, lo: int, hi: int, f: np.ndarray, m: np.ndarray, g: np.ndarray,
-             valid: np.ndarray, err: np.ndarray | None, rs: np.ndarray, a: int,
-             quat: np.ndarray, bias: np.ndarray) -> None:
-        """IMU ``i``'s frames ``lo .. hi-1`` of the block starting at batch frame ``a`` (no
-        reset after ``lo``): its quaternions into ``quat`` (block rows), its bias estimate
-        into ``bias`` (batch rows)."""
-        if len(rs) and rs[a + lo, i]:
+    def _run(self, i: int, lo: int, hi: int, reset: bool, inputs: tuple[np.ndarray, ...],
+             valid: np.ndarray, err: np.ndarray | None, quat: np.ndarray,
+             bias: np.ndarray) -> None:
+        """IMU ``i``'s rows ``lo .. hi-1`` of a block (``reset``: a reset at ``lo``, none
+        after it), from its inputs (f, m, g ``[block, 3]``), valid ``[block]`` and the
+        block's error flags: its body → ENU quaternions ``[block, 4]`` into ``quat``, its
+        bias estimate ``[block, 3]`` rad/s into ``bias`` (rows before the aligning frame are
+        left as they are: NaN)."""
+        if reset:
             self.state.initialised[i] = False
         start = first = lo
         if not self.state.initialised[i]:
             ok = np.flatnonzero(valid[lo:hi])
             start = hi if len(ok) == 0 else lo + int(ok[0])
-            bias[a + lo:a + start, i] = np.nan  # no attitude before the aligning frame
             if start == hi:
                 return
             self.vqf.reset(i)
             self.state.initialised[i] = True
             first = start + 1  # the aligning frame is not a step
         if err is not None:
-            self.state.held_count[i] += err[a + first:a + hi, i].sum(axis=0)
-        quat[start:hi, i], bias[a + start:a + hi, i] = self.vqf.process_imu(
-            i, f[start:hi], m[start:hi], g[start:hi], six_d=self.relative)
+            self.state.held_count[i] += err[first:hi, i].sum(axis=0)
+        f, m, g = (x[start:hi] for x in inputs)
+        quat[start:hi], bias[start:hi] = self.vqf.process_imu(i, f, m, g,
+                                                              six_d=self.relative)
 
 
 __all__ = ["ALGORITHMS", "AdaptiveBank", "AttitudeBank", "ObserverBank", "VqfBank",
