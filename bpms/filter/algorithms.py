@@ -264,19 +264,19 @@ class VqfBank(_PhysicalBank):
             # the block's outputs IMU by IMU (each IMU's rows contiguous); NaN: no attitude yet
             quat = np.full((self.n, b - a, 4), np.nan)  # body → ENU
             block_bias = np.full((self.n, b - a, 3), np.nan)
+            block_err = None if err is None else err[a:b]
             for i in range(self.n):
-                (f, m, g), valid = self._fill(i, tuple(x[i] for x in by_imu),
-                                              None if err is None else err[a:b])
+                inputs, valid = self._fill(i, tuple(x[i] for x in by_imu), block_err)
                 resets_at = np.flatnonzero(rs[a:b, i]) if len(rs) else []
                 for lo, hi in pairwise([0, *resets_at, b - a]):
                     if hi > lo:
-                        self._run(i, lo, hi, lo in resets_at, (f, m, g), valid,
-                                  None if err is None else err[a:b], quat[i], block_bias[i])
+                        self._run(i, lo, hi, lo in resets_at, inputs, valid, block_err,
+                                  quat[i], block_bias[i])
             ned_dcm_of_enu(*np.moveaxis(quat, -1, 0), out=R[a:b].transpose(1, 0, 2, 3))
             bias[a:b] = block_bias.transpose(1, 0, 2)
         return BankOutput(R, gyro_bias=bias)
 
-    def _run(self, i: int, lo: int, hi: int, reset: bool, inputs: tuple[np.ndarray, ...],
+    def _run(self, i: int, lo: int, hi: int, reset: bool, inputs: list[np.ndarray],
              valid: np.ndarray, err: np.ndarray | None, quat: np.ndarray,
              bias: np.ndarray) -> None:
         """IMU ``i``'s rows ``lo .. hi-1`` of a block (``reset``: a reset at ``lo``, none

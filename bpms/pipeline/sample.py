@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from types import MappingProxyType
 from typing import TYPE_CHECKING
 
@@ -98,16 +99,22 @@ class PoseSample:
                  k: int = 0, mag_strength: np.ndarray | None = None,
                  mag_heading_deg: np.ndarray | None = None,
                  acc_strength: np.ndarray | None = None) -> None:
-        self.index, self.host_time, self.frame = index, host_time, frame
-        self.raw, self.errors, self.latency_s, self.arrival = raw, errors, latency_s, arrival
         given = {"euler": euler, "R": R, "C": C, "joint_angles": joint_angles,
                  "joint_positions": joint_positions, "euler_output": euler_output,
                  "reinitialised": reinitialised, "mag_disturbed": mag_disturbed,
                  "acc_disturbed": acc_disturbed, "estimates": estimates,
                  "mag_strength": mag_strength, "mag_heading_deg": mag_heading_deg,
                  "acc_strength": acc_strength}
-        self._given = {name: value for name, value in given.items() if value is not None}
-        self._result, self._k = result, k
+        self._set(index, host_time, frame, raw, errors, latency_s, arrival, result, k,
+                  {name: value for name, value in given.items() if value is not None})
+
+    def _set(self, index: int, host_time: float, frame: bytes, raw: np.ndarray,
+             errors: np.ndarray, latency_s: float, arrival: float, result: Result | None,
+             k: int, given: Mapping[str, np.ndarray] = MappingProxyType({})) -> None:
+        """The one place a sample's fields are set (``given``: numbers given by name)."""
+        self.index, self.host_time, self.frame = index, host_time, frame
+        self.raw, self.errors, self.latency_s, self.arrival = raw, errors, latency_s, arrival
+        self._given, self._result, self._k = given, result, k
 
     @classmethod
     def row(cls, result: Result, k: int, index: int, host_time: float, frame: bytes,
@@ -117,10 +124,7 @@ class PoseSample:
         session's samples): the same sample as the constructor with ``result`` and ``k`` and
         no number given, built without looking at thirteen empty arguments per frame."""
         sample = cls.__new__(cls)
-        sample.index, sample.host_time, sample.frame = index, host_time, frame
-        sample.raw, sample.errors = raw, errors
-        sample.latency_s, sample.arrival = latency_s, arrival
-        sample._given, sample._result, sample._k = _NONE_GIVEN, result, k
+        sample._set(index, host_time, frame, raw, errors, latency_s, arrival, result, k)
         return sample
 
     def replace(self, **given: np.ndarray) -> PoseSample:
@@ -138,5 +142,4 @@ class PoseSample:
         return f"PoseSample(index={self.index}, host_time={self.host_time:.3f})"
 
 
-_NONE_GIVEN = MappingProxyType({})
 _ROWS = tuple(name for name, value in vars(PoseSample).items() if isinstance(value, _Row))

@@ -463,9 +463,9 @@ class LiveSession:
         if self.events.waiting:
             self.events.frame_reached(head.index)
         # one frame live at 50 Hz, several when behind: the same call
-        wire = events[0].frame if len(events) == 1 else b"".join(e.frame for e in events)
-        result, raw, errors = proc.step_wire(wire, [(k, m) for k, m in marks
-                                                    if m.changes_numbers])
+        # (bytes.join hands a single frame's bytes back as they are: no copy at N = 1)
+        result, raw, errors = proc.step_wire(b"".join(e.frame for e in events),
+                                             [(k, m) for k, m in marks if m.changes_numbers])
         done = time.perf_counter()
         samples = [PoseSample.row(result, k, e.index, e.host_time, e.frame, raw[k], errors[k],
                                   done - e.arrival, e.arrival)
