@@ -1,11 +1,12 @@
 // The seven ATmega328P cores: loading an image, running to a cycle limit with the events of the
-// parts in between, and three corrections to simavr 1.6's timing (each written down in
+// parts in between, and four corrections to simavr 1.6's timing (each written down in
 // docs/firmware.md):
 //   - a sleeping core wakes for the parts' events instead of skipping to its next timer, and
 //     simavr's wall-clock pacing of sleep (usleep) is off: main.c paces the whole suit;
 //   - the USART's byte time is 10 bits for 8N1 (simavr counts a parity bit that is not there),
 //     and its transmitter is double-buffered as on the chip (simavr 1.6 frees UDR only when
-//     the previous byte has left, which leaves a gap of one interrupt latency per byte);
+//     the previous byte has left, which leaves a gap of one interrupt latency per byte), and
+//     its TXC flag comes when the last byte has left (tx_complete below);
 //   - the I2C bus runs at the clock the firmware sets in TWBR/TWSR (simavr's TWI counts one
 //     microsecond per bit, 1 MHz): see __wrap_avr_cycle_timer_register_usec below, which also
 //     holds a cluster's bus (a stuck SDA) when asked to.
@@ -33,6 +34,19 @@ static avr_io_t* find_io(avr_t* avr, const char* kind) {
     return NULL;
 }
 
+// TXC as on the chip: set once a byte has left the shift register with none after it.
+// simavr 1.6 counts bytes off at the ticks of its transmit pump, which keeps ticking while
+// UDRIE is set: a byte written to an empty transmitter just before a tick is counted off at
+// once, its TXC raised there and then cleared by the writer itself (Arduino's write clears
+// TXC right after UDR), and never raised again, so that HardwareSerial::flush() waited for
+// ever. The pump's own flag is left as it is; this one comes when the byte has really left.
+static avr_cycle_count_t tx_complete(struct avr_t* avr, avr_cycle_count_t when, void* param) {
+    board_t* b = param;
+    if (b->tx_free_at <= when && avr_regbit_get(avr, b->uart->txen))
+        avr_raise_interrupt(avr, &b->uart->txc);
+    return 0;
+}
+
 // A byte written to UDR starts on the wire when the shift register is free.
 static void uart_output(struct avr_irq_t* irq, uint32_t value, void* param) {
     (void)irq;
@@ -41,6 +55,7 @@ static void uart_output(struct avr_irq_t* irq, uint32_t value, void* param) {
     const cycle_t start = b->tx_free_at > now ? b->tx_free_at : now;
     b->tx_last_start = start;
     b->tx_free_at = start + b->byte_cycles;
+    avr_cycle_timer_register(b->avr, b->tx_free_at - now, tx_complete, b);  // the last one's
     if (b->tx_count == TX_SLOTS) {  // cannot happen: the USART sends one byte per byte time
         ++b->dropped_events;
         return;

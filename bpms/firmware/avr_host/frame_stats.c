@@ -162,5 +162,8 @@ void stats_write_json(char* out, int size, cycle_t now, double wall_s, double re
     PUT("]}, \"boards\": {");
     for (int i = 0; i < N_BOARDS; ++i)
         PUT("%s\"%s\": \"%s\"", i ? ", " : "", b[i].name, board_state_name(&b[i]));
+    PUT("}, \"pc\": {");  // byte addresses, as avr-objdump shows them
+    for (int i = 0; i < N_BOARDS; ++i)
+        PUT("%s\"%s\": \"0x%04x\"", i ? ", " : "", b[i].name, (unsigned)b[i].avr->pc);
     PUT("}}");
 }
