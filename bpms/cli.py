@@ -1,8 +1,9 @@
 """The ``bpms`` command line. Each module in :mod:`bpms.commands` adds one sub-command.
 
 A command module defines ``register(subparsers) -> argparse.ArgumentParser`` (its options)
-and ``run(args) -> int`` (what it does; set as the parser's default ``run``). Errors meant for
-the user are raised as :class:`CliError` and printed as one line; the exit status is then 2.
+and ``run(args) -> int`` (what it does; set as the parser's default ``run``); a parser given no
+description shows the module's docstring, line breaks kept. Errors meant for the user are
+raised as :class:`CliError` and printed as one line; the exit status is then 2.
 
 Command modules are found by name without importing them; only the command asked for is
 imported (all of them only for ``bpms --help``), and a module's ``register`` imports nothing
@@ -111,6 +112,9 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
         module = importlib.import_module(f"bpms.commands.{name}")
         command = module.register(sub)
         command.set_defaults(run=module.run)
+        if command.description is None:
+            command.description = module.__doc__
+            command.formatter_class = argparse.RawDescriptionHelpFormatter
         if command.epilog is None:
             command.epilog = docs_hint()  # the pages that help texts name are there
     _plain_help(parser)  # the docstrings' markup is for the API reference

@@ -10,10 +10,8 @@ _PACKAGE = Path(__file__).resolve().parent
 
 def docs_dir() -> Path | None:
     """The folder holding ``index.md`` and the other pages, or None when it is missing."""
-    for candidate in (_PACKAGE / "docs", _PACKAGE.parent / "docs"):
-        if (candidate / "index.md").is_file():
-            return candidate
-    return None
+    return next((candidate for candidate in (_PACKAGE / "docs", _PACKAGE.parent / "docs")
+                 if (candidate / "index.md").is_file()), None)
 
 
 def docs_hint() -> str:

@@ -31,8 +31,7 @@ from bpms.commands._shared import require_formats, warn
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("batch", help="process every recording under a folder (a study)",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("batch", help="process every recording under a folder (a study)")
     p.add_argument("folder", help="folder searched recursively for raw recordings")
     p.add_argument("-o", "--output", metavar="DIR", help="output folder (default FOLDER/batch)")
     p.add_argument("--outputs", default="rom", metavar="LIST",

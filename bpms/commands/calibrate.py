@@ -29,9 +29,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("calibrate", help="calibrate the suit's sensors (gyro, accel, mag)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("calibrate", help="calibrate the suit's sensors (gyro, accel, mag)")
     p.add_argument("port", nargs="?", help="serial port or pyserial URL (default: discover)")
     p.add_argument("--imu", default="all", metavar="IDS",
                    help="IMUs to calibrate: 'all' or e.g. 0,2,5-7 (default all)")

@@ -15,9 +15,7 @@ from bpms.commands import CliError
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("config", help="show the options/calibration in force; save defaults",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("config", help="show the options/calibration in force; save defaults")
     p.add_argument("action", nargs="?", default="show",
                    choices=("show", "save-default", "forget-default"),
                    help="show (default), save-default or forget-default")

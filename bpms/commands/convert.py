@@ -21,8 +21,7 @@ from bpms.commands._shared import add_sources, refuse_existing, require_formats,
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("convert", help="binary exports of a recording (.mat, Parquet)",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("convert", help="binary exports of a recording (.mat, Parquet)")
     p.add_argument("raw_file", metavar="RAW_FILE", help="raw recording")
     p.add_argument("-f", "--format", action="append", choices=("mat", "parquet"), default=[],
                    help="output format (repeatable; default: both)")

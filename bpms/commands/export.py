@@ -49,8 +49,7 @@ def output_paths(fmt: str, raw_file: str | Path, output: str | Path | None) -> l
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
-        "export", help="export a recording to OpenSim .sto, BVH, a MATLAB CSV or C3D",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "export", help="export a recording to OpenSim .sto, BVH, a MATLAB CSV or C3D")
     parser.add_argument("format", choices=tuple(ENDINGS))
     parser.add_argument("raw_file", metavar="RAW_FILE",
                         help="raw recording, or a filtered .csv (Reset Zero redone on it)")
@@ -89,15 +88,13 @@ def run(args: argparse.Namespace) -> int:
     written: list[str] = []
     n = 0
     writers: list = []
+    path = targets[0]
     try:
         if args.format == "opensim":
             from bpms.analysis.opensim import OrientationsWriter, calibration_window
 
-            whole_path, calib_path = targets
-            whole = OrientationsWriter(whole_path, 1.0 / dt, args.head_neck,
-                                       meta=stamp.items())
-            calib = OrientationsWriter(calib_path, 1.0 / dt, args.head_neck,
-                                       meta=stamp.items())
+            whole, calib = (OrientationsWriter(p, 1.0 / dt, args.head_neck, meta=stamp.items())
+                            for p in targets)
             writers += [whole, calib]
             lo, hi = calibration_window(proc.pose.settle, proc.pose.window, opened.n_frames)
             for chunk in stream("export", opened, args.reset_at):
@@ -109,14 +106,12 @@ def run(args: argparse.Namespace) -> int:
                     calib.write(res.t[a:b], q[a:b])
                 n += len(res)
             span = f"{stream_time(lo, dt):.2f}–{stream_time(hi, dt):.2f} s"
-            written += [f"{whole_path} ({whole.rows} rows)",
-                        f"{calib_path} ({calib.rows} rows, {span})"]
+            written += [f"{targets[0]} ({whole.rows} rows)",
+                        f"{targets[1]} ({calib.rows} rows, {span})"]
         elif args.format == "bvh":
             from bpms.analysis.bvh import BvhWriter
-            from bpms.filter.body_model import POINT_INDEX
-
-            path = targets[0]
             from bpms.analysis.root_path import root_trajectory, walked_steps
+            from bpms.filter.body_model import POINT_INDEX
             from bpms.filter.door import open_for_processing
 
             # the root walks the heel-strike path: a first pass finds the steps (constant
@@ -136,7 +131,6 @@ def run(args: argparse.Namespace) -> int:
         elif args.format == "c3d":
             from bpms.analysis.c3d_export import C3dWriter
 
-            path = targets[0]
             c3d = C3dWriter(path, 1.0 / dt, stamp.items(), str(args.raw_file))
             writers.append(c3d)
             for chunk in stream("export", opened, args.reset_at):
@@ -147,7 +141,6 @@ def run(args: argparse.Namespace) -> int:
         else:
             from bpms.analysis.matlab import MatlabCsvWriter
 
-            path = targets[0]
             mat = MatlabCsvWriter(path, degrees=not args.radians, meta=stamp.items())
             writers.append(mat)
             for chunk in stream("export", opened, args.reset_at):

@@ -38,9 +38,7 @@ if TYPE_CHECKING:
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     defaults = SerialOptions()
-    p = sub.add_parser("monitor", help="connect to the suit and print its status every second",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("monitor", help="connect to the suit and print its status every second")
     p.add_argument("port", nargs="?", metavar="PORT_OR_URL",
                    help="serial port or pyserial URL (default: discover the suit)")
     p.add_argument("--seconds", type=float, default=None, metavar="N",

@@ -45,9 +45,7 @@ if TYPE_CHECKING:  # the pipeline (numba, the filter bank) loads when recording 
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("record", help="record the suit without a GUI (field recorder)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("record", help="record the suit without a GUI (field recorder)")
     p.add_argument("port", nargs="?", metavar="PORT_OR_URL",
                    help="serial port or pyserial URL (default: discover the suit)")
     p.add_argument("-o", "--output", default=None, metavar="DIR",

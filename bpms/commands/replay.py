@@ -29,8 +29,7 @@ from bpms.io.recordings import open_replay
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     from bpms.pipeline.streams import add_stream_arguments
 
-    p = sub.add_parser("replay", help="stream a raw recording (UDP, LSL, MVN) as if it were live",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("replay", help="stream a raw recording (UDP, LSL, MVN) as if it were live")
     p.add_argument("raw_file", help="raw recording (.bpmsraw, or a legacy pickled .txt)")
     p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
                    help="UDP destination of raw frames and poses (repeatable; multicast "

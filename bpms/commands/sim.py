@@ -29,9 +29,7 @@ if TYPE_CHECKING:  # numpy and the sensor model load when the suit is built, not
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("sim", help="run the simulated suit on a pseudo-terminal or TCP port",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("sim", help="run the simulated suit on a pseudo-terminal or TCP port")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--pty", action="store_true",
                        help="serve on a new pseudo-terminal (its path is printed first; "

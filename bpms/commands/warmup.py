@@ -14,9 +14,7 @@ import sys
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    p = sub.add_parser("warmup", help="compile the filters now (else done at their first use)",
-                       description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("warmup", help="compile the filters now (else done at their first use)")
     p.add_argument("--filter", dest="filters", action="append", metavar="NAME",
                    choices=("mahony", "observer", "adaptive", "vqf"),
                    help="only this filter (repeatable; default: every filter)")

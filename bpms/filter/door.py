@@ -45,6 +45,7 @@ from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
 from bpms.io.raw_reader import RawFile, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
+from bpms.io.recordings import read_head
 from bpms.io.session_events import SessionEvent
 
 log = logging.getLogger(__name__)
@@ -199,11 +200,8 @@ class OpenedRecording:
         label = f"filtering {self.path.name}"
         self.use_reset_zero()
         proc.restart()
-        if self.kind == "filtered":
-            source = self._filtered_chunks(extra, chunk_frames)
-        else:
-            source = self._raw_chunks(extra, chunk_frames)
-        for chunk in source:
+        chunks = self._filtered_chunks if self.kind == "filtered" else self._raw_chunks
+        for chunk in chunks(extra, chunk_frames):
             yield chunk
             if progress:
                 progress(label, chunk.start + len(chunk), self.n_frames)
@@ -401,15 +399,10 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     choice = ResetZeroChoice.parse(reset_zero)
     path = Path(path)
     problems: list[str] = []
-    try:
-        with path.open("rb") as f:
-            head = f.read(len(MAGIC))
-    except OSError as exc:
-        raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     recording = None
     file = None
     first_time = math.nan
-    if head == MAGIC:
+    if read_head(path) == MAGIC:
         kind = "raw"
         file = RawFile(path)
         header = file.header

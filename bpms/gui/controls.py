@@ -244,10 +244,8 @@ class GainsPanel(QGroupBox):
 
 def _short_name(name: str) -> str:
     """``observer_k_incl`` → ``k_incl``: the filter's name is in the combo box above."""
-    for algorithm in ALGORITHM_SETTINGS:
-        if name.startswith(f"{algorithm}_"):
-            return name.removeprefix(f"{algorithm}_")
-    return name
+    return next((name.removeprefix(f"{algorithm}_") for algorithm in ALGORITHM_SETTINGS
+                 if name.startswith(f"{algorithm}_")), name)
 
 
 class FilePanel(QGroupBox):

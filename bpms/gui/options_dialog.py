@@ -31,9 +31,7 @@ from bpms.io.problems import FileProblem
 
 
 def _field_text(value: Any) -> str:
-    if isinstance(value, list):
-        return ", ".join(str(v) for v in value)
-    return str(value)
+    return ", ".join(str(v) for v in value) if isinstance(value, list) else str(value)
 
 
 def _parse_field(text: str, default: Any) -> Any:

@@ -95,16 +95,12 @@ def calibration_source(announce: bool = True) -> str:
 
 def options_or_default(path: str | Path | None, announce: bool = True) -> Options:
     """``path``'s options when given (explicit file), else :func:`default_options`."""
-    if path:
-        return load_options(path)
-    return default_options(announce)
+    return load_options(path) if path else default_options(announce)
 
 
 def calibration_or_default(path: str | Path | None, announce: bool = True) -> CalibrationTable:
     """``path``'s calibration when given (explicit file), else :func:`default_calibration`."""
-    if path:
-        return load_calibration(path)
-    return default_calibration(announce)
+    return load_calibration(path) if path else default_calibration(announce)
 
 
 def save_default_options(options: Options | str | Path) -> Path:

@@ -8,7 +8,7 @@ from bpms.io.raw_reader import RawFrames, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording, read_raw
 
 
-def _head(path: Path) -> bytes:
+def read_head(path: Path) -> bytes:
     """The first bytes of ``path``, as many as the native format's magic. Raises
     :class:`RawFileError` with a one-line reason when the file cannot be read."""
     try:
@@ -22,8 +22,7 @@ def open_recording(path: str | Path) -> RawRecording:
     """Read a native ``.bpmsraw`` recording or a legacy pickled raw file (read-only, through
     the restricted unpickler). Raises :class:`RawFileError` with a one-line reason."""
     path = Path(path)
-    head = _head(path)
-    if head == MAGIC:
+    if read_head(path) == MAGIC:
         return read_raw(path)
     from bpms.io.legacy_raw import is_legacy_raw, read_legacy_raw
 
@@ -39,8 +38,7 @@ def open_replay(path: str | Path) -> RawFrames | RawRecording:
     memory. Raises :class:`RawFileError` with a one-line reason, also when the recording holds
     no valid frame."""
     path = Path(path)
-    head = _head(path)
-    recording = RawFrames(path) if head == MAGIC else open_recording(path)
+    recording = RawFrames(path) if read_head(path) == MAGIC else open_recording(path)
     if recording.valid_frames == 0:
         raise RawFileError(no_frame_message(path, len(recording)))
     return recording

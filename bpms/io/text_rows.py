@@ -466,7 +466,6 @@ def _fraction_digits(frac13: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _swar8(hi), _swar8(u - hi * _U(100_000_000))
 
 
-_FRACTION_POINT = _U(ord(".") << 16)
 _FIRST_ZEROS = _U(0x3030303030000000)  # '0' added to bytes 3..7 (f1..f5)
 
 
@@ -475,7 +474,7 @@ def _fixed_fraction_words(frac13: np.ndarray, decimals: int) -> list[np.ndarray]
     a_digits, b_digits = _fraction_digits(frac13)
     a_keep = bytes([0, 0, 0xFF] + [0xFF if k < decimals else 0 for k in range(5)])
     b_keep = bytes([0xFF if 5 + k < decimals else 0 for k in range(8)])
-    first = ((a_digits + _FIRST_ZEROS) | _FRACTION_POINT) & _U(int.from_bytes(a_keep, "little"))
+    first = ((a_digits + _FIRST_ZEROS) | _POINT) & _U(int.from_bytes(a_keep, "little"))
     words = _halves(first)
     if decimals > 5:
         words += _halves((b_digits + _ZERO_CHARS) & _U(int.from_bytes(b_keep, "little")))

@@ -336,6 +336,4 @@ def _same_curves(a: dict, b: dict) -> bool:
 
 
 def _as_lists(value):
-    if isinstance(value, (list, tuple)):
-        return [_as_lists(v) for v in value]
-    return value
+    return [_as_lists(v) for v in value] if isinstance(value, (list, tuple)) else value

@@ -72,10 +72,7 @@ class DynamicDocks:
         self.view3d_windows = [w for w in self.view3d_windows if not sip.isdeleted(w)]
 
     def dock_of(self, widget: QWidget) -> QDockWidget | None:
-        for dock in self.dynamic_docks:
-            if dock.widget() is widget:
-                return dock
-        return None
+        return next((dock for dock in self.dynamic_docks if dock.widget() is widget), None)
 
     def plot_selection(self) -> PlotWindow | None:
         """A new plot dock of the selected cells (one curve each), or of the selected joint
