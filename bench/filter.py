@@ -139,7 +139,8 @@ def vqf_figures(minutes: float) -> tuple[float, float] | None:
     options = Options().filter
     options.algorithm = "vqf"
     bank = VqfBank(cal.gravity, options)
-    f, m, g = bank.physical(acc, mag, gyr, imu_major=True)
+    f, m, g = bank.physical(acc, mag, gyr,
+                            out=tuple(np.empty((N_IMUS, len(acc), 3)) for _ in range(3)))
     columns = [(g[i], f[i], m[i]) for i in range(N_IMUS)]
 
     def package() -> None:

@@ -112,25 +112,23 @@ class _PhysicalBank(FilterBank):
         return self.options.heading == "relative"
 
     def physical(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
-                 imu_major: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Suite units ``[N, n, 3]`` → (specific force m/s², mag ≈ unit, gyro rad/s), float64
-        contiguous ``[N, n, 3]``, or ``[n, N, 3]`` (one contiguous block per IMU) when
-        ``imu_major``. The conversion reads the inputs in their own order either way."""
-        shape = np.shape(acc)
-        layout = (shape[1], shape[0], shape[2]) if imu_major else shape
-
-        def converted(x: np.ndarray, op: np.ufunc, arg) -> np.ndarray:
-            out = np.empty(layout)
-            op(x, arg, out=out.transpose(1, 0, 2) if imu_major else out)
-            return out
-
-        f = converted(acc, np.multiply, self._acc_factor)
-        if self.relative:  # 6D: the magnetometer is not read
-            m = np.ascontiguousarray(np.broadcast_to(HEADING_FREE_FIELD, layout))
+        ``[N, n, 3]``; or, into ``out``, three ``[n, N, 3]`` arrays (one block of rows per
+        IMU, each IMU's rows contiguous). The conversion reads the inputs in their own order
+        either way."""
+        if out is None:
+            out = to = tuple(np.empty(np.shape(acc)) for _ in range(3))
         else:
-            m = converted(mag, np.divide, MAG_UNIT)
-        g = converted(gyr, np.multiply, 1.0)  # exact: a float64 copy in the asked layout
-        return f, m, g
+            to = tuple(x.transpose(1, 0, 2) for x in out)
+        np.multiply(acc, self._acc_factor, out=to[0])
+        if self.relative:  # 6D: the magnetometer is not read
+            to[1][...] = HEADING_FREE_FIELD
+        else:
+            np.divide(mag, MAG_UNIT, out=to[1])
+        to[2][...] = gyr  # exact: a float64 copy in the asked layout
+        return out
 
     def set_gains(self, **gains: float) -> None:
         """Change settings by their :class:`FilterOptions` names (e.g. ``observer_k_incl``,
@@ -258,22 +256,28 @@ class VqfBank(_PhysicalBank):
         rs = self._resets(n, resets)
         R = np.empty((n, self.n, 3, 3))
         bias = np.empty((n, self.n, 3))
+        # one block's arrays, reused by every block (no block allocates anything of its size)
+        size = min(n, VQF_BLOCK)
+        inputs = tuple(np.empty((self.n, size, 3)) for _ in range(3))
+        quat = np.empty((self.n, size, 4))  # body → ENU, IMU by IMU
+        block_bias = np.empty((self.n, size, 3))
+        work = np.empty((10, self.n, size))
         for a in range(0, n, VQF_BLOCK):
             b = min(n, a + VQF_BLOCK)
-            by_imu = self.physical(acc[a:b], mag[a:b], gyr[a:b], imu_major=True)
-            # the block's outputs IMU by IMU (each IMU's rows contiguous); NaN: no attitude yet
-            quat = np.full((self.n, b - a, 4), np.nan)  # body → ENU
-            block_bias = np.full((self.n, b - a, 3), np.nan)
+            k = b - a
+            by_imu = self.physical(acc[a:b], mag[a:b], gyr[a:b],
+                                   out=tuple(x[:, :k] for x in inputs))
             block_err = None if err is None else err[a:b]
             for i in range(self.n):
-                inputs, valid = self._fill(i, tuple(x[i] for x in by_imu), block_err)
-                resets_at = np.flatnonzero(rs[a:b, i]) if len(rs) else []
-                for lo, hi in pairwise([0, *resets_at, b - a]):
+                inputs_i, valid = self._fill(i, tuple(x[i] for x in by_imu), block_err)
+                resets_at = np.flatnonzero(rs[a:b, i]).tolist() if len(rs) else []
+                for lo, hi in pairwise([0, *resets_at, k]):
                     if hi > lo:
-                        self._run(i, lo, hi, lo in resets_at, inputs, valid, block_err,
+                        self._run(i, lo, hi, lo in resets_at, inputs_i, valid, block_err,
                                   quat[i], block_bias[i])
-            ned_dcm_of_enu(*np.moveaxis(quat, -1, 0), out=R[a:b].transpose(1, 0, 2, 3))
-            bias[a:b] = block_bias.transpose(1, 0, 2)
+            ned_dcm_of_enu(*np.moveaxis(quat[:, :k], -1, 0), out=R[a:b].transpose(1, 0, 2, 3),
+                           work=work[:, :, :k])
+            bias[a:b] = block_bias[:, :k].transpose(1, 0, 2)
         return BankOutput(R, gyro_bias=bias)
 
     def _run(self, i: int, lo: int, hi: int, reset: bool, inputs: list[np.ndarray],
@@ -282,14 +286,15 @@ class VqfBank(_PhysicalBank):
         """IMU ``i``'s rows ``lo .. hi-1`` of a block (``reset``: a reset at ``lo``, none
         after it), from its inputs (f, m, g ``[block, 3]``), valid ``[block]`` and the
         block's error flags: its body → ENU quaternions ``[block, 4]`` into ``quat``, its
-        bias estimate ``[block, 3]`` rad/s into ``bias`` (rows before the aligning frame are
-        left as they are: NaN)."""
+        bias estimate ``[block, 3]`` rad/s into ``bias`` (NaN in the rows before the aligning
+        frame)."""
         if reset:
             self.state.initialised[i] = False
         start = first = lo
         if not self.state.initialised[i]:
             ok = np.flatnonzero(valid[lo:hi])
             start = hi if len(ok) == 0 else lo + int(ok[0])
+            quat[lo:start] = bias[lo:start] = np.nan  # no attitude yet
             if start == hi:
                 return
             self.vqf.reset(i)

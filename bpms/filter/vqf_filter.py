@@ -44,19 +44,32 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def ned_dcm_of_enu(w: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
-                   out: np.ndarray | None = None) -> np.ndarray:
+                   out: np.ndarray | None = None, work: np.ndarray | None = None
+                   ) -> np.ndarray:
     """Unit body → ENU quaternions, as their components ``[...]`` each (NaN allowed) → body →
     NED DCMs ``[..., 3, 3]``: ``ENU_TO_NED @ R(q)``, i.e. the rows y, x, −z of ``R(q)``,
     each entry written once into the result (``out`` when given; VQF's quaternions are unit:
-    no normalisation)."""
+    no normalisation). ``work``: ``[10, ...]`` scratch for the products (allocated when not
+    given; a caller converting block after block passes the same one, so that no block
+    allocates)."""
     R = np.empty((*w.shape, 3, 3)) if out is None else out
-    x2, y2, z2 = 2.0 * x, 2.0 * y, 2.0 * z
-    xx, yy, zz = x * x2, y * y2, z * z2
-    xy, xz, yz = x * y2, x * z2, y * z2
-    wx, wy, wz = w * x2, w * y2, w * z2
-    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = xy + wz, 1.0 - xx - zz, yz - wx  # ENU y row
-    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = 1.0 - yy - zz, xy - wz, xz + wy  # ENU x row
-    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = wy - xz, -(yz + wx), xx + yy - 1.0  # −ENU z
+    t = np.empty((10, *w.shape)) if work is None else work
+    s, (xx, wx, xy, yy, wy, xz, yz, zz, wz) = t[0], t[1:]
+    for c, pairs in ((x, ((x, xx), (w, wx))), (y, ((x, xy), (y, yy), (w, wy))),
+                     (z, ((x, xz), (y, yz), (z, zz), (w, wz)))):
+        np.multiply(c, 2.0, out=s)
+        for a, product in pairs:
+            np.multiply(a, s, out=product)
+    # each entry written once (R may be strided), ``s`` holding a two-step entry's first step
+    np.add(xy, wz, out=R[..., 0, 0])  # ENU y row
+    np.subtract(np.subtract(1.0, xx, out=s), zz, out=R[..., 0, 1])
+    np.subtract(yz, wx, out=R[..., 0, 2])
+    np.subtract(np.subtract(1.0, yy, out=s), zz, out=R[..., 1, 0])  # ENU x row
+    np.subtract(xy, wz, out=R[..., 1, 1])
+    np.add(xz, wy, out=R[..., 1, 2])
+    np.subtract(wy, xz, out=R[..., 2, 0])  # −ENU z row
+    np.negative(np.add(yz, wx, out=s), out=R[..., 2, 1])
+    np.subtract(np.add(xx, yy, out=s), 1.0, out=R[..., 2, 2])
     return R
 
 
