@@ -19,6 +19,7 @@ hold machine code built from an older version of another file.
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 import threading
@@ -28,6 +29,7 @@ from typing import TextIO
 import numpy as np
 
 from bpms.io.frames import N_IMUS
+from bpms.progress import write_progress
 
 #: Every selectable filter (``vqf`` runs in the vqf package's own code; its warm-up
 #: compiles the disturbance indicators' and the hinge constraint's kernels).
@@ -45,8 +47,8 @@ def kernels_ready(algorithm: str) -> bool:
 
 
 class Progress:
-    """Progress of a few slow steps on ``stream``, shown only once ``notice_after_s`` passed.
-    On a terminal one line is rewritten with ``\\r``; elsewhere each step is its own line."""
+    """Progress of a few slow steps on ``stream``, shown only once ``notice_after_s`` passed:
+    each step as :func:`bpms.progress.write_progress` shows it (in place on a terminal)."""
 
     def __init__(self, total: int, stream: TextIO | None = None,
                  notice_after_s: float = NOTICE_AFTER_S) -> None:
@@ -56,10 +58,6 @@ class Progress:
         self.label = ""
         self.shown = False
         self.t0 = time.monotonic()
-        try:
-            self.tty = bool(self.stream.isatty())
-        except (AttributeError, ValueError):
-            self.tty = False
         self._lock = threading.Lock()
         self._timer = threading.Timer(notice_after_s, self._show)
         self._timer.daemon = True
@@ -69,19 +67,16 @@ class Progress:
         return (f"bpms: compiling the filters for this machine (once; 'bpms warmup' does it "
                 f"ahead of time): {self.done}/{self.total} {self.label}")
 
-    def _write(self, text: str, end: str) -> None:
-        try:
-            self.stream.write(text + end)
-            self.stream.flush()
-        except (OSError, ValueError):
-            pass
+    def _write(self, final: bool = False) -> None:
+        with contextlib.suppress(OSError, ValueError):  # a closed stream
+            write_progress(self._line(), self.stream, final)
 
     def _show(self) -> None:
         with self._lock:
             if self.done >= self.total:
                 return
             self.shown = True
-            self._write(("\r" if self.tty else "") + self._line(), "" if self.tty else "\n")
+            self._write()
 
     def step(self, label: str) -> None:
         """The next step (``label``) starts."""
@@ -100,7 +95,7 @@ class Progress:
             if self.shown:
                 seconds = time.monotonic() - self.t0
                 self.label = f"done in {seconds:.1f} s"
-                self._write(("\r" if self.tty else "") + self._line(), "\n")
+                self._write(final=True)
 
 
 #: The compiled parts each filter needs (``adaptive`` runs the observer's kernel; ``vqf``
