@@ -224,23 +224,25 @@ class VqfBank(_PhysicalBank):
             flt.state = state
         super().restore(hold)
 
-    def _fill(self, i: int, data: tuple[np.ndarray, ...], err: np.ndarray | None
-              ) -> tuple[list[np.ndarray], np.ndarray]:
-        """IMU ``i``'s inputs (``data``: its ``[N, 3]`` accel, mag, gyro) with failed samples
-        forward-filled by the last good value; the valid mask ``[N]``."""
-        n = data[0].shape[0]
-        filled = []
-        valid = np.ones(n, dtype=np.bool_)
-        for s, x in enumerate(data):
-            if err is not None and err[:, i, s].any():
-                good = ~err[:, i, s]
-                valid &= good
-                idx = np.maximum.accumulate(np.where(good, np.arange(n), -1))
-                x = np.where((idx >= 0)[:, None], x[np.maximum(idx, 0)], self.state.held[i, s])
-            filled.append(x)
-            if n:
-                self.state.held[i, s] = x[-1]
-        return filled, valid
+    def _fill(self, inputs: tuple[np.ndarray, ...], err: np.ndarray | None
+              ) -> np.ndarray | None:
+        """A block's inputs (f, m, g ``[n, k, 3]``, IMU by IMU) with each failed sample
+        replaced, in place, by the last good one of its IMU and sensor (before the block: the
+        held one); the valid mask ``[n, k]`` (None: every sample is)."""
+        valid = None
+        if err is not None:
+            good = ~err.transpose(1, 0, 2)  # [n, k, sensor]
+            valid = good.all(axis=-1)
+            last_good = np.maximum.accumulate(
+                np.where(good, np.arange(good.shape[1])[:, None], -1), axis=1)
+            for s, x in enumerate(inputs):
+                if not good[..., s].all():
+                    at = last_good[..., s, None]
+                    x[...] = np.where(at >= 0, np.take_along_axis(x, np.maximum(at, 0), axis=1),
+                                      self.state.held[:, None, s])
+        for s, x in enumerate(inputs):
+            self.state.held[:, s] = x[:, -1]
+        return valid
 
     def process(self, acc: np.ndarray, mag: np.ndarray, gyr: np.ndarray,
                 errors: np.ndarray | None = None,
@@ -268,31 +270,30 @@ class VqfBank(_PhysicalBank):
             by_imu = self.physical(acc[a:b], mag[a:b], gyr[a:b],
                                    out=tuple(x[:, :k] for x in inputs))
             block_err = None if err is None else err[a:b]
+            valid = self._fill(by_imu, block_err)
             for i in range(self.n):
-                inputs_i, valid = self._fill(i, tuple(x[i] for x in by_imu), block_err)
                 resets_at = np.flatnonzero(rs[a:b, i]).tolist() if len(rs) else []
                 for lo, hi in pairwise([0, *resets_at, k]):
                     if hi > lo:
-                        self._run(i, lo, hi, lo in resets_at, inputs_i, valid, block_err,
+                        self._run(i, lo, hi, lo in resets_at, by_imu, valid, block_err,
                                   quat[i], block_bias[i])
             ned_dcm_of_enu(*np.moveaxis(quat[:, :k], -1, 0), out=R[a:b].transpose(1, 0, 2, 3),
                            work=work[:, :, :k])
             bias[a:b] = block_bias[:, :k].transpose(1, 0, 2)
         return BankOutput(R, gyro_bias=bias)
 
-    def _run(self, i: int, lo: int, hi: int, reset: bool, inputs: list[np.ndarray],
-             valid: np.ndarray, err: np.ndarray | None, quat: np.ndarray,
+    def _run(self, i: int, lo: int, hi: int, reset: bool, inputs: tuple[np.ndarray, ...],
+             valid: np.ndarray | None, err: np.ndarray | None, quat: np.ndarray,
              bias: np.ndarray) -> None:
         """IMU ``i``'s rows ``lo .. hi-1`` of a block (``reset``: a reset at ``lo``, none
-        after it), from its inputs (f, m, g ``[block, 3]``), valid ``[block]`` and the
-        block's error flags: its body → ENU quaternions ``[block, 4]`` into ``quat``, its
-        bias estimate ``[block, 3]`` rad/s into ``bias`` (NaN in the rows before the aligning
-        frame)."""
+        after it), from the block's inputs and valid mask (:meth:`_fill`) and error flags:
+        its body → ENU quaternions ``[block, 4]`` into ``quat``, its bias estimate
+        ``[block, 3]`` rad/s into ``bias`` (NaN in the rows before the aligning frame)."""
         if reset:
             self.state.initialised[i] = False
         start = first = lo
         if not self.state.initialised[i]:
-            ok = np.flatnonzero(valid[lo:hi])
+            ok = [0] if valid is None else np.flatnonzero(valid[i, lo:hi])
             start = hi if len(ok) == 0 else lo + int(ok[0])
             quat[lo:start] = bias[lo:start] = np.nan  # no attitude yet
             if start == hi:
@@ -302,7 +303,7 @@ class VqfBank(_PhysicalBank):
             first = start + 1  # the aligning frame is not a step
         if err is not None:
             self.state.held_count[i] += err[first:hi, i].sum(axis=0)
-        f, m, g = (x[start:hi] for x in inputs)
+        f, m, g = (x[i, start:hi] for x in inputs)
         quat[start:hi], bias[start:hi] = self.vqf.process_imu(i, f, m, g,
                                                               six_d=self.relative)
 
