@@ -373,12 +373,9 @@ def is_raw_recording(path: str | Path) -> bool:
     from bpms.io.legacy_raw import is_legacy_raw
 
     try:
-        with open(path, "rb") as f:
-            if f.read(len(MAGIC)) == MAGIC:
-                return True
-    except OSError:
+        return read_head(Path(path)) == MAGIC or is_legacy_raw(path)
+    except RawFileError:  # cannot be read
         return False
-    return is_legacy_raw(path)
 
 
 def open_for_processing(path: str | Path, calibration: str | Path | CalibrationTable | None = None,
