@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -18,7 +19,9 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
 
 # Every test starts from a fresh, empty per-user folder: a developer's own defaults never leak
 # into the suite (bpms.io.userdirs reads these variables; subprocesses inherit them).
-_USER_ROOT = __import__("tempfile").mkdtemp(prefix="bpms-test-user-")
+# The folder goes when the session ends, so runs do not pile folders up in the temp folder.
+_USER_ROOT_FOLDER = tempfile.TemporaryDirectory(prefix="bpms-test-user-")
+_USER_ROOT = _USER_ROOT_FOLDER.name
 for _variable, _sub in (("BPMS_CONFIG_DIR", "config"), ("BPMS_DATA_DIR", "data"),
                         ("BPMS_LOG_DIR", "log")):
     os.environ[_variable] = os.path.join(_USER_ROOT, _sub)

@@ -31,7 +31,9 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "screenshots"
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("QT_QPA_PLATFORM", "xcb")
-os.environ["BPMS_CONFIG_DIR"] = tempfile.mkdtemp(prefix="bpms-shots-config-")
+# removed when the script ends (TemporaryDirectory's finaliser), as is the recordings folder
+_CONFIG_FOLDER = tempfile.TemporaryDirectory(prefix="bpms-shots-config-")
+os.environ["BPMS_CONFIG_DIR"] = _CONFIG_FOLDER.name
 
 from PyQt6.QtWidgets import QApplication, QWidget  # noqa: E402
 
@@ -226,7 +228,8 @@ def startup(app: QApplication, folder: Path, recording: Path) -> None:
 def main() -> int:
     app = QApplication(sys.argv[:1])
     OUT.mkdir(parents=True, exist_ok=True)
-    folder = Path(tempfile.mkdtemp(prefix="bpms-shots-"))
+    recordings = tempfile.TemporaryDirectory(prefix="bpms-shots-")
+    folder = Path(recordings.name)
     recording = make_recording(folder)
     steps = [("start-up window", lambda: startup(app, folder, recording))]
     for label, width, height in SIZES:

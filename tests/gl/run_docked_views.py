@@ -15,7 +15,9 @@ import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("BPMS_CONFIG_DIR", tempfile.mkdtemp(prefix="bpms-gl-config-"))
+if "BPMS_CONFIG_DIR" not in os.environ:  # run by hand: a config folder removed at exit
+    _CONFIG_FOLDER = tempfile.TemporaryDirectory(prefix="bpms-gl-config-")
+    os.environ["BPMS_CONFIG_DIR"] = _CONFIG_FOLDER.name
 
 from PyQt6.QtWidgets import QApplication
 
