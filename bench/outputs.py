@@ -34,8 +34,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bpms.analysis.binary_out import ExportMeta, open_writer
-from bpms.analysis.source import CHUNK_FRAMES
 from bpms.cli import main
+from bpms.filter.door import CHUNK_FRAMES
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.session import simulate
 from bpms.io.filtered_file.columns import FLAG_FMT, HOST_TIME_FMT, VALUE_FMT, column_groups

@@ -83,3 +83,10 @@ def report(label: str, done: int, total: int, stream: TextIO | None = None) -> N
     line.update(done, f"{label}: {100 * done // max(total, 1):3d}% ({done}/{total} frames)")
     if done >= total:
         _open.pop(label, None)
+
+
+def stderr_progress(label: str, done: int, total: int) -> None:
+    """:func:`report` on stderr for work above 30,000 frames (10 minutes at 50 Hz), the
+    analysis commands' progress per chunk; shorter work shows none."""
+    if total > 30_000:
+        report(label, done, total)

@@ -104,7 +104,9 @@ def test_no_end_pause_is_one_clear_line(tmp_path, capsys):
     rec.save_raw(path)
     assert main(["drift", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "no still period near the end" in err[0]
+    # where calibration and options came from (as every analysis command says), then one error
+    assert err[0] == "bpms drift: calibration: recording header; options: factory"
+    assert len(err) == 2 and "no still period near the end" in err[1]
 
 
 def test_gui_drift_panel_after_playback_shows_the_hand_computed_drift(biased, tmp_path, qtbot):

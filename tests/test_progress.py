@@ -69,7 +69,7 @@ def test_report_keeps_one_line_per_label_and_starts_again_for_the_next_job():
 def test_the_commands_progress_is_plain_lines_in_a_pipe(capsys):
     """What the analysis commands call per chunk of a recording above 30,000 frames: with
     stderr captured (not a terminal) it writes a few plain lines, never a carriage return."""
-    from bpms.analysis.source import stderr_progress
+    from bpms.progress import stderr_progress
 
     for done in range(0, 186_001, 15_000):  # an hour at 50 Hz, in the door's 5-minute chunks
         stderr_progress("filtering trial.bpmsraw", min(done, 186_000), 186_000)

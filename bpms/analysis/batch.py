@@ -58,7 +58,7 @@ def find_recordings(folder: str | Path) -> list[Job]:
     """Every raw recording under ``folder`` (native ``.bpmsraw`` files, and legacy ``.txt``
     raw files recognised by their content), sorted. Subject = the first folder level under
     ``folder`` (``-`` for files directly in it), trial = the file's stem."""
-    from bpms.analysis.source import is_raw_recording
+    from bpms.filter.door import is_raw_recording
 
     root = Path(folder)
     jobs = []

@@ -19,6 +19,7 @@ change).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -143,14 +144,24 @@ def drift_report(t: np.ndarray, R: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
                        np.degrees(heading), np.degrees(incl), pose)
 
 
-def drift_of_result(result, processor, raw: np.ndarray,
-                    errors: np.ndarray | None = None,
-                    settings: DriftSettings | None = None) -> DriftReport:
-    """:func:`drift_report` of a :class:`bpms.filter.processor.Result` and the processor that
-    made it from ``raw`` (for a GUI panel after playback)."""
-    acc, _, gyr = processor.calibrate(raw)
-    return drift_report(result.t, result.R, acc, gyr, processor.sensor_calibration.gravity,
-                        errors, settings)
+def drift_of_recording(opened, chunks: Iterable | None = None,
+                       settings: DriftSettings | None = None) -> DriftReport:
+    """:func:`drift_report` of a raw recording opened by
+    :func:`bpms.filter.door.open_for_processing`, filtered through its door: ``chunks`` are
+    its chunks (default ``opened.chunks()``; pass them to add progress). Raises ValueError
+    for a filtered file (no sensors) or a recording without frames."""
+    if not opened.has_raw:
+        raise ValueError(f"{opened.path}: the drift check needs the sensors: give the raw "
+                         "recording, not a filtered file")
+    proc = opened.processor
+    columns = []
+    for chunk in opened.chunks() if chunks is None else chunks:
+        acc, _, gyr = proc.calibrate(chunk.raw)
+        columns.append((chunk.result.t, chunk.result.R, acc, gyr, chunk.errors))
+    if not columns:
+        raise ValueError(f"{opened.path}: the recording holds no frames")
+    t, R, acc, gyr, errors = (np.concatenate(column) for column in zip(*columns, strict=True))
+    return drift_report(t, R, acc, gyr, proc.sensor_calibration.gravity, errors, settings)
 
 
-__all__ = ["DriftReport", "DriftSettings", "drift_of_result", "drift_report", "still_periods"]
+__all__ = ["DriftReport", "DriftSettings", "drift_of_recording", "drift_report", "still_periods"]

@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bpms.analysis.binary_out import ExportMeta, open_writer
-from bpms.analysis.source import CHUNK_FRAMES
 from bpms.analysis.stamp import recording_utc_start
+from bpms.filter.door import CHUNK_FRAMES
 from bpms.io.options import Options
 
 

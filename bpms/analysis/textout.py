@@ -8,9 +8,9 @@ from typing import TextIO
 
 import numpy as np
 
-from bpms.analysis.source import stderr_progress
 from bpms.io.closing import Closing
 from bpms.io.text_rows import RowFormat
+from bpms.progress import stderr_progress
 
 CHUNK_ROWS = 10_000
 

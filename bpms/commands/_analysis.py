@@ -11,7 +11,7 @@ from contextlib import contextmanager
 from bpms.commands import CliError
 from bpms.commands._shared import warn
 
-__all__ = ["open_recording_for", "processed", "stream"]
+__all__ = ["open_recording_for", "stream"]
 
 
 @contextmanager
@@ -49,27 +49,9 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
 def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
     """The recording's chunks (:class:`bpms.filter.door.Chunk`) with progress on stderr;
     warnings met on the way are printed at the end. Raises CliError for a read error."""
-    from bpms.analysis.source import stderr_progress
     from bpms.io.filtered_file.reader import FilteredFileError
+    from bpms.progress import stderr_progress
 
     with _read_errors(opened.path, FilteredFileError):
         yield from opened.chunks(zero_at_s, stderr_progress)
     warn(command, opened.problems)
-
-
-def processed(command: str, path: str, calibration: str | None = None,
-              options: str | None = None, zero_at_s: Sequence[float] = (),
-              algorithm: str | None = None, heading: str | None = None, reset_zero=None):
-    """A whole recording joined into one result (:func:`bpms.analysis.source.
-    process_recording`); for small recordings only: the commands stream."""
-    from bpms.analysis.source import process_recording
-    from bpms.io.filtered_file.reader import FilteredFileError
-    from bpms.io.rawfile import RawFileError
-
-    with _read_errors(path, RawFileError, FilteredFileError):
-        p = process_recording(path, calibration, options, zero_at_s, algorithm=algorithm,
-                              heading=heading, reset_zero=reset_zero)
-    if len(p.result) == 0:
-        raise CliError(f"{path}: the recording holds no frames")
-    warn(command, p.result.problems)
-    return p

@@ -35,10 +35,10 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.analysis.binary_out import SUFFIX
-    from bpms.analysis.source import stderr_progress
     from bpms.analysis.stream_export import export_recording
     from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
+    from bpms.progress import stderr_progress
 
     t0 = time.perf_counter()
     raw = Path(args.raw_file)

@@ -27,20 +27,19 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.drift import drift_of_result
-    from bpms.commands._analysis import processed
+    from bpms.analysis.drift import drift_of_recording
+    from bpms.commands._analysis import open_recording_for, stream
     from bpms.io.frames import IMU_NAMES
 
-    p = processed("drift", args.raw_file, args.calibration, args.options,
-                  algorithm=args.filter_name, heading=args.heading,
-                  reset_zero=args.reset_zero)
-    if p.raw is None:
-        raise CliError(f"{args.raw_file}: the drift check needs the sensors: give the raw "
-                       "recording, not a filtered file")
-    report = drift_of_result(p.result, p.processor, p.raw, p.errors)
+    opened = open_recording_for("drift", args.raw_file, args.calibration, args.options,
+                                args.filter_name, args.heading, args.reset_zero)
+    try:
+        report = drift_of_recording(opened, stream("drift", opened))
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
     if not report.ok:
         raise CliError(f"{args.raw_file}: {report.problem}")
-    algorithm = p.processor.options.filter.algorithm
+    algorithm = opened.processor.options.filter.algorithm
     lines = ["imu,name,total_deg,heading_deg,inclination_deg"]
     lines += [f"{i},{name},{report.total_deg[i]:.2f},{report.heading_deg[i]:.2f},"
               f"{report.inclination_deg[i]:.2f}" for i, name in enumerate(IMU_NAMES)]

@@ -23,14 +23,10 @@ COLUMNS = ("segment", "total [deg]", "heading [deg]", "inclination [deg]")
 
 def compute_drift(path: str, calibration, options, algorithm: str | None):
     """The drift report of the recording at ``path`` (runs in a worker thread)."""
-    from bpms.analysis.drift import drift_of_result
-    from bpms.analysis.source import process_recording
+    from bpms.analysis.drift import drift_of_recording
+    from bpms.filter.door import open_for_processing
 
-    p = process_recording(path, calibration, options, algorithm=algorithm, progress=None)
-    if p.raw is None:
-        raise ValueError("the drift check needs a raw recording (the sensors), not a "
-                         "filtered file")
-    return drift_of_result(p.result, p.processor, p.raw, p.errors)
+    return drift_of_recording(open_for_processing(path, calibration, options, algorithm))
 
 
 class DriftPanel(QWidget):
