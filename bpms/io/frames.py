@@ -71,6 +71,7 @@ assert FRAME_DTYPE.itemsize == FRAME_SIZE
 #: 16-bit words of a frame and of a cluster; the markers as big-endian words.
 FRAME_WORDS = FRAME_SIZE // 2
 _CLUSTER_WORDS = CLUSTER_SIZE // 2
+_WIRE_WORD = np.dtype(">u2")  # a 16-bit word as the wire sends it (big-endian)
 _START_WORD = int.from_bytes(START, "big")
 _END_WORD = int.from_bytes(END, "big")
 
@@ -102,7 +103,7 @@ class DecodedFrames:
 def error_words_to_flags(words: np.ndarray) -> np.ndarray:
     """Cluster error words ``[..., 6]`` (uint16) → bool flags ``[..., 18, 3]``."""
     words = np.asarray(words)
-    flags = _FLAGS_OF_WORD[words & (len(_FLAGS_OF_WORD) - 1)]
+    flags = _FLAGS_OF_WORD.take(words & (len(_FLAGS_OF_WORD) - 1), axis=0)
     return flags.reshape(*words.shape[:-1], N_IMUS, N_SENSORS)
 
 
@@ -167,7 +168,7 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
     # A frame is 170 big-endian 16-bit words: the start marker, 6 clusters of 28 (27 counts
     # and the error word), the end marker. Plain words, not FRAME_DTYPE's nested fields: a live
     # frame pays each numpy call's fixed cost, and structured fields cost several.
-    words = np.frombuffer(buf, dtype=">u2").reshape(n, FRAME_WORDS)
+    words = np.frombuffer(buf, dtype=_WIRE_WORD).reshape(n, FRAME_WORDS)
     if n == 1:  # a live frame: the markers compared as bytes
         if not is_frame(buf):
             raise FrameError("1 frame(s) lack the $#/#$ markers, first at index 0")
