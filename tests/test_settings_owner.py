@@ -65,6 +65,27 @@ def test_api_refuses_out_of_range_gains_naming_the_range():
     assert proc.options.filter.algorithm == "mahony"
 
 
+def test_the_recorded_settings_in_force_apply_on_replay_text_options_included():
+    """A live session records every filter setting in force when logging starts, text ones
+    ('failed_sensor', 'heading') among the numbers: replay applies them all, not one refused
+    (a gain the operator had changed before starting then holds on replay too)."""
+    from bpms.io.session_events import SessionEvent
+
+    values = {k: v for k, v in dataclasses.asdict(FilterOptions()).items() if k != "algorithm"}
+    values["kp_rollpitch"] = 0.05  # changed by the operator before logging started
+    proc = BodyPoseProcessor()
+    assert proc.apply_event(SessionEvent("gains", data={"values": values,
+                                                        "source": "in force"}))
+    assert proc.problems == []
+    assert proc.options.filter.kp_rollpitch == 0.05
+    assert proc.options.filter.heading == "magnetic"
+    # an unreadable value is one problem line, nothing changed, no exception
+    bad = SessionEvent("gains", data={"values": {"kp_rollpitch": "fast"}})
+    assert not proc.apply_event(bad)
+    assert len(proc.problems) == 1 and "kp_rollpitch" in proc.problems[0]
+    assert proc.options.filter.kp_rollpitch == 0.05
+
+
 def test_live_session_refuses_in_the_callers_thread(rec, tmp_path):
     path = rec.save_raw(tmp_path / "Raw_refuse_1.bpmsraw")
     session = LiveSession(ReplaySource(read_raw(path), speed=None))

@@ -211,7 +211,7 @@ class BodyPoseProcessor:
             elif event.kind == "filter":
                 self.select_filter(str(d["algorithm"]))
             elif event.kind == "gains":
-                self.set_gains(**{str(k): float(v) for k, v in dict(d["values"]).items()})
+                self.set_gains(**{str(k): v for k, v in dict(d["values"]).items()})  # checked there
             elif event.kind == "filters":
                 if d.get("action") == "restart":
                     self.restart(keep_time=True)
