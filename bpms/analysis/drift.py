@@ -144,14 +144,18 @@ def drift_report(t: np.ndarray, R: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
                        np.degrees(heading), np.degrees(incl), pose)
 
 
+class DriftInputError(ValueError):
+    """A recording the drift check cannot use: a filtered file (no sensors), or no frames."""
+
+
 def drift_of_recording(opened, chunks: Iterable | None = None,
                        settings: DriftSettings | None = None) -> DriftReport:
     """:func:`drift_report` of a raw recording opened by
     :func:`bpms.filter.door.open_for_processing`, filtered through its door: ``chunks`` are
-    its chunks (default ``opened.chunks()``; pass them to add progress). Raises ValueError
-    for a filtered file (no sensors) or a recording without frames."""
+    its chunks (default ``opened.chunks()``; pass them to add progress). Raises
+    :class:`DriftInputError` for a filtered file (no sensors) or a recording without frames."""
     if not opened.has_raw:
-        raise ValueError(f"{opened.path}: the drift check needs the sensors: give the raw "
+        raise DriftInputError(f"{opened.path}: the drift check needs the sensors: give the raw "
                          "recording, not a filtered file")
     proc = opened.processor
     columns = []
@@ -159,9 +163,10 @@ def drift_of_recording(opened, chunks: Iterable | None = None,
         acc, _, gyr = proc.calibrate(chunk.raw)
         columns.append((chunk.result.t, chunk.result.R, acc, gyr, chunk.errors))
     if not columns:
-        raise ValueError(f"{opened.path}: the recording holds no frames")
+        raise DriftInputError(f"{opened.path}: the recording holds no frames")
     t, R, acc, gyr, errors = (np.concatenate(column) for column in zip(*columns, strict=True))
     return drift_report(t, R, acc, gyr, proc.sensor_calibration.gravity, errors, settings)
 
 
-__all__ = ["DriftReport", "DriftSettings", "drift_of_recording", "drift_report", "still_periods"]
+__all__ = ["DriftInputError", "DriftReport", "DriftSettings", "drift_of_recording", "drift_report",
+           "still_periods"]

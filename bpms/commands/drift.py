@@ -27,7 +27,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.drift import drift_of_recording
+    from bpms.analysis.drift import DriftInputError, drift_of_recording
     from bpms.commands._analysis import open_recording_for, stream
     from bpms.io.frames import IMU_NAMES
 
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
                                 args.filter_name, args.heading, args.reset_zero)
     try:
         report = drift_of_recording(opened, stream("drift", opened))
-    except ValueError as exc:
+    except DriftInputError as exc:
         raise CliError(str(exc)) from None
     if not report.ok:
         raise CliError(f"{args.raw_file}: {report.problem}")
