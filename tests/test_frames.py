@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -79,6 +81,37 @@ def test_decode_rejects_bad_input():
     with pytest.raises(FrameError, match="markers"):
         decode_frames(good + b"X" + good[1:])
     assert is_frame(good) and not is_frame(good[:-1]) and not is_frame(b"x" + good[1:])
+
+
+def _hand_built_frame(first: int) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """A frame packed by hand as SPEC §2 lays it out (not by the encoder): counts first,
+    first + 1, ... (wrapping in int16); each cluster's error word has bit 3·slot + sensor of
+    its flags and bits 9-15 all set (not flags: they must be ignored)."""
+    counts = (np.arange(first, first + 162) + 32768) % 65536 - 32768
+    raw = counts.reshape(18, 9)
+    errors = np.zeros((18, 3), bool)
+    body = b""
+    for cluster in range(6):
+        slot, sensor = cluster % 3, (cluster * 2) % 3
+        errors[3 * cluster + slot, sensor] = True
+        word = (1 << (3 * slot + sensor)) | 0xFE00
+        body += struct.pack(">27hH", *raw[3 * cluster:3 * cluster + 3].ravel(), word)
+    return b"$#" + body + b"#$", raw, errors
+
+
+def test_decode_reads_hand_built_frames_from_any_buffer():
+    frames = [_hand_built_frame(first) for first in (-32768, 0, 32700)]
+    wire = b"".join(f for f, _, _ in frames)
+    for buf in (wire, bytearray(wire), memoryview(wire), np.frombuffer(wire, np.uint8)):
+        decoded = decode_frames(buf)
+        np.testing.assert_array_equal(decoded.raw, [r for _, r, _ in frames])
+        np.testing.assert_array_equal(decoded.errors, [e for _, _, e in frames])
+        assert decoded.raw.dtype == np.int16 and decoded.raw.flags.c_contiguous
+    live = decode_frames(frames[1][0])  # one frame, as live
+    np.testing.assert_array_equal(live.raw[0], frames[1][1])
+    np.testing.assert_array_equal(live.errors[0], frames[1][2])
+    empty = decode_frames(b"")
+    assert empty.raw.shape == (0, 18, 9) and empty.errors.shape == (0, 18, 3)
 
 
 def test_describe_errors_names_the_sensor():

@@ -68,17 +68,21 @@ FRAME_DTYPE = np.dtype(
 assert _CLUSTER_DTYPE.itemsize == CLUSTER_SIZE
 assert FRAME_DTYPE.itemsize == FRAME_SIZE
 
-#: 16-bit words of a frame and of a cluster; the markers as big-endian words.
-FRAME_WORDS = FRAME_SIZE // 2
-_CLUSTER_WORDS = CLUSTER_SIZE // 2
-_WIRE_WORD = np.dtype(">u2")  # a 16-bit word as the wire sends it (big-endian)
+#: The markers as big-endian 16-bit words.
+_WIRE_WORD = np.dtype(">u2")  # an unsigned 16-bit word as the wire sends it
 _START_WORD = int.from_bytes(START, "big")
 _END_WORD = int.from_bytes(END, "big")
 
 _ERROR_BITS = np.arange(IMUS_PER_CLUSTER * N_SENSORS, dtype=np.uint16)
-#: ``_FLAGS_OF_WORD[w]``: the 9 flags (bit ``3·slot + sensor``) of error word ``w`` (bits 9–15
-#: are zero by definition and ignored), so decoding a word is one table look-up.
-_FLAGS_OF_WORD = ((np.arange(1 << _ERROR_BITS.size)[:, None] >> _ERROR_BITS) & 1).astype(bool)
+#: ``_FLAGS_OF_WORD[w]``: the 9 flags (bit ``3·slot + sensor``) of any 16-bit error word ``w``
+#: (bits 9–15 are zero by definition and ignored), so decoding a word is one table look-up.
+_FLAGS_OF_WORD = ((np.arange(1 << 16, dtype=np.uint16)[:, None] >> _ERROR_BITS) & 1).astype(bool)
+#: Where a frame's counts and error words are: cluster c's 27 counts start at byte
+#: 2 + 56·c, its error word follows them (byte offset, strides of (frame, cluster[, count])).
+_COUNTS_AT, _COUNTS_STRIDES = 2, (FRAME_SIZE, CLUSTER_SIZE, 2)
+_ERROR_AT, _ERROR_STRIDES = 2 + CLUSTER_SIZE - 2, (FRAME_SIZE, CLUSTER_SIZE)
+_COUNTS_PER_CLUSTER = IMUS_PER_CLUSTER * N_CHANNELS
+_WIRE_COUNT = np.dtype(">i2")  # a signed count as the wire sends it (big-endian)
 
 
 class FrameError(ValueError):
@@ -103,7 +107,7 @@ class DecodedFrames:
 def error_words_to_flags(words: np.ndarray) -> np.ndarray:
     """Cluster error words ``[..., 6]`` (uint16) → bool flags ``[..., 18, 3]``."""
     words = np.asarray(words)
-    flags = _FLAGS_OF_WORD.take(words & (len(_FLAGS_OF_WORD) - 1), axis=0)
+    flags = _FLAGS_OF_WORD.take(words & 0xFFFF, axis=0)
     return flags.reshape(*words.shape[:-1], N_IMUS, N_SENSORS)
 
 
@@ -165,21 +169,28 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
     if len(buf) % FRAME_SIZE:
         raise FrameError(f"{len(buf)} bytes is not a whole number of {FRAME_SIZE}-byte frames")
     n = len(buf) // FRAME_SIZE
-    # A frame is 170 big-endian 16-bit words: the start marker, 6 clusters of 28 (27 counts
-    # and the error word), the end marker. Plain words, not FRAME_DTYPE's nested fields: a live
-    # frame pays each numpy call's fixed cost, and structured fields cost several.
-    words = np.frombuffer(buf, dtype=_WIRE_WORD).reshape(n, FRAME_WORDS)
+    if not n:
+        return DecodedFrames(raw=np.zeros((0, N_IMUS, N_CHANNELS), np.int16),
+                             errors=np.zeros((0, N_IMUS, N_SENSORS), np.bool_))
     if n == 1:  # a live frame: the markers compared as bytes
         if not is_frame(buf):
             raise FrameError("1 frame(s) lack the $#/#$ markers, first at index 0")
     else:
-        bad = np.flatnonzero((words[:, 0] != _START_WORD) | (words[:, -1] != _END_WORD))
+        start = np.ndarray((n,), _WIRE_WORD, buf, 0, (FRAME_SIZE,))
+        end = np.ndarray((n,), _WIRE_WORD, buf, END_OFFSET, (FRAME_SIZE,))
+        bad = np.flatnonzero((start != _START_WORD) | (end != _END_WORD))
         if bad.size:
             raise FrameError(f"{bad.size} frame(s) lack the $#/#$ markers, first at index "
                              f"{bad[0]}")
-    clusters = words[:, 1:-1].reshape(n, N_CLUSTERS, _CLUSTER_WORDS)
-    raw = clusters[..., :-1].astype(np.int16).reshape(n, N_IMUS, N_CHANNELS)
-    return DecodedFrames(raw=raw, errors=error_words_to_flags(clusters[..., -1]))
+    # Strided views of the counts and the error words straight on the bytes (a frame is the
+    # start marker, 6 clusters of 27 big-endian counts and an error word, the end marker): a
+    # live frame pays each numpy call's fixed cost, so as few calls as possible.
+    counts = np.ndarray((n, N_CLUSTERS, _COUNTS_PER_CLUSTER), _WIRE_COUNT, buf, _COUNTS_AT,
+                        _COUNTS_STRIDES)
+    words = np.ndarray((n, N_CLUSTERS), _WIRE_WORD, buf, _ERROR_AT, _ERROR_STRIDES)
+    return DecodedFrames(raw=counts.astype(np.int16).reshape(n, N_IMUS, N_CHANNELS),
+                         errors=_FLAGS_OF_WORD.take(words, axis=0).reshape(n, N_IMUS,
+                                                                          N_SENSORS))
 
 
 def decode_frame(frame: bytes | bytearray | memoryview) -> DecodedFrames:
