@@ -118,7 +118,8 @@ class StateGuard:
 
     ``expected[n]``: the IMU gave a finite orientation since the stream (re)started or the
     operator reset it (before that, NaN is its normal output; a re-initialisation by the guard
-    keeps it set); ``count[n]``: re-initialisations so far.
+    keeps it set); ``count[n]``: re-initialisations so far (replaced, never changed in place,
+    so a Result holds the counts of its own frames without a copy).
     """
 
     def __init__(self, n: int) -> None:
@@ -169,7 +170,7 @@ def _reinit(bank: Any, guard: StateGuard, imus: np.ndarray) -> None:
     # ``expected`` stays set: a re-initialisation that gives no rotation is caught again
     for i in np.flatnonzero(imus):
         bank.reset(int(i))
-    guard.count += imus
+    guard.count = guard.count + imus  # a new array: each Result keeps its frame's counts
     guard.total += int(np.count_nonzero(imus))
 
 

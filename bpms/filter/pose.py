@@ -233,6 +233,9 @@ class PoseCalibrator:
         self.waiting: tuple[float, int] | None = None
         self._pending: list[tuple] = []  # captures asked for at the next frame, in order
         self.captures: list[Zero] = []
+        #: Index into the last :meth:`apply`'s batch of its first frame with a zero in force
+        #: (its length when none had one).
+        self.zeroed_from = 0
 
     def request(self, source: str = "manual", window: int | None = None) -> None:
         """Reset Zero pressed: capture at the next frame over the window ending there
@@ -335,6 +338,7 @@ class PoseCalibrator:
         R = np.asarray(R, dtype=np.float64)
         n = len(R)
         first = self.frames + self.origin  # the processor's frame number of R[0]
+        zeroed = self.zero is not None
         ops: dict[int, list[tuple]] = {}
         for k in zero_at:
             if 0 <= int(k) < n:
@@ -358,6 +362,7 @@ class PoseCalibrator:
             if found is not None or explicit:
                 self._auto_pending = False
                 self.waiting = None
+        self.zeroed_from = 0 if zeroed else min(ops, default=n)
         if not ops:  # most frames: no capture in this batch
             C = segment_orientations(R, self.zero)
         else:

@@ -334,15 +334,15 @@ class BodyPoseProcessor:
         bias = out.gyro_bias
         if bias is None and out.w_i is not None:
             bias = -out.w_i  # the Mahony integral term is −bias
-        # corrected from the first Reset Zero capture on (C is all NaN before it; a segment
-        # orientation is finite or NaN as a whole)
-        corrected = self.corrected_output & np.isfinite(C[..., 0, 0]).any(axis=1)
+        corrected = np.zeros(n, np.bool_)  # from the first Reset Zero capture on
+        if self.corrected_output:
+            corrected[self.pose.zeroed_from:] = True
         # the Euler angles follow from the final R (after the hinge turned it) when read
         return Result(t=t, R=R, C=C, body=self.options.body,
                       held_count=self.bank.held_count, zeros=self.pose.captures[before:],
                       gyro_bias=bias, body_acc=out.body_acc,
                       disturbance=disturbance,
-                      reinitialised=reinitialised, reinit_count=self.guard.count.copy(),
+                      reinitialised=reinitialised, reinit_count=self.guard.count,
                       corrected=corrected, convention=self.options.joints.convention)
 
     def _hinge(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray,
