@@ -71,6 +71,22 @@ def test_toggle_at_run_time_applies_from_the_next_frame(turn):
     np.testing.assert_array_equal(second.euler_output, second.euler_sensor)
 
 
+
+def test_corrected_from_the_capture_frame_on_even_where_every_imu_fails(turn):
+    # docs/filter.md: true from the first Reset Zero capture on; a frame whose outputs are
+    # all NaN (every sensor failing since the stream started) is no exception
+    proc = BodyPoseProcessor(options=_options(), auto_zero=False)
+    before = proc.process(turn.raw[:40], turn.errors[:40])
+    assert not before.corrected.any()
+    failing = np.ones_like(turn.errors[40:60])
+    dead = BodyPoseProcessor(options=_options(), auto_zero=False)
+    dead.reset_zero()
+    nothing = dead.process(turn.raw[40:60], failing)
+    assert np.isnan(nothing.euler_output).all() and nothing.corrected.all()
+    proc.reset_zero()  # captured at the next frame: the first of this batch
+    after = proc.process(turn.raw[40:80], turn.errors[40:80])
+    assert after.corrected.all() and len(after.zeros) == 1
+
 def test_live_session_gives_corrected_angles_and_toggles_through_the_queue(turn, tmp_path):
     path = turn.save_raw(tmp_path / "Raw_turn_1.bpmsraw")
     recording = read_raw(path)
