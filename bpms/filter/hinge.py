@@ -59,6 +59,7 @@ from bpms.io.frames import N_IMUS
 
 #: (proximal, distal) IMU ids of the hinges: right and left elbow, right and left knee.
 HINGES = np.array([(j.proximal, j.distal) for j in HINGE_JOINTS], dtype=np.int64)
+_FLOAT64 = np.dtype(np.float64)
 
 
 @dataclass
@@ -274,14 +275,16 @@ class HingeConstraint:
         """``[N, 18]`` rad: the turn about the vertical for each segment (R, C
         ``[N, 18, 3, 3]``, gyr ``[N, 18, 3]`` rad/s, the flags' mag ``[N, 18]`` bool and
         mag_heading_deg ``[N, 18]``); R and C are left as they are."""
-        return self._run(R, C, gyr, mag_flag, mag_heading_deg, False)
+        return self._run(np.ascontiguousarray(R, dtype=np.float64),
+                         np.ascontiguousarray(C, dtype=np.float64), gyr, mag_flag,
+                         mag_heading_deg, False)
 
     def apply_in_place(self, R: np.ndarray, C: np.ndarray, gyr: np.ndarray,
                        mag_flag: np.ndarray, mag_heading_deg: np.ndarray) -> np.ndarray:
         """Turn the segments of ``R``, ``C`` (C-contiguous float64 ``[N, 18, 3, 3]``) by
         :meth:`turns`, in place; the turns."""
         for a in (R, C):
-            if a.dtype != np.float64 or not a.flags.c_contiguous or not a.flags.writeable:
+            if a.dtype != _FLOAT64 or not a.flags.c_contiguous or not a.flags.writeable:
                 raise ValueError("apply_in_place needs writeable C-contiguous float64 arrays")
         return self._run(R, C, gyr, mag_flag, mag_heading_deg, True)
 
@@ -295,10 +298,9 @@ class HingeConstraint:
         return R2, C2
 
     def _run(self, R, C, gyr, mag_flag, mag_heading_deg, apply: bool) -> np.ndarray:
-        out = np.zeros(np.shape(R)[:2])
-        run_hinges(np.ascontiguousarray(R, dtype=np.float64),
-                   np.ascontiguousarray(C, dtype=np.float64),
-                   np.ascontiguousarray(gyr, dtype=np.float64),
+        """The kernel on R, C (C-contiguous float64, as the callers made sure)."""
+        out = np.zeros(R.shape[:2])
+        run_hinges(R, C, np.ascontiguousarray(gyr, dtype=np.float64),
                    np.ascontiguousarray(mag_flag, dtype=np.bool_),
                    np.ascontiguousarray(mag_heading_deg, dtype=np.float64),
                    HINGES, self.params, self.state.hinges, self.state.sigma, out, apply)
