@@ -68,8 +68,8 @@ FRAME_DTYPE = np.dtype(
 assert _CLUSTER_DTYPE.itemsize == CLUSTER_SIZE
 assert FRAME_DTYPE.itemsize == FRAME_SIZE
 
-#: The markers as big-endian 16-bit words.
-_WIRE_WORD = np.dtype(">u2")  # an unsigned 16-bit word as the wire sends it
+#: An unsigned 16-bit word as the wire sends it (big-endian); the markers as such words.
+_WIRE_WORD = np.dtype(">u2")
 _START_WORD = int.from_bytes(START, "big")
 _END_WORD = int.from_bytes(END, "big")
 
@@ -80,8 +80,8 @@ _FLAGS_OF_WORD = ((np.arange(1 << 16, dtype=np.uint16)[:, None] >> _ERROR_BITS) 
 #: Where a frame's counts and error words are: cluster c's 27 counts start at byte
 #: 2 + 56·c, its error word follows them (byte offset, strides of (frame, cluster[, count])).
 _COUNTS_AT, _COUNTS_STRIDES = 2, (FRAME_SIZE, CLUSTER_SIZE, 2)
-_ERROR_AT, _ERROR_STRIDES = 2 + CLUSTER_SIZE - 2, (FRAME_SIZE, CLUSTER_SIZE)
 _COUNTS_PER_CLUSTER = IMUS_PER_CLUSTER * N_CHANNELS
+_ERROR_AT, _ERROR_STRIDES = _COUNTS_AT + 2 * _COUNTS_PER_CLUSTER, (FRAME_SIZE, CLUSTER_SIZE)
 _WIRE_COUNT = np.dtype(">i2")  # a signed count as the wire sends it (big-endian)
 
 
@@ -107,8 +107,7 @@ class DecodedFrames:
 def error_words_to_flags(words: np.ndarray) -> np.ndarray:
     """Cluster error words ``[..., 6]`` (uint16) → bool flags ``[..., 18, 3]``."""
     words = np.asarray(words)
-    flags = _FLAGS_OF_WORD.take(words & 0xFFFF, axis=0)
-    return flags.reshape(*words.shape[:-1], N_IMUS, N_SENSORS)
+    return _FLAGS_OF_WORD.take(words, axis=0).reshape(*words.shape[:-1], N_IMUS, N_SENSORS)
 
 
 def flags_to_error_words(flags: np.ndarray) -> np.ndarray:
@@ -189,8 +188,7 @@ def decode_frames(buf: bytes | bytearray | memoryview | np.ndarray) -> DecodedFr
                         _COUNTS_STRIDES)
     words = np.ndarray((n, N_CLUSTERS), _WIRE_WORD, buf, _ERROR_AT, _ERROR_STRIDES)
     return DecodedFrames(raw=counts.astype(np.int16).reshape(n, N_IMUS, N_CHANNELS),
-                         errors=_FLAGS_OF_WORD.take(words, axis=0).reshape(n, N_IMUS,
-                                                                          N_SENSORS))
+                         errors=error_words_to_flags(words))
 
 
 def decode_frame(frame: bytes | bytearray | memoryview) -> DecodedFrames:
