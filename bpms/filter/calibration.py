@@ -127,14 +127,22 @@ class SensorCalibration:
     @cached_property
     def _counts_to_units(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(offset ``[18, 9]`` counts, gain ``[18, 9]`` units per count with the axis signs,
-        pre-rotations transposed ``[18, 3, 3]``) for :meth:`calibrate` (computed once)."""
+        the gains and pre-rotations as one map ``[3, 1, 18, 9, 3]``) for :meth:`calibrate`
+        (computed once). The map takes an IMU's 9 offset-free counts to one sensor's 3
+        filter-frame axes: ``map[s, 0, i, 3s + c, :] = gain[i, 3s + c] · R*[i]ᵀ[c, :]``, zero
+        for the other sensors' counts."""
         offset = np.concatenate([self.accel_offset, self.mag_offset,
                                  np.broadcast_to(self.gyro_avg, (N_IMUS, 3))], axis=-1)
         gain = np.concatenate([self.accel_scale * self.accel_signs,
                                self.mag_scale * self.mag_signs,
                                np.broadcast_to(GYRO_RAD_S_PER_COUNT * self.gyro_signs,
                                                (N_IMUS, 3))], axis=-1)
-        return offset, gain, np.ascontiguousarray(np.swapaxes(self.pre_rotations, -1, -2))
+        rot_t = np.swapaxes(self.pre_rotations, -1, -2)
+        to_axes = np.zeros((3, 1, N_IMUS, 9, 3))
+        for sensor in range(3):
+            rows = slice(3 * sensor, 3 * sensor + 3)
+            to_axes[sensor, 0, :, rows, :] = gain[:, rows, None] * rot_t
+        return offset, gain, to_axes
 
     def calibrate(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Raw ``[N, 18, 9]`` counts → pre-rotated (accel counts-of-g, mag ±100, gyro rad/s),
@@ -142,10 +150,13 @@ class SensorCalibration:
         consume, the one implementation of docs/units.md's formulas: ``v = R* · s ·
         (raw − offset) · scale`` per sensor (``s`` the axis signs; a magnetometer ellipsoid fit,
         when present, in place of the min/max offset and scale)."""
-        offset, gain, rot_t = self._counts_to_units
+        offset, _, to_axes = self._counts_to_units
         raw = np.asarray(raw)
-        v = ((raw - offset) * gain).reshape(*raw.shape[:-1], 3, 3)  # [N, 18, sensor, axis]
-        out = np.ascontiguousarray((v @ rot_t).transpose(2, 0, 1, 3))  # [sensor, N, 18, axis]
+        n = raw.shape[0]
+        # one product gives the three sensors already apart ([sensor, N, 18, axis]): a live
+        # frame pays each numpy call's fixed cost, so no transposed copy after it
+        counts = (raw - offset).reshape(1, n, N_IMUS, 1, 9)
+        out = (counts @ to_axes).reshape(3, n, N_IMUS, 3)
         acc, mag, gyr = out[0], out[1], out[2]
         correction = self.mag_correction()
         if correction is not None:
