@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from bpms.io.calib_file import CalibrationTable
-from bpms.io.frames import N_IMUS
+from bpms.io.frames import N_CHANNELS, N_IMUS, N_SENSORS
 from bpms.io.mag_ellipsoid import MAG_FULL_SCALE, MagEllipsoid
 from bpms.io.options import SensorOptions
 
@@ -138,8 +138,8 @@ class SensorCalibration:
                                np.broadcast_to(GYRO_RAD_S_PER_COUNT * self.gyro_signs,
                                                (N_IMUS, 3))], axis=-1)
         rot_t = np.swapaxes(self.pre_rotations, -1, -2)
-        to_axes = np.zeros((3, 1, N_IMUS, 9, 3))
-        for sensor in range(3):
+        to_axes = np.zeros((N_SENSORS, 1, N_IMUS, N_CHANNELS, 3))
+        for sensor in range(N_SENSORS):
             rows = slice(3 * sensor, 3 * sensor + 3)
             to_axes[sensor, 0, :, rows, :] = gain[:, rows, None] * rot_t
         return offset, gain, to_axes
@@ -155,8 +155,8 @@ class SensorCalibration:
         n = raw.shape[0]
         # one product gives the three sensors already apart ([sensor, N, 18, axis]): a live
         # frame pays each numpy call's fixed cost, so no transposed copy after it
-        counts = (raw - offset).reshape(1, n, N_IMUS, 1, 9)
-        out = (counts @ to_axes).reshape(3, n, N_IMUS, 3)
+        counts = (raw - offset).reshape(1, n, N_IMUS, 1, N_CHANNELS)
+        out = (counts @ to_axes).reshape(N_SENSORS, n, N_IMUS, 3)
         acc, mag, gyr = out[0], out[1], out[2]
         correction = self.mag_correction()
         if correction is not None:

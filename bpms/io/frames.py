@@ -105,8 +105,11 @@ class DecodedFrames:
 
 
 def error_words_to_flags(words: np.ndarray) -> np.ndarray:
-    """Cluster error words ``[..., 6]`` (uint16) → bool flags ``[..., 18, 3]``."""
+    """Cluster error words ``[..., 6]`` (uint16) → bool flags ``[..., 18, 3]``. Other integer
+    types are taken modulo 2¹⁶, as a 16-bit word; bits 9–15 are ignored."""
     words = np.asarray(words)
+    if words.dtype.kind != "u" or words.dtype.itemsize != 2:  # (the wire's are already)
+        words = words.astype(np.uint16)
     return _FLAGS_OF_WORD.take(words, axis=0).reshape(*words.shape[:-1], N_IMUS, N_SENSORS)
 
 
