@@ -152,3 +152,25 @@ def test_sim_rejects_bad_options_in_one_line():
                          capture_output=True, text=True, timeout=30)
     assert bad.returncode == 2 and bad.stdout == ""
     assert bad.stderr.strip() == "bpms sim: --drop-rate must be between 0 and 1, got 2"
+
+
+def test_monitor_counts_the_error_bits_the_simulated_suit_set():
+    """The monitor's error-bit count is the number of sensor failures the simulated suit
+    injected (its own count), read through the one frame decoder."""
+    import numpy as np
+
+    from bpms.commands.monitor import count_error_bits
+    from bpms.firmware.sim.arbiter import CMD_START, Arbiter, Faults, MotionSource
+    from bpms.io.frames import FRAME_SIZE
+
+    rng = np.random.default_rng(7)
+    raw = rng.integers(-2000, 2000, (40, 18, 9)).astype(np.int16)
+    suit = Arbiter(MotionSource(raw), Faults(error_rate=0.05), realtime=False, seed=3)
+    suit.receive(bytes([CMD_START]))
+    data = b"".join(b"".join(suit.poll()) for _ in range(30))
+    frames = [data[k:k + FRAME_SIZE] for k in range(0, len(data), FRAME_SIZE)]
+    assert len(frames) == suit.stats.frames_sent > 100
+    assert suit.stats.error_flags > 50
+    assert count_error_bits(frames) == suit.stats.error_flags
+    assert count_error_bits(frames[:1]) == 0  # the stale first frame carries no flag
+    assert count_error_bits([]) == 0

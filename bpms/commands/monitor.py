@@ -26,7 +26,7 @@ from bpms.commands._shared import stop_on_signals
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.events import SourceStatus
-from bpms.io.frames import FRAME_DTYPE, error_words_to_flags
+from bpms.io.frames import decode_frames
 from bpms.io.link import DEFAULT_BAUD, LinkError, discover_suit, list_candidate_ports
 from bpms.io.options import SerialOptions, UdpOptions
 
@@ -61,11 +61,11 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def count_error_bits(frames: list[bytes]) -> int:
-    """Set error bits in whole frames (vectorised)."""
+    """Sensor error flags set in whole frames, as the resynchronising reader hands them over
+    (markers in place), read by the one frame decoder (:func:`bpms.io.frames.decode_frames`)."""
     if not frames:
         return 0
-    words = np.frombuffer(b"".join(frames), dtype=FRAME_DTYPE)["clusters"]["error"]
-    return int(error_words_to_flags(words).sum())
+    return int(np.count_nonzero(decode_frames(b"".join(frames)).errors))
 
 
 def run(args: argparse.Namespace) -> int:
