@@ -39,7 +39,7 @@ import numpy as np
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.result import Result
-from bpms.filter.zero_choice import ResetZeroChoice, capture_at, identity_zero
+from bpms.filter.zero_choice import ResetZeroChoice, capture_at, fallback_zero, identity_zero
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
@@ -221,18 +221,23 @@ class OpenedRecording:
         """The events replay applies (``bpms replay``, GUI playback): the same rules as
         :meth:`chunks`, for the whole recording's events ``(slot, event)``."""
         dt = self.processor.options.filter.dt
-        return planned_events(recorded, self.reset_zero, self.settings_given,
-                              self.reset_zero.frames(dt), start=True)
+        planned = planned_events(recorded, self.reset_zero, self.settings_given,
+                                 self.reset_zero.frames(dt), start=True)
+        if planned.fallbacks:
+            self._note(fallback_line(self.path, planned.fallbacks))
+        return planned
 
     def _raw_chunks(self, extra: list[int], chunk_frames: int) -> Iterator[Chunk]:
         proc = self.processor
         skipped = 0
+        fallbacks: list[int] = []
         for lo, host, frames, recorded in self._raw_records(chunk_frames):
             decoded = decode_frames(frames)
             # the events to apply in frames lo .. lo+n-1, as (index into the chunk, event)
             planned = planned_events(recorded, self.reset_zero, self.settings_given,
                                      [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
             skipped += planned.skipped
+            fallbacks += planned.fallbacks
             result = proc.process(decoded.raw, decoded.errors,
                                   [(slot - lo, event) for slot, event in planned])
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
@@ -240,6 +245,8 @@ class OpenedRecording:
         if skipped:
             self._note(f"{self.path}: {skipped} recorded filter/gain change(s) "
                        "not applied (a filter or options file was given)")
+        if fallbacks:
+            self._note(fallback_line(self.path, fallbacks))
 
     def _raw_records(self, chunk_frames: int
                      ) -> Iterator[tuple[int, np.ndarray, bytes, list[tuple[int, SessionEvent]]]]:
@@ -323,19 +330,36 @@ class OpenedRecording:
 class _Planned(list):
     skipped = 0  # recorded filter/gain changes left out
 
+    def __init__(self) -> None:
+        super().__init__()
+        self.fallbacks: list[int] = []  # frames of lost Reset Zero records (automatic instead)
+
+
+def fallback_line(path: Path, frames: Sequence[int]) -> str:
+    """The one line a door says when recorded Reset Zero captures were lost to damage."""
+    shown = ", ".join(str(k) for k in frames[:6]) + (", ..." if len(frames) > 6 else "")
+    return (f"{path}: {len(frames)} recorded Reset Zero capture(s) lost to damage (frame "
+            f"{shown}): the automatic Reset Zero is used from there")
+
 
 def planned_events(recorded: Iterable[tuple[int, SessionEvent]], choice: ResetZeroChoice,
                    settings_given: bool, extra: Sequence[int] = (), start: bool = False
                    ) -> _Planned:
     """The events a door applies, ``(slot, event)`` in slot order: the recorded ones ``choice``
     keeps (filter and gain changes only when no filter or options file was given), the
-    ``none`` choice's identity zero at the start (``start``) and after each restart, and a
-    re-analysis capture at each ``extra`` frame."""
+    ``none`` choice's identity zero at the start (``start``) and after each restart, a
+    re-analysis capture at each ``extra`` frame, and the automatic Reset Zero
+    (:func:`bpms.filter.zero_choice.fallback_zero`) where a recorded one was lost to damage."""
     out = _Planned()
     none = choice.mode == "none"
     if none and start:
         out.append((0, identity_zero()))
     for slot, event in recorded:
+        if (event.kind == "lost" and choice.mode == "events"
+                and event.data.get("kind") in ("reset_zero", "unknown")):
+            out.append((slot, fallback_zero(slot)))  # (a lost record of unknown kind may be one)
+            out.fallbacks.append(slot)
+            continue
         if settings_given and event.kind in ("filter", "gains"):
             out.skipped += 1
             continue

@@ -228,6 +228,7 @@ class PoseCalibrator:
         self._held = 0  # frames in the ring
         self._next = 0  # where the next frame goes (the oldest, once the ring is full)
         self._provisional_done = False
+        self._fallback_provisional = False
         self._auto_pending = self.auto
         #: While the automatic capture waits for a still pose: (deg, IMU) of the last window.
         self.waiting: tuple[float, int] | None = None
@@ -249,6 +250,17 @@ class PoseCalibrator:
         with no data in ``R0`` keeps its present zero."""
         self._pending.append(("adopt", source, int(window), np.array(R0, dtype=np.float64),
                               float(yaw0), motion))
+
+    def fall_back(self) -> None:
+        """A recorded capture is lost (its record damaged): the automatic capture runs again
+        from the next frame, at the first still window (after the settling time when the
+        stream has just started), preceded by the provisional one-frame capture when no zero
+        is in force yet."""
+        self._auto_pending = True
+        self.waiting = None
+        if self.zero is None and not self._pending:
+            self._provisional_done = False
+            self._fallback_provisional = True
 
     @property
     def auto_frame(self) -> int:
@@ -346,7 +358,7 @@ class PoseCalibrator:
         if self._pending and n:
             ops[0] = [*self._pending, *ops.get(0, [])]
             self._pending = []
-        if self.provisional and not self._provisional_done:
+        if (self.provisional or self._fallback_provisional) and not self._provisional_done:
             ok = np.isfinite(R[:, :, 0, 0]).all(axis=1)
             if ok.any():
                 k = int(np.argmax(ok))

@@ -55,8 +55,9 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -224,7 +225,10 @@ class BodyPoseProcessor:
                 self.problems.append(problem)
             return False
 
-    def _replay_zero(self, d: dict) -> None:
+    def _replay_zero(self, d: Mapping[str, Any]) -> None:
+        if d.get("fallback"):  # the recorded capture is lost: the automatic one instead
+            self.pose.fall_back()
+            return
         source = str(d.get("source", "manual"))
         window = int(d.get("window", self.pose.window))
         values = zero_values(d)

@@ -92,4 +92,10 @@ def capture_at(frame: int) -> SessionEvent:
     return SessionEvent("reset_zero", frame, data={"source": "re-analysis"})
 
 
-__all__ = ["MODES", "ResetZeroChoice", "capture_at", "identity_zero"]
+def fallback_zero(frame: int) -> SessionEvent:
+    """Instead of a recorded capture lost to damage at ``frame``: the automatic Reset Zero
+    from there (:meth:`bpms.filter.pose.PoseCalibrator.fall_back`)."""
+    return SessionEvent("reset_zero", frame, data={"source": "automatic", "fallback": True})
+
+
+__all__ = ["MODES", "ResetZeroChoice", "capture_at", "fallback_zero", "identity_zero"]

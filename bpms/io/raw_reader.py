@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import bisect
 import logging
+import re
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -33,6 +34,8 @@ import numpy as np
 
 from bpms.io.frames import FRAME_DTYPE, N_IMUS, DecodedFrames, decode_frames, encode_frame
 from bpms.io.raw_layout import (
+    EVENT_END,
+    EVENT_HEAD,
     EVENT_START,
     EVENTS_VERSION,
     FRAME_END,
@@ -45,7 +48,7 @@ from bpms.io.raw_layout import (
     parse_event,
     read_preamble,
 )
-from bpms.io.session_events import SessionEvent
+from bpms.io.session_events import KINDS, SessionEvent
 
 log = logging.getLogger(__name__)
 
@@ -206,6 +209,82 @@ class _Counts:
     skipped: int = 0
     torn: int = 0
     lost_events: int = 0
+    lost: list[tuple[str, int]] = field(default_factory=list)  # (kind, slot) of each
+
+
+#: Bytes by which a damaged event record may differ from an intact one beside it and still
+#: be taken for its copy (a flipped bit changes one).
+COPY_DIFF_BYTES = 4
+
+
+def _differing(a: bytes, b: bytes) -> int:
+    """Bytes in which ``a`` and ``b`` differ (their length when they differ in length)."""
+    if len(a) != len(b):
+        return max(len(a), len(b))
+    return int(np.count_nonzero(np.frombuffer(a, np.uint8) != np.frombuffer(b, np.uint8)))
+
+
+def _kind_in(record: bytes) -> str:
+    """The kind named in a damaged event record's JSON, when it can still be read there."""
+    m = re.search(rb'"kind":"([a-z_]{1,20})"', record)
+    kind = m.group(1).decode("ascii") if m else "unknown"
+    return kind if kind in KINDS else "unknown"
+
+
+def _frame_in(record: bytes, slot: int) -> int:
+    """The frame a damaged event record names, when its JSON still says and the frame is one
+    a live writer could have written at this place (at most :data:`LOOKAHEAD` frames before
+    it); else ``slot``, its place."""
+    m = re.search(rb'"frame":(\d{1,12})[,}]', record)
+    frame = int(m.group(1)) if m else -1
+    return frame if slot - LOOKAHEAD <= frame <= slot else slot
+
+
+def lost_event(kind: str, slot: int, frame: int | None = None) -> SessionEvent:
+    """What the reader hands on for an event record it could not read: kind ``lost`` at
+    ``frame`` (the frame its bytes still name, else its place between the frames: ``slot``,
+    the slot of the next frame), ``data``: ``kind``, the kind it was (``unknown`` when its
+    bytes do not say) and ``place`` (``slot``)."""
+    return SessionEvent("lost", slot if frame is None else frame,
+                        data={"kind": kind, "place": slot})
+
+
+class _Copies:
+    """The event records between two frame records: an event that changes numbers is written
+    twice in a row (:meth:`bpms.io.rawfile.RawWriter.write_event`); one intact copy stands for
+    both, and a damaged record is lost only when no intact copy of it is beside it."""
+
+    def __init__(self, counts: _Counts) -> None:
+        self.counts = counts
+        self.last: bytes | None = None  # the last intact record since the last frame
+        self.pending: list[bytes] = []  # damaged records not yet matched with a copy
+
+    def intact(self, record: bytes, slot: int) -> Iterator[tuple]:
+        if record == self.last and not self.pending:
+            return  # the second copy
+        if self.pending and _differing(self.pending[-1], record) <= COPY_DIFF_BYTES:
+            self.pending.pop()  # the damaged first copy of this one
+        yield from self.flush(slot)
+        event = parse_event(record, 0, len(record))
+        assert event is not None
+        self.last = record
+        yield "event", slot, event
+
+    def damaged(self, record: bytes) -> None:
+        near = [r for r in (self.last, *self.pending[-1:]) if r is not None]
+        if any(_differing(r, record) <= COPY_DIFF_BYTES for r in near):
+            return  # a damaged copy of a record read (or lost) just before
+        self.pending.append(record)
+
+    def flush(self, slot: int) -> Iterator[tuple]:
+        """The damaged records left without a copy, as lost events at ``slot``."""
+        for record in self.pending:
+            kind, frame = _kind_in(record), _frame_in(record, slot)
+            self.counts.lost_events += 1
+            self.counts.lost.append((kind, frame))
+            yield "event", slot, lost_event(kind, slot, frame)
+        self.pending = []
+        self.last = None
 
 
 def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int = 0,
@@ -214,6 +293,7 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
     time before)``, ``("gap", slot, placeholder records)`` and ``("event", slot, event)``
     (``slot``: where the piece begins)."""
     f.seek(offset)
+    copies = _Copies(counts)
     buf = b""
     base = offset  # file offset of buf[0]
     p = 0
@@ -247,6 +327,7 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
             good = (recs["frame"]["start"] == FRAME_START) & (recs["frame"]["end"] == FRAME_END)
             k = m if good.all() else int(np.argmin(good))
             if k:
+                yield from copies.flush(slot)
                 yield "frames", slot, recs[:k], base + p, last_time
                 slot += k
                 p += k * RECORD_SIZE
@@ -259,12 +340,20 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
                 fill(size)
                 state, size = _event_at(buf, p, eof)
             if state == "yes":
-                event = parse_event(buf, p, size)
-                assert event is not None
-                yield "event", slot, event
+                yield from copies.intact(buf[p:p + size], slot)
                 p += size
                 continue
             event_size = event_size_at(buf, p)
+            if event_size is not None:
+                fill(event_size)
+                if (len(buf) - p >= event_size
+                        and buf[p + event_size - 2:p + event_size] == EVENT_END):
+                    # a damaged event record whose length and end marker hold: it is skipped
+                    # exactly (no slot), and lost unless its copy beside it is intact
+                    copies.damaged(buf[p:p + event_size])
+                    counts.skipped += event_size
+                    p += event_size
+                    continue
             if (event_size is not None and p + event_size > len(buf)
                     and _find_record(buf, p + 1, True, events)[0] is None):
                 counts.torn = len(buf) - p  # a cut-off last event
@@ -272,6 +361,11 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
         if eof and avail < RECORD_SIZE and event_size is None:
             counts.torn = avail
             break
+        copy_head = copies.last is not None and copies.last[:EVENT_HEAD.size] == bytes(
+            buf[p:p + EVENT_HEAD.size])
+        yield from copies.flush(slot)
+        lost_kind = "unknown" if event_size is None else _kind_in(buf[p:p + event_size])
+        lost_frame = slot if event_size is None else _frame_in(buf[p:p + event_size], slot)
         gap_start = base + p
         search = p + 1
         while True:
@@ -288,7 +382,12 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
             counts.torn = gap
             break
         if event_size is not None and gap >= event_size - RECORD_SIZE // 2:
-            counts.lost_events += 1  # a damaged event record, and what follows it
+            # a damaged event record, and what follows it: lost, unless it begins as the
+            # intact record just read (the same time written and length: its copy)
+            if not copy_head:
+                counts.lost_events += 1
+                counts.lost.append((lost_kind, lost_frame))
+                yield "event", slot, lost_event(lost_kind, slot, lost_frame)
             count = max(0, round((gap - event_size) / RECORD_SIZE))
         else:  # (fewer than half a record between intact records: bytes inserted, no slot)
             count = round(gap / RECORD_SIZE)
@@ -301,6 +400,7 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
         if q is None:
             break
         p = q
+    yield from copies.flush(slot)
 
 
 class _ChunkQueue:
@@ -441,7 +541,10 @@ class RawFile:
             self.problems.append(f"{path}: {c.skipped} byte(s) between intact records "
                                  "(inserted): skipped, no frame lost")
         if c.lost_events:
-            self.problems.append(f"{path}: {c.lost_events} damaged event record(s): lost")
+            where = ", ".join(f"{kind} at frame {slot}" for kind, slot in c.lost[:6])
+            more = ", ..." if len(c.lost) > 6 else ""
+            self.problems.append(f"{path}: {c.lost_events} damaged event record(s) lost "
+                                 f"({where}{more})")
         if late:
             self.problems.append(f"{path}: {late} event(s) found more than {LOOKAHEAD} frames "
                                  "after their frame: applied from the first frame not yet "

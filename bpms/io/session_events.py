@@ -24,7 +24,10 @@ Kinds and their ``data``:
 - ``filter``: ``algorithm``; ``gains``: ``values`` (``[filter]`` option names → numbers);
 - ``filters``: ``action`` (``restart``: a new stream, the automatic Reset Zero runs again;
   ``reinit``: the filters re-initialise, Reset Zero kept) and ``reason``;
-- ``marker``: ``text``; ``logging``: ``action`` (``start``/``stop``); ``note``: ``text``.
+- ``marker``: ``text``; ``logging``: ``action`` (``start``/``stop``); ``note``: ``text``;
+- ``lost`` (made by the reader, never written): an event record too damaged to read, at its
+  place between the frames (``frame``: the slot of the frame after it); ``kind``: the kind it
+  was when its bytes still say, else ``unknown``.
 """
 
 from __future__ import annotations
@@ -130,6 +133,8 @@ class SessionEvent:
             return what + (f" ({reason})" if reason else "") + at
         if self.kind == "marker":
             return f"marker{at}: {d.get('text', '')}" if at else f"marker: {d.get('text')}"
+        if self.kind == "lost":
+            return f"a damaged {d.get('kind', 'unknown')} event record lost{at}"
         if self.kind == "logging":
             return f"logging {d.get('action', '?')}"
         return str(d.get("text", self.kind))
