@@ -209,7 +209,8 @@ class _Counts:
     skipped: int = 0
     torn: int = 0
     lost_events: int = 0
-    lost: list[tuple[str, int]] = field(default_factory=list)  # (kind, slot) of each
+    lost: list[tuple[str, int]] = field(default_factory=list)  # (kind, frame) of each
+    copies: int = 0  # damaged event records whose intact copy was read
 
 
 #: Bytes by which a damaged event record may differ from an intact one beside it and still
@@ -264,6 +265,7 @@ class _Copies:
             return  # the second copy
         if self.pending and _differing(self.pending[-1], record) <= COPY_DIFF_BYTES:
             self.pending.pop()  # the damaged first copy of this one
+            self.counts.copies += 1
         yield from self.flush(slot)
         event = parse_event(record, 0, len(record))
         assert event is not None
@@ -271,10 +273,10 @@ class _Copies:
         yield "event", slot, event
 
     def damaged(self, record: bytes) -> None:
-        near = [r for r in (self.last, *self.pending[-1:]) if r is not None]
-        if any(_differing(r, record) <= COPY_DIFF_BYTES for r in near):
-            return  # a damaged copy of a record read (or lost) just before
-        self.pending.append(record)
+        if self.last is not None and _differing(self.last, record) <= COPY_DIFF_BYTES:
+            self.counts.copies += 1  # a damaged copy of the record read just before
+        elif not self.pending or _differing(self.pending[-1], record) > COPY_DIFF_BYTES:
+            self.pending.append(record)  # (else both copies of one record are damaged)
 
     def flush(self, slot: int) -> Iterator[tuple]:
         """The damaged records left without a copy, as lost events at ``slot``."""
@@ -351,7 +353,6 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
                     # a damaged event record whose length and end marker hold: it is skipped
                     # exactly (no slot), and lost unless its copy beside it is intact
                     copies.damaged(buf[p:p + event_size])
-                    counts.skipped += event_size
                     p += event_size
                     continue
             if (event_size is not None and p + event_size > len(buf)
@@ -384,7 +385,9 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
         if event_size is not None and gap >= event_size - RECORD_SIZE // 2:
             # a damaged event record, and what follows it: lost, unless it begins as the
             # intact record just read (the same time written and length: its copy)
-            if not copy_head:
+            if copy_head:
+                counts.copies += 1
+            else:
                 counts.lost_events += 1
                 counts.lost.append((lost_kind, lost_frame))
                 yield "event", slot, lost_event(lost_kind, slot, lost_frame)
@@ -545,6 +548,9 @@ class RawFile:
             more = ", ..." if len(c.lost) > 6 else ""
             self.problems.append(f"{path}: {c.lost_events} damaged event record(s) lost "
                                  f"({where}{more})")
+        if c.copies:
+            self.problems.append(f"{path}: {c.copies} damaged event record(s) whose copy "
+                                 "beside it is intact: nothing lost")
         if late:
             self.problems.append(f"{path}: {late} event(s) found more than {LOOKAHEAD} frames "
                                  "after their frame: applied from the first frame not yet "
