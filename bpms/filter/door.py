@@ -548,7 +548,7 @@ def filtered_arrays(result: Result, groups: Sequence[str]) -> dict[str, np.ndarr
             # the output angles: segment angles after Reset Zero where 'corrected', else sensor
             out[g] = result.euler_output
         elif g == "corrected":
-            out[g] = result.corrected.astype(np.float64)[:, None]
+            out[g] = np.asarray(result.corrected, dtype=np.float64)[:, None]
         elif g == "joints":
             out[g] = result.joint_angles
         elif g in ("mag_disturbed", "acc_disturbed"):

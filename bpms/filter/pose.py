@@ -37,9 +37,10 @@ Reset Zero only changes filtered outputs; raw data and the filter states are unt
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -130,7 +131,7 @@ class Zero:
                 "waited": int(self.waited)}
 
 
-def zero_values(data: dict) -> tuple[np.ndarray, float] | None:
+def zero_values(data: Mapping[str, Any]) -> tuple[np.ndarray, float] | None:
     """(``R0[18, 3, 3]``, ψ0) stored in a ``reset_zero`` event's data (null → NaN), or None
     when they are missing or malformed."""
     try:

@@ -126,7 +126,7 @@ class BodyPoseProcessor:
         if user_default and not self.table.problems:
             self.table.source = f"user default ({calibration})"
         self.options = _load_options(options)
-        ellipsoids = {}
+        ellipsoids: dict[int, Any] = {}
         if isinstance(calibration, str | Path):
             # A magnetometer ellipsoid fit in the modern companion file (Calib.json beside
             # Calib.cfg, docs/calibration.md) is used for the IMUs whose numbers agree.
@@ -321,6 +321,7 @@ class BodyPoseProcessor:
             errors = failed_inputs(acc, mag, gyr, errors)
         # the disturbance flags come from the sensors alone, before the filters use them
         disturbance = self.disturbance.update(acc, mag, gyr, errors)
+        terms: dict[str, Any]
         if isinstance(self.bank, MahonyBank):
             terms = {"store_terms": True}
         elif isinstance(self.bank, ObserverBank):  # the heading trusts a flagged field less

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import bisect
 import logging
-import re
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from bpms.io.frames import FRAME_DTYPE, N_IMUS, DecodedFrames, decode_frames, encode_frame
+from bpms.io.raw_events import LOOKAHEAD, Copies, Counts, frame_in, kind_in, lost_event
 from bpms.io.raw_layout import (
     EVENT_END,
     EVENT_HEAD,
@@ -48,7 +48,7 @@ from bpms.io.raw_layout import (
     parse_event,
     read_preamble,
 )
-from bpms.io.session_events import KINDS, SessionEvent
+from bpms.io.session_events import SessionEvent
 
 log = logging.getLogger(__name__)
 
@@ -56,9 +56,6 @@ log = logging.getLogger(__name__)
 BLOCK_BYTES = 1 << 22
 #: Frame records checked in one vectorised step.
 SCAN_RECORDS = 4096
-#: Frames a chunk waits for events that name it: a live session writes an event at most a
-#: processing backlog (3,000 frames, docs/pipeline.md) plus a batch after its frame.
-LOOKAHEAD = 8192
 #: Default frames per chunk of :meth:`RawFile.chunks`.
 CHUNK_FRAMES = 5_000
 
@@ -203,99 +200,13 @@ def _find_record(buf: bytes, start: int, eof: bool, events: bool) -> tuple[int |
     return None, "none"
 
 
-@dataclass
-class _Counts:
-    damaged: int = 0
-    skipped: int = 0
-    torn: int = 0
-    lost_events: int = 0
-    lost: list[tuple[str, int]] = field(default_factory=list)  # (kind, frame) of each
-    copies: int = 0  # damaged event records whose intact copy was read
-
-
-#: Bytes by which a damaged event record may differ from an intact one beside it and still
-#: be taken for its copy (a flipped bit changes one).
-COPY_DIFF_BYTES = 4
-
-
-def _differing(a: bytes, b: bytes) -> int:
-    """Bytes in which ``a`` and ``b`` differ (their length when they differ in length)."""
-    if len(a) != len(b):
-        return max(len(a), len(b))
-    return int(np.count_nonzero(np.frombuffer(a, np.uint8) != np.frombuffer(b, np.uint8)))
-
-
-def _kind_in(record: bytes) -> str:
-    """The kind named in a damaged event record's JSON, when it can still be read there."""
-    m = re.search(rb'"kind":"([a-z_]{1,20})"', record)
-    kind = m.group(1).decode("ascii") if m else "unknown"
-    return kind if kind in KINDS else "unknown"
-
-
-def _frame_in(record: bytes, slot: int) -> int:
-    """The frame a damaged event record names, when its JSON still says and the frame is one
-    a live writer could have written at this place (at most :data:`LOOKAHEAD` frames before
-    it); else ``slot``, its place."""
-    m = re.search(rb'"frame":(\d{1,12})[,}]', record)
-    frame = int(m.group(1)) if m else -1
-    return frame if slot - LOOKAHEAD <= frame <= slot else slot
-
-
-def lost_event(kind: str, slot: int, frame: int | None = None) -> SessionEvent:
-    """What the reader hands on for an event record it could not read: kind ``lost`` at
-    ``frame`` (the frame its bytes still name, else its place between the frames: ``slot``,
-    the slot of the next frame), ``data``: ``kind``, the kind it was (``unknown`` when its
-    bytes do not say) and ``place`` (``slot``)."""
-    return SessionEvent("lost", slot if frame is None else frame,
-                        data={"kind": kind, "place": slot})
-
-
-class _Copies:
-    """The event records between two frame records: an event that changes numbers is written
-    twice in a row (:meth:`bpms.io.rawfile.RawWriter.write_event`); one intact copy stands for
-    both, and a damaged record is lost only when no intact copy of it is beside it."""
-
-    def __init__(self, counts: _Counts) -> None:
-        self.counts = counts
-        self.last: bytes | None = None  # the last intact record since the last frame
-        self.pending: list[bytes] = []  # damaged records not yet matched with a copy
-
-    def intact(self, record: bytes, slot: int) -> Iterator[tuple]:
-        if record == self.last and not self.pending:
-            return  # the second copy
-        if self.pending and _differing(self.pending[-1], record) <= COPY_DIFF_BYTES:
-            self.pending.pop()  # the damaged first copy of this one
-            self.counts.copies += 1
-        yield from self.flush(slot)
-        event = parse_event(record, 0, len(record))
-        assert event is not None
-        self.last = record
-        yield "event", slot, event
-
-    def damaged(self, record: bytes) -> None:
-        if self.last is not None and _differing(self.last, record) <= COPY_DIFF_BYTES:
-            self.counts.copies += 1  # a damaged copy of the record read just before
-        elif not self.pending or _differing(self.pending[-1], record) > COPY_DIFF_BYTES:
-            self.pending.append(record)  # (else both copies of one record are damaged)
-
-    def flush(self, slot: int) -> Iterator[tuple]:
-        """The damaged records left without a copy, as lost events at ``slot``."""
-        for record in self.pending:
-            kind, frame = _kind_in(record), _frame_in(record, slot)
-            self.counts.lost_events += 1
-            self.counts.lost.append((kind, frame))
-            yield "event", slot, lost_event(kind, slot, frame)
-        self.pending = []
-        self.last = None
-
-
-def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int = 0,
+def _pieces(f: BinaryIO, offset: int, events: bool, counts: Counts, slot: int = 0,
             last_time: float = float("nan")) -> Iterator[tuple]:
     """The data part from ``offset`` in file order: ``("frames", slot, records, file offset,
     time before)``, ``("gap", slot, placeholder records)`` and ``("event", slot, event)``
     (``slot``: where the piece begins)."""
     f.seek(offset)
-    copies = _Copies(counts)
+    copies = Copies(counts)
     buf = b""
     base = offset  # file offset of buf[0]
     p = 0
@@ -365,8 +276,8 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
         copy_head = copies.last is not None and copies.last[:EVENT_HEAD.size] == bytes(
             buf[p:p + EVENT_HEAD.size])
         yield from copies.flush(slot)
-        lost_kind = "unknown" if event_size is None else _kind_in(buf[p:p + event_size])
-        lost_frame = slot if event_size is None else _frame_in(buf[p:p + event_size], slot)
+        lost_kind = "unknown" if event_size is None else kind_in(buf[p:p + event_size])
+        lost_frame = slot if event_size is None else frame_in(buf[p:p + event_size], slot)
         gap_start = base + p
         search = p + 1
         while True:
@@ -374,7 +285,7 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
             if status == "found" or (status == "none" and eof):
                 break
             # keep only what may still begin a record; the rest of the gap is counted, not kept
-            p = q if status == "more" else max(search, len(buf) - 16)
+            p = q if status == "more" and q is not None else max(search, len(buf) - 16)
             fill(len(buf) - p + BLOCK_BYTES)  # (buf now starts at the old buf[p])
             search = 0
         end = base + (len(buf) if q is None else q)
@@ -471,7 +382,7 @@ class RawFile:
         self.path = Path(path)
         self.header, self.data_offset, self.version = read_preamble(self.path)
         self.problems: list[str] = []
-        self.counts = _Counts()
+        self.counts = Counts()
         self.frames_read = 0  # slots of the last complete pass
 
     @property
@@ -481,7 +392,7 @@ class RawFile:
         return self.version >= EVENTS_VERSION and self.header.get("session_events") is True
 
     def pieces(self, offset: int | None = None, slot: int = 0,
-               last_time: float = float("nan"), counts: _Counts | None = None
+               last_time: float = float("nan"), counts: Counts | None = None
                ) -> Iterator[tuple]:
         """The data part in file order (see :func:`_pieces`), from ``offset`` (a frame
         record's start met by an earlier pass, with its slot and the time before it)."""
@@ -498,7 +409,7 @@ class RawFile:
         file: one pass, nothing decoded or kept."""
         slots = valid = 0
         first = float("nan")
-        for piece in self.pieces(counts=_Counts()):
+        for piece in self.pieces(counts=Counts()):
             if piece[0] == "event":
                 continue
             if piece[0] == "frames":
@@ -513,7 +424,7 @@ class RawFile:
         """The recording ``chunk_frames`` slots at a time, each with the events that apply in
         it (read up to ``lookahead`` frames beyond it). Problems are in :attr:`problems` at
         the end, the events after the last frame in :attr:`trailing_events`."""
-        self.counts = _Counts()
+        self.counts = Counts()
         self.problems = []
         self.trailing_events = []
         queue = _ChunkQueue()
@@ -646,11 +557,11 @@ class RawFrames:
         k = bisect.bisect_right(self._checkpoints, lo, key=lambda cp: cp.slot)
         point = self._checkpoints[k - 1] if k else None
         if point is None:
-            self._cursor = self.file.pieces(counts=_Counts())
+            self._cursor = self.file.pieces(counts=Counts())
             self._buffer_start = 0
         else:
             self._cursor = self.file.pieces(point.offset, point.slot, point.last_time,
-                                            _Counts())
+                                            Counts())
             self._buffer_start = point.slot
         self._buffer = np.zeros(0, RECORD_DTYPE)
 
@@ -663,7 +574,7 @@ class RawFrames:
         if self._cursor is None or lo < self._buffer_start or lo > end + SCAN_RECORDS:
             self._restart(lo)
         while self._buffer_start + len(self._buffer) < hi:
-            piece = next(self._cursor, None)
+            piece = None if self._cursor is None else next(self._cursor, None)
             if piece is None:
                 break
             if piece[0] == "event":
