@@ -56,7 +56,7 @@ def intact(tmp_path_factory) -> Path:
     zeros = proc.pose.captures
     assert [z.source for z in zeros] == ["provisional", "automatic", "manual", "manual"]
     events = [SessionEvent("filters", 0, data={"action": "restart", "reason": "stream start"}),
-              *(SessionEvent("reset_zero", z.frame, data=z.event_data()) for z in zeros)]
+              *(SessionEvent.of(z.change(), z.frame) for z in zeros)]
     path = tmp_path_factory.mktemp("damage") / "Raw_field_1.bpmsraw"
     write_raw(path, 1.7e9 + rec.t, rec.frames,
               new_header(calibration=rec.calibration.values, source="simulated suit"), events)

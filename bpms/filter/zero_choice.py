@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bpms.io.event_types import ResetZero
 from bpms.io.frames import N_IMUS
 from bpms.io.session_events import SessionEvent
 
@@ -82,20 +83,19 @@ class ResetZeroChoice:
 
 def identity_zero(frame: int = 0) -> SessionEvent:
     """The ``none`` choice as an event: R0 = identity, heading 0, adopted at ``frame``."""
-    return SessionEvent("reset_zero", frame, data={
-        "source": "re-analysis", "adopt": True, "window": 1, "yaw0": 0.0,
-        "R0": np.tile(np.eye(3), (N_IMUS, 1, 1)).tolist()})
+    return SessionEvent.of(ResetZero("re-analysis", 1, np.tile(np.eye(3), (N_IMUS, 1, 1)),
+                                     0.0, adopt=True), frame)
 
 
 def capture_at(frame: int) -> SessionEvent:
     """A re-analysis capture at ``frame`` (the options' window)."""
-    return SessionEvent("reset_zero", frame, data={"source": "re-analysis"})
+    return SessionEvent.of(ResetZero("re-analysis"), frame)
 
 
 def fallback_zero(frame: int) -> SessionEvent:
     """Instead of a recorded capture lost to damage at ``frame``: the automatic Reset Zero
     from there (:meth:`bpms.filter.pose.PoseCalibrator.fall_back`)."""
-    return SessionEvent("reset_zero", frame, data={"source": "automatic", "fallback": True})
+    return SessionEvent.of(ResetZero("automatic", fallback=True), frame)
 
 
 __all__ = ["MODES", "ResetZeroChoice", "capture_at", "fallback_zero", "identity_zero"]

@@ -268,8 +268,7 @@ class LiveSession:
             self.events.at_next_frame(event)
         zero = proc.pose.zero
         if zero is not None:
-            data = {**zero.event_data(), "source": "in force"}
-            self.events.at_next_frame(SessionEvent("reset_zero", data=data))
+            self.events.at_next_frame(SessionEvent.of(zero.change("in force")))
 
     def stop_logging(self) -> RecordingStatus | None:
         """Stop recording; files are flushed and closed. Returns the final status."""
@@ -473,8 +472,8 @@ class LiveSession:
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
         for z in result.zeros:
-            self.events.emit(SessionEvent("reset_zero", head.index + z.frame - first,
-                                          data=z.event_data()), warning=z.moved)
+            self.events.emit(SessionEvent.of(z.change(), head.index + z.frame - first),
+                             warning=z.moved)
         for k, m in marks:
             if m.kind != "reset_zero":
                 self.events.emit(m.at(events[k].index))
