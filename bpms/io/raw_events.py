@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bpms.io.event_types import Lost
 from bpms.io.raw_layout import parse_event
 from bpms.io.session_events import KINDS, SessionEvent
 
@@ -64,8 +65,7 @@ def lost_event(kind: str, slot: int, frame: int | None = None) -> SessionEvent:
     ``frame`` (the frame its bytes still name, else its place between the frames: ``slot``,
     the slot of the next frame), ``data``: ``kind``, the kind it was (``unknown`` when its
     bytes do not say) and ``place`` (``slot``)."""
-    return SessionEvent("lost", slot if frame is None else frame,
-                        data={"kind": kind, "place": slot})
+    return SessionEvent.of(Lost(kind, slot), slot if frame is None else frame)
 
 
 class Copies:

@@ -31,7 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bpms.io.event_types import ResetZero
+from bpms.io.event_types import Gains, ResetZero
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE
 from bpms.io.session_events import SessionEvent
@@ -230,7 +230,10 @@ def state_before(events: Sequence[tuple[int, SessionEvent]], slot: int
             last.pop("reset_zero", None)
     out = [last[k].at(slot) for k in ("filter", "alignment") if k in last]
     if gains:
-        out.append(SessionEvent("gains", slot, data={"values": gains}))
+        try:
+            out.append(SessionEvent.of(Gains(gains), slot))
+        except (TypeError, ValueError):  # a recorded value out of range: applying says so
+            out.append(SessionEvent("gains", slot, data={"values": gains}))
     if "reset_zero" in last:
         zero = last["reset_zero"]
         try:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bpms.io.event_types import Alignment, FilterChoice, Filters, Gains, Logging, Text
 from bpms.io.events import FrameEvent, FrameSource
 from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import decode_frames
@@ -186,7 +187,7 @@ class LiveSession:
     def marker(self, text: str) -> None:
         """A marker note at the next processed frame: in the raw recording, the event log and
         the LSL event stream."""
-        self.events.at_next_frame(SessionEvent("marker", data={"text": str(text)}))
+        self.events.at_next_frame(SessionEvent.of(Text(str(text))))
 
     def set_gains(self, **gains: float) -> None:
         """Change filter settings from the next frame on (see BodyPoseProcessor.set_gains).
@@ -248,9 +249,9 @@ class LiveSession:
                 beside = self._raw_logger
                 self._commands.put(lambda: self._filtered.open(writer, beside))
         self._recording = status
-        self.events.emit(SessionEvent("logging", data={
-            "action": "start", "raw": raw_path.name if raw else None,
-            "filtered": status.filtered_path.name if status.filtered_path else None}))
+        self.events.emit(SessionEvent.of(Logging(
+            "start", raw_path.name if raw else None,
+            status.filtered_path.name if status.filtered_path else None)))
         self._commands.put(self._state_in_force)
         return status
 
@@ -260,12 +261,10 @@ class LiveSession:
         proc = self.processor
         values = {k: v for k, v in dataclasses.asdict(proc.options.filter).items()
                   if k != "algorithm"}
-        for event in (SessionEvent("filter", data={"algorithm": proc.options.filter.algorithm,
-                                                   "source": "in force"}),
-                      SessionEvent("gains", data={"values": values, "source": "in force"}),
-                      SessionEvent("alignment", data={"on": bool(proc.corrected_output),
-                                                      "source": "in force"})):
-            self.events.at_next_frame(event)
+        for change in (FilterChoice(proc.options.filter.algorithm, "in force"),
+                       Gains(values, "in force"),
+                       Alignment(bool(proc.corrected_output), "in force")):
+            self.events.at_next_frame(SessionEvent.of(change))
         zero = proc.pose.zero
         if zero is not None:
             self.events.at_next_frame(SessionEvent.of(zero.change("in force")))
@@ -274,7 +273,7 @@ class LiveSession:
         """Stop recording; files are flushed and closed. Returns the final status."""
         status, self._recording = self._recording, None
         if status is not None:
-            self.events.emit(SessionEvent("logging", data={"action": "stop"}))
+            self.events.emit(SessionEvent.of(Logging("stop")))
         with self._feed_lock:  # no frame is handed to the raw file after this
             logger, self._raw_logger = self._raw_logger, None
             if logger is not None:
@@ -457,8 +456,7 @@ class LiveSession:
             else:
                 proc.reinitialise()
                 action, reason = "reinit", "the stream resumed after a gap"
-            self.events.at_next_frame(SessionEvent("filters", data={"action": action,
-                                                                    "reason": reason}))
+            self.events.at_next_frame(SessionEvent.of(Filters(action, reason)))
         if self.events.waiting:
             self.events.frame_reached(head.index)
         # one frame live at 50 Hz, several when behind: the same call
