@@ -56,11 +56,18 @@ def intact(tmp_path_factory) -> Path:
     zeros = proc.pose.captures
     assert [z.source for z in zeros] == ["provisional", "automatic", "manual", "manual"]
     events = [SessionEvent("filters", 0, data={"action": "restart", "reason": "stream start"}),
-              *(SessionEvent.of(z.change(), z.frame) for z in zeros)]
+              *(SessionEvent("reset_zero", z.frame, data=_zero_data(z)) for z in zeros)]
     path = tmp_path_factory.mktemp("damage") / "Raw_field_1.bpmsraw"
     write_raw(path, 1.7e9 + rec.t, rec.frames,
               new_header(calibration=rec.calibration.values, source="simulated suit"), events)
     return path
+
+
+def _zero_data(z) -> dict:
+    """A capture's ``reset_zero`` data as docs/raw-format.md's table lists it."""
+    return {"source": z.source, "window": int(z.window), "R0": z.R0.tolist(),
+            "yaw0": float(z.yaw0), "heading": z.heading, "motion_deg": float(z.motion_deg),
+            "motion_imu": int(z.motion_imu), "moved": bool(z.moved), "waited": int(z.waited)}
 
 
 def _flip(src: Path, out: Path, every_copy: bool) -> Path:
@@ -180,3 +187,52 @@ def test_every_door_keeps_the_angles_and_says_so(intact, tmp_path, capsys):
     assert len(poses) >= has.sum()
     q = np.array([m["quaternions"] for m in poses])
     assert np.isfinite(q[-int(has.sum()):]).all()
+
+
+def _records(data: bytes, kind: bytes) -> list[int]:
+    """Offsets of the event records of ``kind`` (their JSON begins ``{"kind":...``)."""
+    out, at = [], 0
+    while (k := data.find(b'{"kind":"' + kind + b'"', at)) >= 0:
+        out.append(k - 14)  # time (8), "$E" (2), length (4), then the JSON
+        at = k + 1
+    return out
+
+
+@pytest.mark.parametrize(("where", "copies"), [
+    (8, "first"), (9, "first"), (11, "first"), (8, "both"), (12, "both")])
+def test_a_hit_event_header_costs_no_frame_slot(intact, tmp_path, where, copies):
+    """A bit flipped in a Reset Zero record's ``$E`` marker (offset 8, 9) or its length field
+    (11, 12): the record still ends with ``E$`` and says where it began, so the frames after
+    it keep their slots; its intact copy stands in, or (both copies hit) it is named lost."""
+    original = intact.read_bytes()
+    starts = _records(original, b"reset_zero")
+    hit = starts[2:4] if copies == "both" else starts[2:3]  # the automatic capture's records
+    data = bytearray(original)
+    for s in hit:
+        data[s + where] ^= 0x10
+    damaged = tmp_path / "Raw_head_1.bpmsraw"
+    damaged.write_bytes(bytes(data))
+    rec, want = read_raw(damaged), read_raw(intact)
+    assert len(rec) == len(want) and rec.damaged.size == 0
+    assert rec.frames.tobytes() == want.frames.tobytes()
+    lost = [(e.frame, e.data["kind"]) for _, e in rec.events if e.kind == "lost"]
+    zeros = [e.frame for _, e in want.events if e.kind == "reset_zero"]
+    if copies == "first":
+        assert lost == [] and [e.frame for _, e in rec.events if e.kind == "reset_zero"] == zeros
+    else:
+        assert lost == [(zeros[1], "reset_zero")]
+
+
+def test_a_record_written_once_with_a_hit_marker_costs_no_slot(tmp_path):
+    rec = simulate(duration_s=4.0, seed=1)
+    path = tmp_path / "Raw_marker_1.bpmsraw"
+    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(),
+              [SessionEvent("marker", 100, data={"text": "squat"})])
+    data = bytearray(path.read_bytes())
+    data[_records(bytes(data), b"marker")[0] + 8] ^= 0x01  # "$E" → "%E"
+    path.write_bytes(bytes(data))
+    got = read_raw(path)
+    assert len(got) == len(rec) and got.damaged.size == 0
+    assert got.frames.tobytes() == rec.frames
+    assert [(slot, e.kind, e.data["kind"]) for slot, e in got.events] == [
+        (100, "lost", "marker")]

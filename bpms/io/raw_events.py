@@ -14,7 +14,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bpms.io.event_types import Lost
-from bpms.io.raw_layout import parse_event
+from bpms.io.raw_layout import (
+    EVENT_END,
+    EVENT_OVERHEAD,
+    EVENT_START,
+    FRAME_START,
+    MAX_EVENT_PAYLOAD,
+    RECORD_SIZE,
+    event_size_at,
+    is_frame_record_at,
+    parse_event,
+)
 from bpms.io.session_events import KINDS, SessionEvent
 
 #: Frames a chunk waits for events that name it: a live session writes an event at most a
@@ -107,5 +117,89 @@ class Copies:
         self.last = None
 
 
-__all__ = ["COPY_DIFF_BYTES", "LOOKAHEAD", "Copies", "Counts", "frame_in", "kind_in",
-           "lost_event"]
+
+def _event_start(gap: bytes) -> int | None:
+    """Where a damaged event record ending ``gap`` (its ``E$`` the last bytes) begins: where
+    its length field says (the start + 20 + length = the end), else at its ``$E`` marker;
+    None when the gap does not end like an event record."""
+    n = len(gap)
+    if n < EVENT_OVERHEAD or not gap.endswith(EVENT_END):
+        return None
+    lo = max(0, n - EVENT_OVERHEAD - MAX_EVENT_PAYLOAD)
+    b = np.frombuffer(gap, np.uint8).astype(np.int64)
+    x = np.arange(lo, n - EVENT_OVERHEAD + 1)
+    length = b[x + 10] | (b[x + 11] << 8) | (b[x + 12] << 16) | (b[x + 13] << 24)
+    hit = np.flatnonzero(x + EVENT_OVERHEAD + length == n)
+    if hit.size:
+        return int(x[hit[0]])
+    marker = gap.rfind(EVENT_START, lo + 8, n - EVENT_OVERHEAD + 9)
+    return marker - 8 if marker >= 8 else None
+
+
+def damaged_events(gap: bytes) -> tuple[int, list[bytes]]:
+    """A damaged stretch read from its end: (bytes before its damaged event records, those
+    records in file order). A record whose ``$E`` marker or length field was hit still ends
+    with ``E$`` and says (by its length field, or its marker) where it began, so damage to it
+    costs no frame slot."""
+    records: list[bytes] = []
+    end = len(gap)
+    while (start := _event_start(gap[:end])) is not None and start < end:
+        records.insert(0, gap[start:end])
+        end = start
+    return end, records
+
+
+
+def event_at(buf: bytes, q: int, eof: bool) -> tuple[str, int]:
+    """Is there an event record at ``q``? ("yes", size), ("no", 0) or ("more", size) when
+    its bytes are not all in ``buf`` yet (never at the end of the file)."""
+    if q + 14 > len(buf):
+        return ("no", 0) if eof else ("more", 14)
+    size = event_size_at(buf, q)
+    if size is None:
+        return "no", 0
+    if q + size > len(buf):
+        return ("no", 0) if eof else ("more", size)
+    return ("yes", size) if parse_event(buf, q, size) is not None else ("no", 0)
+
+
+def find_record(buf: bytes, start: int, eof: bool, events: bool) -> tuple[int | None, str]:
+    """The first offset ≥ ``start`` where a record begins: a frame record confirmed by the
+    next record (or the end of the file), or an intact event record. (offset, "found"),
+    (None, "none"), or (offset, "more") when deciding needs bytes beyond ``buf``."""
+    n = len(buf)
+    s = start + 8
+    a = buf.find(FRAME_START, s)
+    b = buf.find(EVENT_START, s) if events else -1
+    while a >= 0 or b >= 0:
+        if a >= 0 and (b < 0 or a < b):
+            q = a - 8
+            if q + RECORD_SIZE > n:
+                if not eof:
+                    return q, "more"
+            elif is_frame_record_at(buf, q):
+                nxt = q + RECORD_SIZE
+                if nxt + RECORD_SIZE <= n and is_frame_record_at(buf, nxt):
+                    return q, "found"
+                state = event_at(buf, nxt, eof) if events else ("no", 0)
+                if state[0] == "yes":
+                    return q, "found"
+                if nxt + RECORD_SIZE > n:
+                    if eof:
+                        return q, "found"  # no room for a confirming record: the end
+                    return q, "more"
+                if state[0] == "more":
+                    return q, "more"
+            a = buf.find(FRAME_START, a + 1)
+        else:
+            q = b - 8
+            state = event_at(buf, q, eof)
+            if state[0] == "yes":
+                return q, "found"
+            if state[0] == "more":
+                return q, "more"
+            b = buf.find(EVENT_START, b + 1)
+    return None, "none"
+
+__all__ = ["COPY_DIFF_BYTES", "LOOKAHEAD", "Copies", "Counts", "damaged_events", "event_at",
+           "find_record", "frame_in", "kind_in", "lost_event"]

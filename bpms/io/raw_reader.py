@@ -12,7 +12,9 @@ the record after it, or an event record whose CRC holds. A damaged stretch keeps
 it becomes ``round(bytes / 348)`` placeholder frames with every sensor flagged failed (none
 for fewer than 174 bytes between two intact records: bytes inserted there), so every later
 frame keeps its position, hence its time (index × 0.02 s). A damaged event record costs only
-itself (no slot). A torn last record is ignored with a warning.
+itself (no slot, even when its marker or length field was hit: :mod:`bpms.io.raw_events`), and
+nothing when its copy beside it is intact; a lost one is handed on as a ``lost`` event naming
+its kind and frame. A torn last record is ignored with a warning.
 
 Events (format version 2) apply at the frame they name, whatever their place in the file: the
 live session writes an event after the frames it processed, so :meth:`RawFile.chunks` holds a
@@ -32,11 +34,20 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from bpms.io.frames import FRAME_DTYPE, N_IMUS, DecodedFrames, decode_frames, encode_frame
-from bpms.io.raw_events import LOOKAHEAD, Copies, Counts, frame_in, kind_in, lost_event
+from bpms.io.raw_events import (
+    LOOKAHEAD,
+    Copies,
+    Counts,
+    damaged_events,
+    event_at,
+    find_record,
+    frame_in,
+    kind_in,
+    lost_event,
+)
 from bpms.io.raw_layout import (
     EVENT_END,
     EVENT_HEAD,
-    EVENT_START,
     EVENTS_VERSION,
     FRAME_END,
     FRAME_START,
@@ -44,8 +55,6 @@ from bpms.io.raw_layout import (
     RECORD_SIZE,
     RawFileError,
     event_size_at,
-    is_frame_record_at,
-    parse_event,
     read_preamble,
 )
 from bpms.io.session_events import SessionEvent
@@ -148,58 +157,6 @@ def _placeholders(count: int, t0: float, t1: float) -> np.ndarray:
     return recs
 
 
-def _event_at(buf: bytes, q: int, eof: bool) -> tuple[str, int]:
-    """Is there an event record at ``q``? ("yes", size), ("no", 0) or ("more", size) when
-    its bytes are not all in ``buf`` yet (never at the end of the file)."""
-    if q + 14 > len(buf):
-        return ("no", 0) if eof else ("more", 14)
-    size = event_size_at(buf, q)
-    if size is None:
-        return "no", 0
-    if q + size > len(buf):
-        return ("no", 0) if eof else ("more", size)
-    return ("yes", size) if parse_event(buf, q, size) is not None else ("no", 0)
-
-
-def _find_record(buf: bytes, start: int, eof: bool, events: bool) -> tuple[int | None, str]:
-    """The first offset ≥ ``start`` where a record begins: a frame record confirmed by the
-    next record (or the end of the file), or an intact event record. (offset, "found"),
-    (None, "none"), or (offset, "more") when deciding needs bytes beyond ``buf``."""
-    n = len(buf)
-    s = start + 8
-    a = buf.find(FRAME_START, s)
-    b = buf.find(EVENT_START, s) if events else -1
-    while a >= 0 or b >= 0:
-        if a >= 0 and (b < 0 or a < b):
-            q = a - 8
-            if q + RECORD_SIZE > n:
-                if not eof:
-                    return q, "more"
-            elif is_frame_record_at(buf, q):
-                nxt = q + RECORD_SIZE
-                if nxt + RECORD_SIZE <= n and is_frame_record_at(buf, nxt):
-                    return q, "found"
-                state = _event_at(buf, nxt, eof) if events else ("no", 0)
-                if state[0] == "yes":
-                    return q, "found"
-                if nxt + RECORD_SIZE > n:
-                    if eof:
-                        return q, "found"  # no room for a confirming record: the end
-                    return q, "more"
-                if state[0] == "more":
-                    return q, "more"
-            a = buf.find(FRAME_START, a + 1)
-        else:
-            q = b - 8
-            state = _event_at(buf, q, eof)
-            if state[0] == "yes":
-                return q, "found"
-            if state[0] == "more":
-                return q, "more"
-            b = buf.find(EVENT_START, b + 1)
-    return None, "none"
-
-
 def _pieces(f: BinaryIO, offset: int, events: bool, counts: Counts, slot: int = 0,
             last_time: float = float("nan")) -> Iterator[tuple]:
     """The data part from ``offset`` in file order: ``("frames", slot, records, file offset,
@@ -248,10 +205,10 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: Counts, slot: int = 
                 continue
         event_size = None  # a damaged event record begins here (its length is plausible)
         if events:
-            state, size = _event_at(buf, p, eof)
+            state, size = event_at(buf, p, eof)
             while state == "more":
                 fill(size)
-                state, size = _event_at(buf, p, eof)
+                state, size = event_at(buf, p, eof)
             if state == "yes":
                 yield from copies.intact(buf[p:p + size], slot)
                 p += size
@@ -267,13 +224,14 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: Counts, slot: int = 
                     p += event_size
                     continue
             if (event_size is not None and p + event_size > len(buf)
-                    and _find_record(buf, p + 1, True, events)[0] is None):
+                    and find_record(buf, p + 1, True, events)[0] is None):
                 counts.torn = len(buf) - p  # a cut-off last event
                 break
         if eof and avail < RECORD_SIZE and event_size is None:
             counts.torn = avail
             break
-        copy_head = copies.last is not None and copies.last[:EVENT_HEAD.size] == bytes(
+        last_intact = copies.last
+        copy_head = last_intact is not None and last_intact[:EVENT_HEAD.size] == bytes(
             buf[p:p + EVENT_HEAD.size])
         yield from copies.flush(slot)
         lost_kind = "unknown" if event_size is None else kind_in(buf[p:p + event_size])
@@ -281,7 +239,7 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: Counts, slot: int = 
         gap_start = base + p
         search = p + 1
         while True:
-            q, status = _find_record(buf, search, eof, events)
+            q, status = find_record(buf, search, eof, events)
             if status == "found" or (status == "none" and eof):
                 break
             # keep only what may still begin a record; the rest of the gap is counted, not kept
@@ -293,6 +251,21 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: Counts, slot: int = 
         if q is None and event_size is None and gap < RECORD_SIZE:
             counts.torn = gap
             break
+        head, hit = (damaged_events(buf[gap_start - base:q])
+                     if events and q is not None and gap_start >= base else (gap, []))
+        if hit and q is not None:  # damaged event records end the stretch: no slot for them
+            count = round(head / RECORD_SIZE)
+            if count:
+                yield "gap", slot, _placeholders(count, last_time,
+                                                 struct.unpack_from("<d", buf, q)[0])
+                counts.damaged += count
+                slot += count
+            copies.last = None if count else last_intact
+            for record in hit:
+                copies.damaged(record)
+            counts.skipped += gap
+            p = q
+            continue
         if event_size is not None and gap >= event_size - RECORD_SIZE // 2:
             # a damaged event record, and what follows it: lost, unless it begins as the
             # intact record just read (the same time written and length: its copy)
