@@ -4,7 +4,8 @@ playback and ``bpms replay``).
 
 - ``events`` (the default): the Reset Zero captures recorded in the file, at their frames (the
   numbers the investigator saw live); a recording without events (format version 1, a legacy
-  file, a filtered file) gets the automatic ones;
+  file, a filtered file) gets the automatic ones, and so does a recording from the frame of a
+  capture whose record was lost to damage on (:func:`fallback_zero`);
 - ``auto``: the recorded captures are ignored; the provisional capture and the automatic one
   (once the subject is still, docs/body-model.md) are made again;
 - ``at T[,T2...]``: the provisional capture, then captures at these stream times (s) only;
