@@ -222,7 +222,8 @@ def compare(rec: Recording, export: MocapExport, mapping: str | Path | None = No
             else:
                 al = align_frames(R, Q, dt, align,
                                   None if rec.acc is None else rec.acc[:, imu],
-                                  None if rec.mag is None else rec.mag[:, imu], use)
+                                  None if rec.mag is None else rec.mag[:, imu], use,
+                                  None if rec.gyr is None else rec.gyr[:, imu])
         except ValueError as exc:
             raise CompareError(f"{name} ({IMU_NAMES[imu]}): {exc}") from None
         alignments.append(al)

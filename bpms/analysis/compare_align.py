@@ -195,10 +195,19 @@ class Alignment:
     rate_condition: float = float("nan")
     rate_residual_dps: float = float("nan")
     samples: int = 0
+    s_sd_deg: float = float("nan")
 
 
-def _s_from_rates(w_b: np.ndarray, w_o: np.ndarray) -> np.ndarray:
-    return project_so3(w_o.T @ w_b)  # argmin Σ|ω_o − S ω_b|²
+def _s_from_rates(w_b: np.ndarray, w_o: np.ndarray, bias: bool = False
+                  ) -> np.ndarray:
+    """argmin over S of Σ|ω_o − S (ω_b − b)|² (SVD, Kabsch); with ``bias`` a constant gyro
+    bias b is estimated with it (alternately, a few rounds)."""
+    S = project_so3(w_o.T @ w_b)
+    if bias:
+        for _ in range(5):
+            b = np.mean(w_b - w_o @ S, axis=0)
+            S = project_so3(w_o.T @ (w_b - b))
+    return S
 
 
 def _w_from_sensors(Q: np.ndarray, S: np.ndarray, acc: np.ndarray, mag: np.ndarray
@@ -230,8 +239,9 @@ def _w_from_orientations(R: np.ndarray, Q: np.ndarray, S: np.ndarray) -> np.ndar
 
 
 def _estimate(R: np.ndarray, Q: np.ndarray, w_b: np.ndarray, w_o: np.ndarray, mode: str,
-              acc: np.ndarray | None, mag: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    S = _s_from_rates(w_b, w_o)
+              acc: np.ndarray | None, mag: np.ndarray | None, gyro: bool
+              ) -> tuple[np.ndarray, np.ndarray]:
+    S = _s_from_rates(w_b, w_o, bias=gyro)
     if mode == "sensors":
         return S, _w_from_sensors(Q, S, acc, mag)
     W = _w_from_orientations(R, Q, S)
@@ -247,11 +257,13 @@ def _estimate(R: np.ndarray, Q: np.ndarray, w_b: np.ndarray, w_o: np.ndarray, mo
 
 def align_frames(R: np.ndarray, Q: np.ndarray, dt: float, mode: str = "sensors",
                  acc: np.ndarray | None = None, mag: np.ndarray | None = None,
-                 use: np.ndarray | None = None) -> Alignment:
+                 use: np.ndarray | None = None, gyr: np.ndarray | None = None) -> Alignment:
     """Estimate ``S`` and ``W`` of one segment from ``R[N, 3, 3]`` (BPMS, on its stream
     times) and ``Q[N, 3, 3]`` (optical resampled onto the same times, NaN = gap), over the
     samples ``use[N]`` (default all valid). ``acc`` / ``mag`` ``[N, 3]``: the IMU's calibrated
-    accelerometer (gravity direction) and magnetometer in its filter frame, for ``"sensors"``.
+    accelerometer (gravity direction) and magnetometer in its filter frame, for ``"sensors"``;
+    ``gyr[N, 3]`` rad/s its gyro (sample k the mean rate over ``[t[k-1], t[k]]``): S then comes
+    from the measured rates with a gyro bias (as BROAD's alignment), else from the rates of R.
     Raises ValueError when too few valid samples remain."""
     if mode not in ALIGN_MODES:
         raise ValueError(f"alignment {mode!r}: one of {', '.join(ALIGN_MODES)}")
@@ -270,20 +282,30 @@ def align_frames(R: np.ndarray, Q: np.ndarray, dt: float, mode: str = "sensors",
     idx = np.flatnonzero(pair)
     if len(idx) < 20:
         raise ValueError(f"only {len(idx)} valid sample pairs to align the frames with")
-    w_b = body_rates(R, dt, step)[idx]
+    if gyr is not None:  # mean of samples k+1 .. k+step: the mean rate over [t_k, t_k+step]
+        cs = np.concatenate([np.zeros((1, 3)), np.cumsum(np.nan_to_num(gyr), axis=0)])
+        w_b = ((cs[step + 1:] - cs[1:-step]) / step)[idx]
+    else:
+        w_b = body_rates(R, dt, step)[idx]
     w_o = body_rates(Q, dt, step)[idx]
     k = np.flatnonzero(ok)
 
     def fit(sel_pairs: np.ndarray, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return _estimate(R[sel], Q[sel], w_b[sel_pairs], w_o[sel_pairs], mode,
-                         None if acc is None else acc[sel], None if mag is None else mag[sel])
+                         None if acc is None else acc[sel], None if mag is None else mag[sel],
+                         gyr is not None)
 
     S, W = fit(np.arange(len(idx)), k)
     half_p, half_k = len(idx) // 2, len(k) // 2
     S1, W1 = fit(np.arange(half_p), k[:half_k])
     S2, W2 = fit(np.arange(half_p, len(idx)), k[half_k:])
-    sv = np.linalg.svd(w_b.T @ w_b, compute_uv=False)
-    resid = w_o - w_b @ S.T
+    sv = np.linalg.svd(w_o.T @ w_o, compute_uv=False)
+    resid = w_o - (w_b - np.mean(w_b - w_o @ S, axis=0) * (gyr is not None)) @ S.T
+    sigma2 = float(np.mean(np.sum(resid**2, axis=1))) / 3.0
+    info = np.sum(np.sum(w_o**2, axis=1)) * np.eye(3) - w_o.T @ w_o
+    with np.errstate(divide="ignore"):
+        ev = np.linalg.eigvalsh(info)
+        sd = float(np.degrees(np.sqrt(sigma2 / ev[0]))) if ev[0] > 0 else float("inf")
     return Alignment(S, W, mode, float(angle_deg(S1 @ S2.T)), float(angle_deg(W1 @ W2.T)),
                      float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0,
-                     float(np.degrees(np.sqrt(np.mean(np.sum(resid**2, axis=1))))), len(idx))
+                     float(np.degrees(np.sqrt(3 * sigma2))), len(idx), sd)
