@@ -213,10 +213,16 @@ def _s_from_rates(w_b: np.ndarray, w_o: np.ndarray, bias: bool = False
 def _w_from_sensors(Q: np.ndarray, S: np.ndarray, acc: np.ndarray, mag: np.ndarray
                     ) -> np.ndarray:
     """W from the mean gravity direction and the field's mean horizontal direction, both
-    carried into the optical world (``Q S a``); field samples whose norm or dip stray more than
-    5 % / 5° from their medians are left out (a local disturbance)."""
+    carried into the optical world (``Q S a``). Accelerometer samples whose norm strays more
+    than 5 % from its median (linear acceleration) and field samples whose norm or dip stray
+    more than 5 % / 5° from their medians (a local disturbance) are left out, unless that
+    would leave too few."""
     QS = Q @ S
-    g = np.einsum("nij,nj->ni", QS, acc / np.linalg.norm(acc, axis=-1, keepdims=True))
+    norm_a = np.linalg.norm(acc, axis=-1)
+    calm = np.abs(norm_a / np.median(norm_a) - 1) < 0.05  # little linear acceleration
+    if calm.mean() < 0.2:
+        calm = np.ones(len(acc), dtype=bool)
+    g = np.einsum("nij,nj->ni", QS[calm], acc[calm] / norm_a[calm, None])
     g = g.mean(axis=0)
     g /= np.linalg.norm(g)
     down = np.array([0.0, 0.0, 1.0])
