@@ -153,14 +153,12 @@ def estimate_offset(t_b: np.ndarray, mag_b: np.ndarray, t_o: np.ndarray, mag_o: 
 def resample_optical(t_query: np.ndarray, t_opt: np.ndarray, Q: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(orientations ``[M, 3, 3]`` at optical times ``t_query[M]``, inside ``[M]`` bool,
-    gap ``[M]`` bool). ``t_opt[N]`` uniform optical times, ``Q[N, 3, 3]`` (NaN = missing).
+    gap ``[M]`` bool). ``t_opt[N]`` increasing optical times, ``Q[N, 3, 3]`` (NaN = missing).
     Inside the optical span, a query between two valid samples is interpolated on the geodesic
     between them; one next to a missing sample is a gap (NaN), never bridged."""
-    rate_dt = float(np.median(np.diff(t_opt)))
-    u = (t_query - t_opt[0]) / rate_dt
-    inside = (u >= 0) & (u <= len(t_opt) - 1)
-    i = np.clip(np.floor(u).astype(np.int64), 0, len(t_opt) - 2)
-    f = np.clip(u - i, 0.0, 1.0)
+    inside = (t_query >= t_opt[0]) & (t_query <= t_opt[-1])
+    i = np.clip(np.searchsorted(t_opt, t_query, side="right") - 1, 0, len(t_opt) - 2)
+    f = np.clip((t_query - t_opt[i]) / (t_opt[i + 1] - t_opt[i]), 0.0, 1.0)
     Q0, Q1 = Q[i], Q[i + 1]
     ok0 = np.isfinite(Q0).all(axis=(1, 2))
     ok1 = np.isfinite(Q1).all(axis=(1, 2))

@@ -18,8 +18,11 @@ from bpms.analysis.compare_align import exp_map
 from bpms.filter.rotations import rotation_vector
 
 
-def _cell(x: float, fmt: str) -> str:
-    return "" if not np.isfinite(x) else format(x, fmt)
+def _rows(data: np.ndarray, fmt: str, sep: str, missing: str) -> list[str]:
+    """Rows of ``data`` as text, every cell ``fmt``, NaN written as ``missing``."""
+    row = sep.join([fmt] * data.shape[1])
+    text = "\n".join(row % tuple(r) for r in data)
+    return text.replace("nan", missing).split("\n")
 
 
 def write_vicon_csv(path: str | Path, rate_hz: float, bodies: dict[str, tuple[np.ndarray,
@@ -39,7 +42,7 @@ def write_vicon_csv(path: str | Path, rate_hz: float, bodies: dict[str, tuple[np
         helical[~np.isfinite(R).all(axis=(1, 2))] = np.nan
         cols.append(np.concatenate([helical, np.where(np.isfinite(helical), pos, np.nan)], 1))
     data = np.concatenate(cols, axis=1)
-    rows = [f"{k + 1},0," + ",".join(_cell(v, ".5f") for v in data[k]) for k in range(n)]
+    rows = [f"{k + 1},0,{r}" for k, r in enumerate(_rows(data, "%.4f", ",", ""))]
     path.write_text("\n".join(head + rows) + "\n", encoding="utf-8")
     return path
 
@@ -69,9 +72,8 @@ def write_qualisys_tsv(path: str | Path, rate_hz: float, bodies: dict[str, tuple
         block[~ok] = np.nan
         cols.append(block)
     data = np.concatenate(cols, axis=1)
-    rows = ["\t".join([str(k + 1), f"{k / rate_hz:.5f}", *(
-        "NaN" if not np.isfinite(v) else format(v, ".6f") for v in data[k])])
-        for k in range(n)]
+    rows = [f"{k + 1}\t{k / rate_hz:.5f}\t{r}"
+            for k, r in enumerate(_rows(data, "%.6f", "\t", "NaN"))]
     path.write_text("\n".join(head + ["\t".join(labels)] + rows) + "\n", encoding="utf-8")
     return path
 
