@@ -70,6 +70,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.analysis.compare import CompareError, compare, load_recording, read_optical
+    from bpms.analysis.compare_map import resolve_map
     from bpms.analysis.compare_report import (
         figures, markdown, read_alignment, to_dict, write_csv, write_series_csv)
     from bpms.commands._analysis import open_recording_for
@@ -86,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(str(exc)) from None
     try:
         export = read_optical(args.optical_file)
+        resolve_map(export, args.map)  # a bad map or a missing body before the long part
         opened = open_recording_for("compare", args.raw_file, args.calibration, args.options,
                                     args.filter_name, args.heading, args.reset_zero)
         rec = load_recording(args.raw_file, opened)
