@@ -2,15 +2,17 @@
 
 The simulated suit's true IMU orientations are written as an optical export — a Vicon Nexus
 CSV and a Qualisys TSV — seen through a known IMU-to-cluster rotation per segment and a known
-optical world, on a clock 1.1-1.5 s late, at 100 Hz or 60 Hz, with orientation and position noise and
-three 0.3 s occlusions per body. ``bpms compare`` must find the offset within one sample, every
-rotation within 0.5°, skip and count the occluded samples, and report per segment the errors
+optical world, on a clock 1.1-1.5 s late, at 100 Hz or 60 Hz, with orientation and position
+noise and three 0.3 s occlusions per body. ``bpms compare`` must find the offset within one
+sample, every rotation within 0.5°, skip and count the occluded samples, and report per segment the errors
 that the recording's orientations have against the truth (computed here with BROAD's
 definitions, independently of the code under test) within 0.1°; per joint angle the error
 against the true joint angles within 0.1°.
 """
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -55,11 +57,11 @@ def case(request, tmp_path_factory):
     rec = load_recording(raw)
     export = read_optical(syn.path)
     res = compare(rec, export, recording_name=str(raw))
-    return sim, syn, rec, res, export, rate
+    return SimpleNamespace(sim=sim, syn=syn, rec=rec, res=res, export=export)
 
 
 def test_offset_and_rotations_recovered(case):
-    sim, syn, rec, res, export, rate = case
+    syn, res = case.syn, case.res
     assert abs(res.offset_s - syn.offset_s) < DT  # within one sample
     assert len(res.pairs) == 18  # the default map found every body
     for (name, imu), al in zip(res.pairs, res.alignments, strict=True):
@@ -68,7 +70,7 @@ def test_offset_and_rotations_recovered(case):
 
 
 def test_errors_match_the_truth(case):
-    sim, syn, rec, res, export, rate = case
+    sim, rec, res = case.sim, case.rec, case.res
     for st in res.segments:
         compared = np.isfinite(st.series)
         total, heading, incl = truth_errors(rec.R[compared, st.imu],
@@ -99,8 +101,8 @@ def test_errors_match_the_truth(case):
 
 
 def test_occlusions_skipped_and_counted(case):
-    sim, syn, rec, res, export, rate = case
-    for (name, imu), st in zip(res.pairs, res.segments, strict=True):
+    syn, rec, res, export = case.syn, case.rec, case.res, case.export
+    for (name, _), st in zip(res.pairs, res.segments, strict=True):
         Q = export.body(name).quaternion
         lost = np.isnan(Q[:, 0])
         assert lost.sum() == syn.gaps[name.split(":")[-1]] > 0

@@ -16,18 +16,28 @@ from pathlib import Path
 import numpy as np
 
 from bpms.analysis.compare_align import (
-    Alignment, align_frames, estimate_offset, gyro_magnitude_on_grid, rate_magnitude_on_grid,
-    resample_optical)
+    Alignment,
+    align_frames,
+    estimate_offset,
+    gyro_magnitude_on_grid,
+    rate_magnitude_on_grid,
+    resample_optical,
+)
 from bpms.analysis.compare_map import CompareError, resolve_map
 from bpms.analysis.compare_stats import JointStats, SegmentStats, joint_stats, segment_stats
-from bpms.analysis.mocap_import import (
-    MocapExport, MocapFormatError, read_qualisys, read_vicon)
+from bpms.analysis.mocap_import import MocapExport, MocapFormatError, read_qualisys, read_vicon
 from bpms.filter.joints import joint_angles
 from bpms.filter.rotations import quaternion_to_dcm
 from bpms.io.frames import IMU_NAMES
 
-__all__ = ["CompareError", "CompareResult", "Recording", "compare", "read_optical",
-           "load_recording"]
+__all__ = [
+    "CompareError",
+    "CompareResult",
+    "Recording",
+    "compare",
+    "load_recording",
+    "read_optical",
+]
 
 MIN_OVERLAP_S = 2.0
 STILL_DPS = 10.0  # a pause: every mapped segment slower than this (optical) ...

@@ -44,7 +44,7 @@ def exp_map(v: np.ndarray) -> np.ndarray:
     angle = np.linalg.norm(v, axis=-1)
     safe = np.where(angle > 1e-12, angle, 1.0)
     k = v / safe[..., None]
-    K = np.zeros(v.shape[:-1] + (3, 3))
+    K = np.zeros((*v.shape[:-1], 3, 3))
     K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -k[..., 2], k[..., 1], -k[..., 0]
     K[..., 1, 0], K[..., 2, 0], K[..., 2, 1] = k[..., 2], -k[..., 1], k[..., 0]
     s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]

@@ -34,7 +34,7 @@ def error_angles(R_est: np.ndarray, R_ref: np.ndarray) -> tuple[np.ndarray, ...]
     """(total, heading, signed heading, inclination) in degrees ``[N]`` of the world-frame
     error ``R_est R_refᵀ`` (NaN where either is missing)."""
     E = R_est @ np.swapaxes(R_ref, -1, -2)
-    q = np.full(E.shape[:-2] + (4,), np.nan)
+    q = np.full((*E.shape[:-2], 4), np.nan)
     ok = np.isfinite(E).all(axis=(-1, -2))
     q[ok] = dcm_to_quaternion(E[ok])
     w, z = q[..., 0], q[..., 3]

@@ -31,7 +31,6 @@ def write_vicon_csv(path: str | Path, rate_hz: float, bodies: dict[str, tuple[np
     position[N, 3] mm)``; a NaN orientation is an empty (occluded) row of that body."""
     path = Path(path)
     names = list(bodies)
-    n = len(next(iter(bodies.values()))[0])
     head = ["Segments", f"{rate_hz:g}",
             ",," + ",".join(f"{subject}:{b},,,,," for b in names).rstrip(","),
             "Frame,Sub Frame" + ",RX,RY,RZ,TX,TY,TZ" * len(names),
@@ -74,7 +73,7 @@ def write_qualisys_tsv(path: str | Path, rate_hz: float, bodies: dict[str, tuple
     data = np.concatenate(cols, axis=1)
     rows = [f"{k + 1}\t{k / rate_hz:.5f}\t{r}"
             for k, r in enumerate(_rows(data, "%.6f", "\t", "NaN"))]
-    path.write_text("\n".join(head + ["\t".join(labels)] + rows) + "\n", encoding="utf-8")
+    path.write_text("\n".join([*head, "\t".join(labels), *rows]) + "\n", encoding="utf-8")
     return path
 
 

@@ -72,7 +72,13 @@ def run(args: argparse.Namespace) -> int:
     from bpms.analysis.compare import CompareError, compare, load_recording, read_optical
     from bpms.analysis.compare_map import resolve_map
     from bpms.analysis.compare_report import (
-        figures, markdown, read_alignment, to_dict, write_csv, write_series_csv)
+        figures,
+        markdown,
+        read_alignment,
+        to_dict,
+        write_csv,
+        write_series_csv,
+    )
     from bpms.commands._analysis import open_recording_for
 
     if not Path(args.optical_file).is_file():
