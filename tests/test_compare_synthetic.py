@@ -4,9 +4,10 @@ The simulated suit's true IMU orientations are written as an optical export — 
 CSV and a Qualisys TSV — seen through a known IMU-to-cluster rotation per segment and a known
 optical world, on a clock 1.1-1.5 s late, at 100 Hz or 60 Hz, with orientation and position
 noise and three 0.3 s occlusions per body. ``bpms compare`` must find the offset within one
-sample, every rotation within 0.5°, skip and count the occluded samples, and report per segment the errors
-that the recording's orientations have against the truth (computed here with BROAD's
-definitions, independently of the code under test) within 0.1°; per joint angle the error
+sample, every rotation within 0.5°, skip and count the occluded samples, and report per
+segment the errors that the recording's orientations have against the truth (computed here
+with BROAD's definitions, independently of the code under test) within 0.1°; per joint angle
+the error
 against the true joint angles within 0.1°.
 """
 
