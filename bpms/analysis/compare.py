@@ -168,14 +168,14 @@ def compare(rec: Recording, export: MocapExport, mapping: str | Path | None = No
             offset_s: float | None = None, align: str = "sensors",
             window: tuple[float, float] | None = None,
             given: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
-            max_lag_s: float | None = None, recording_name: str = "") -> CompareResult:
+            recording_name: str = "") -> CompareResult:
     """Compare a processed recording with an optical export.
 
     mapping: a map file, or None for the default names (:mod:`.compare_map`); offset_s: the
     clock offset (s, ``t_bpms = t_optical + offset``) instead of the cross-correlation;
     align: :data:`~.compare_align.ALIGN_MODES`; window: (start, end) s of BPMS stream time the
     frame alignment uses (default: the whole overlap); given: per optical body the rotations
-    ``(S, W)`` to use instead of estimating them; max_lag_s: unused bound kept for symmetry."""
+    ``(S, W)`` to use instead of estimating them."""
     pairs, unmapped = resolve_map(export, mapping)
     warnings = [f"optical bodies not compared (not in the map): {', '.join(unmapped)}"
                 ] if unmapped else []

@@ -213,7 +213,8 @@ def figures(res: CompareResult, directory: str | Path, stem: str) -> list[Path]:
         for k, js in enumerate(res.joints):
             ax = axes[k // cols][k % cols]
             a, b = res.joint_bpms_deg[:, k], res.joint_optical_deg[:, k]
-            ax.plot(0.5 * (a + b), a - b, ".", markersize=2)
+            diff = np.degrees(np.angle(np.exp(1j * np.radians(a - b))))  # as the statistics
+            ax.plot(0.5 * (a + b), diff, ".", markersize=2)
             for y, style in ((js.bias, "-"), (js.loa_low, "--"), (js.loa_high, "--")):
                 ax.axhline(y, color="C3", linestyle=style, linewidth=0.8)
             ax.set_title(js.name, fontsize=8)
