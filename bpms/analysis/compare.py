@@ -27,7 +27,7 @@ from bpms.analysis.compare_map import CompareError, resolve_map
 from bpms.analysis.compare_stats import JointStats, SegmentStats, joint_stats, segment_stats
 from bpms.analysis.mocap_import import MocapExport, MocapFormatError, read_qualisys, read_vicon
 from bpms.filter.joints import joint_angles
-from bpms.filter.rotations import quaternion_to_dcm
+from bpms.filter.rotations import dcm_to_euler, quaternion_to_dcm
 from bpms.io.frames import IMU_NAMES
 
 __all__ = [
@@ -135,6 +135,10 @@ class CompareResult:
     segment_error_deg: np.ndarray  # [N, pairs] total error, NaN = gap / outside
     joint_bpms_deg: np.ndarray  # [N, joints]
     joint_optical_deg: np.ndarray
+    #: ``[N, pairs, 3]`` roll, pitch, yaw (deg) of each segment after Reset Zero, by BPMS and
+    #: by the aligned optical body (NaN = gap, outside, or no Reset Zero)
+    segment_angles_bpms_deg: np.ndarray | None = None
+    segment_angles_optical_deg: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
 
 
@@ -249,10 +253,15 @@ def compare(rec: Recording, export: MocapExport, mapping: str | Path | None = No
     # joint angles: the optical segments through the recording's own Reset Zero offsets
     with np.errstate(invalid="ignore"):
         offset = np.swapaxes(rec.R, -1, -2) @ rec.C
-        J_opt = joint_angles(aligned @ offset, rec.convention)
+        C_opt = aligned @ offset
+        J_opt = joint_angles(C_opt, rec.convention)
     joints, jb, jo = joint_stats(rec.t, rec.joints, J_opt, inside)
+    imus = [imu for _, imu in pairs]
+    angles_b = np.degrees(dcm_to_euler(rec.C[:, imus]))
+    angles_o = np.degrees(dcm_to_euler(C_opt[:, imus]))
+    angles_b[~inside] = np.nan
     lo, hi = rec.t[inside][[0, -1]]
     return CompareResult(
         recording_name, export.path, float(export.rate_hz), dt, float(offset_s), source,
         float(correlation), pairs, alignments, segments, joints, (float(lo), float(hi)),
-        pauses, rec.t, errors, jb, jo, warnings)
+        pauses, rec.t, errors, jb, jo, angles_b, angles_o, warnings)
