@@ -149,3 +149,18 @@ def test_filtered_file_needs_the_orientation_alignment(tmp_path, capsys):
     # (measured 0.705 s here, 1.3 samples early; from the gyros 0.731 s)
     assert abs(doc["offset_s"] - 0.73) < 0.04
     assert all(np.isfinite(s["rmse_total"]) for s in doc["segments"])
+
+
+def test_window_limits_the_alignment_not_the_figures(tmp_path, capsys):
+    args = [str(RAW), str(OPTICAL), "--json", "--no-figures", "-o", str(tmp_path)]
+    assert main(["compare", *args]) == 0
+    whole = json.loads(capsys.readouterr().out)
+    assert main(["compare", *args, "--window", "2:9"]) == 0
+    part = json.loads(capsys.readouterr().out)
+    for a, b in zip(whole["segments"], part["segments"], strict=True):
+        assert b["alignment"]["samples"] < a["alignment"]["samples"]
+        assert b["samples"] == a["samples"]  # the figures still cover the whole overlap
+    with pytest.raises(SystemExit) as stop:  # argparse's own refusal
+        main(["compare", *args, "--window", "9:2"])
+    assert stop.value.code == 2
+    assert "END must be after START" in capsys.readouterr().err
