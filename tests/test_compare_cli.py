@@ -132,6 +132,15 @@ def test_refusals_are_one_line_exit_2(tmp_path, capsys):
     _refused(capsys, [str(RAW), str(short), "--offset", "8.5", *out], "overlap")
     _refused(capsys, [str(RAW), str(OPTICAL), "--alignment", str(junk), *out],
              "not an alignment document")
+    # bodies of the standard names that move unlike anything in the recording
+    from bpms.analysis.compare_align import exp_map
+    from bpms.analysis.compare_synth import write_vicon_csv
+
+    rng = np.random.default_rng(5)
+    walk = np.cumsum(rng.normal(size=(1000, 3)) * 0.05, axis=0)
+    unrelated = write_vicon_csv(tmp_path / "unrelated.csv", 100.0, {
+        "RHumerus": (exp_map(walk), np.zeros((1000, 3)))})
+    _refused(capsys, [str(RAW), str(unrelated), *out], "match the recording's at no offset")
     assert not (tmp_path / "out").exists()
 
 

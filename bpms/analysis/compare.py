@@ -40,6 +40,7 @@ __all__ = [
 ]
 
 MIN_OVERLAP_S = 2.0
+NO_MATCH_CORRELATION = 0.3  # below: the two files do not overlap in time (at any offset)
 STILL_DPS = 10.0  # a pause: every mapped segment slower than this (optical) ...
 STILL_S = 1.0     # ... for at least this long
 PAUSE_RATE_S = 0.25  # the rates of the pause detection are taken over this time
@@ -203,6 +204,11 @@ def compare(rec: Recording, export: MocapExport, mapping: str | Path | None = No
         except ValueError as exc:
             raise CompareError(f"{export.path}: {exc}") from None
         source = "cross-correlation"
+        if correlation < NO_MATCH_CORRELATION:
+            raise CompareError(
+                f"{export.path}: its angular rates match the recording's at no offset (best "
+                f"correlation {correlation:.2f}): not the same session? Give the offset with "
+                "--offset")
         if correlation < 0.5:
             warnings.append(f"the angular rates correlate poorly (peak {correlation:.2f}): "
                             "check the offset, or give it with --offset")

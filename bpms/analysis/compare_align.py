@@ -300,6 +300,9 @@ def align_frames(R: np.ndarray, Q: np.ndarray, dt: float, mode: str = "sensors",
                          gyr is not None)
 
     S, W = fit(np.arange(len(idx)), k)
+    if not (np.isfinite(S).all() and np.isfinite(W).all()):
+        raise ValueError("the sensors give no usable gravity or north (magnetometer or "
+                         "accelerometer missing?); use --align orientation")
     half_p, half_k = len(idx) // 2, len(k) // 2
     S1, W1 = fit(np.arange(half_p), k[:half_k])
     S2, W2 = fit(np.arange(half_p, len(idx)), k[half_k:])
