@@ -24,7 +24,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
-OUTPUTS = ("filter", "rom", "mat", "parquet")
+OUTPUTS = ("filter", "rom", "mat", "parquet", "compare")
 RAW_SUFFIXES = (".bpmsraw",)
 LEGACY_SUFFIXES = (".txt",)
 TABLE_NAME = "batch_rom.csv"
@@ -129,6 +129,11 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
                 raise ValueError("no frame with segment orientations (no Reset Zero)") from None
             outcome.rows = [(name, float(a), float(b)) for name, a, b in zip(
                 JOINT_ANGLE_NAMES, table.minimum, table.maximum, strict=True)]
+        if "compare" in outputs:  # the optical file beside it (bpms.analysis.compare_batch)
+            from bpms.analysis.compare_batch import compare_beside
+
+            outcome.written += compare_beside(job.path, stem, options, reset_zero,
+                                              outcome.problems)
         outcome.convention = opened.meta.convention
         outcome.utc_start = opened.meta.utc_iso
     except Exception as exc:  # one bad file must not stop a study

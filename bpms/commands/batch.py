@@ -35,7 +35,9 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("folder", help="folder searched recursively for raw recordings")
     p.add_argument("-o", "--output", metavar="DIR", help="output folder (default FOLDER/batch)")
     p.add_argument("--outputs", default="rom", metavar="LIST",
-                   help="comma-separated: rom, filter, mat, parquet (default: rom)")
+                   help="comma-separated: rom, filter, mat, parquet, compare (default: rom; "
+                        "compare: each recording against the optical file beside it, "
+                        "docs/compare.md)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes (default: the number of CPU cores)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
@@ -103,6 +105,10 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
     rows = write_table(out / TABLE_NAME, outcomes)
     summary = write_summary(out, outcomes, folder, elapsed, workers)
+    if "compare" in outputs:  # docs/compare.md, "In a study"
+        from bpms.analysis.compare_batch import write_study_table
+
+        write_study_table(out)
     skipped = [o for o in outcomes if o.error]
     for o in skipped:
         print(f"bpms batch: skipped {o.job.path}: {o.error}", file=sys.stderr)

@@ -30,6 +30,9 @@ class ModeWiring:
             menu.addAction(acts[key])
         menu.addSeparator()
         menu.addAction(acts["drift"])
+        from bpms.gui.compare_panel import add_compare_action  # docs/compare.md
+
+        add_compare_action(self, menu)
 
     def _listening(self) -> str | None:
         """The UDP client's listening address (host:port), else None."""
