@@ -13,11 +13,14 @@ Both state the recording's UTC start time (the receive time of its first frame) 
   ``quaternions`` [N×18×4], ``joint_angles`` [N×28] deg,
   ``joint_positions`` [N×21×3] m, ``segment_names``, ``joint_names``, ``point_names`` (cell
   arrays), ``units`` (struct), ``utc_start`` (ISO 8601 text), ``utc_start_posix`` (s since
-  1970), ``joint_angle_convention``, ``rate_hz``, ``source``.
+  1970), ``joint_angle_convention``, ``rate_hz``, ``source``, and where the file came from
+  (:func:`bpms.analysis.stamp.provenance`): ``heading``, ``bpms_version``, ``filter``,
+  ``reset_zero``, ``recording``.
 - Parquet: one row per frame, written one row group per chunk (constant memory): column
   ``time_s``, ``utc`` (timestamp, µs, UTC), ``imuN_SEGMENT_qw`` …, ``joint_JOINT_deg`` …,
   ``point_POINT_x_m`` … (the names of docs/analysis.md, "Column names");
-  the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, ...).
+  the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, and the
+  provenance: bpms_version, filter, reset_zero, recording).
   docs/analysis.md says why Parquet.
 """
 
@@ -43,6 +46,8 @@ UNITS = {"t": "s", "quaternions": "1 (unit quaternion w, x, y, z; segment -> wor
 
 
 SEGMENT_SLUGS = tuple(slug(n) for n in IMU_NAMES)
+#: :func:`bpms.analysis.stamp.provenance`'s keys: .mat variables of their own (text).
+PROVENANCE_KEYS = ("heading", "bpms_version", "filter", "reset_zero", "recording")
 
 
 @dataclass
@@ -126,7 +131,8 @@ class MatWriter:
                 "joint_names": [joint_column(j) for j in JOINT_ANGLE_NAMES],
                 "point_names": POINT_NAMES,
                 **{key: meta[key] for key in ("units", "utc_start", "utc_start_posix",
-                                              "joint_angle_convention", "rate_hz", "source")}}
+                                              "joint_angle_convention", "rate_hz", "source")},
+                **{key: str(meta[key]) for key in PROVENANCE_KEYS if key in meta}}
 
     def _write(self, lo: int, arrays: tuple[np.ndarray, ...]) -> None:
         t, *rest = arrays

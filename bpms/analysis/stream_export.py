@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bpms.analysis.binary_out import ExportMeta, open_writer
-from bpms.analysis.stamp import recording_utc_start
+from bpms.analysis.stamp import provenance, recording_utc_start
 from bpms.filter.door import CHUNK_FRAMES
 from bpms.io.options import Options
 
@@ -62,7 +62,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | None = None,
     proc = door.processor
     start = recording_utc_start(door)
     meta = ExportMeta(start if math.isfinite(start) else 0.0, proc.options.joints.convention,
-                      1.0 / proc.options.filter.dt, str(path), extra=heading_header(proc.options),
+                      1.0 / proc.options.filter.dt, str(path),
+                      extra={**heading_header(proc.options), **provenance(door)},
                       n_frames=door.n_frames)
     return Opened(door, meta)
 
