@@ -5,7 +5,9 @@ Every format writes STEM + its ending; STEM is -o (an ending of the format given
 dropped: -o walk.bvh is -o walk), else the recording's path without its suffix:
 
 - opensim: OpenSense orientations STEM_orientations.sto (whole trial) and
-  STEM_calibration.sto (the calibration-pose window of the automatic Reset Zero);
+  STEM_calibration.sto (the calibration-pose window of the automatic Reset Zero), and the
+  joint angles as STEM_joint_angles.mot (degrees, OpenSim's signs and the coordinate names of
+  the Rajagopal et al. 2016 full-body model; every frame, nan where a segment is missing);
 - bvh: the stick figure as STEM.bvh (centimetres, y up);
 - matlab: STEM.csv (time, every IMU's quaternion and Euler angles, every joint angle);
 - c3d: STEM.c3d (joint centres in mm, joint angles as angle points as Vicon writes them,
@@ -32,7 +34,7 @@ from bpms.io.timebase import stream_time
 
 #: format → the endings of the files it writes after the stem (docs/analysis.md).
 ENDINGS: dict[str, tuple[str, ...]] = {
-    "opensim": ("_orientations.sto", "_calibration.sto"),
+    "opensim": ("_orientations.sto", "_calibration.sto", "_joint_angles.mot"),
     "bvh": (".bvh",),
     "matlab": (".csv",),
     "c3d": (".c3d",),
@@ -96,23 +98,31 @@ def run(args: argparse.Namespace) -> int:
     path = targets[0]
     try:
         if args.format == "opensim":
-            from bpms.analysis.opensim import OrientationsWriter, calibration_window
+            from bpms.analysis.opensim import (
+                JointAnglesMotWriter,
+                OrientationsWriter,
+                calibration_window,
+            )
 
             whole, calib = (OrientationsWriter(p, 1.0 / dt, args.head_neck, meta=stamp.items())
-                            for p in targets)
-            writers += [whole, calib]
+                            for p in targets[:2])
+            mot = JointAnglesMotWriter(targets[2], stamp.convention, stamp.items())
+            writers += [whole, calib, mot]
             lo, hi = calibration_window(proc.pose.settle, proc.pose.window, opened.n_frames)
             for chunk in stream("export", opened, args.reset_at):
                 res = chunk.result
                 q = res.segment_quaternions
                 usable += whole.write(res.t, q)
+                mot.write(res.t, res.joint_angles)
                 a, b = max(lo - chunk.start, 0), min(hi - chunk.start, len(res))
                 if a < b:
                     calib.write(res.t[a:b], q[a:b])
                 n += len(res)
             span = f"{stream_time(lo, dt):.2f}–{stream_time(hi, dt):.2f} s"
             written += [f"{targets[0]} ({whole.rows} rows)",
-                        f"{targets[1]} ({calib.rows} rows, {span})"]
+                        f"{targets[1]} ({calib.rows} rows, {span})",
+                        f"{targets[2]} ({mot.rows} rows, joint angles deg, coordinates of "
+                        "the Rajagopal 2016 model)"]
             if 0 < whole.rows < n:
                 notes.append(f"{n - whole.rows} of {n} frames left out of the .sto files: a "
                              "mapped segment had no orientation (before the first Reset Zero, "
