@@ -102,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
             client = dask_client(args.scheduler)
         except SchedulerError as exc:
             raise CliError(str(exc)) from None
+        _quiet_dask()
         workers = len(client.nthreads())
         where = f"on the Dask cluster at {args.scheduler} ({workers} workers)"
     else:
@@ -152,3 +153,12 @@ def run(args: argparse.Namespace) -> int:
               f"(see {summary})", file=sys.stderr)
         return 1
     return 0
+
+
+def _quiet_dask() -> None:
+    """Dask logs a lost scheduler with tracebacks; the batch reports it in one line a file.
+    (After the import: distributed sets its loggers' levels when it is imported.)"""
+    import logging
+
+    for name in [n for n in logging.root.manager.loggerDict if n.startswith("distributed")]:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
