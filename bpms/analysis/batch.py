@@ -154,7 +154,8 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
             filtered = FilteredWriter(path, degrees=True, groups=groups, euler=kind,
                                       convention=filtered_convention(opened.meta.convention),
                                       meta={**heading_header(opened.door.processor.options),
-                                            **outcome.origin, **study})
+                                            **outcome.origin, "study": "; ".join(
+                                                f"{k}={v}" for k, v in study.items())})
             writers.append(filtered)
             outcome.written.append(str(path))
         for kind in ("mat", "parquet"):
