@@ -140,3 +140,22 @@ def test_a_killed_worker_exits_3_and_is_not_called_a_bad_file(tmp_path):
     summary = (folder / "batch" / "batch_summary.md").read_text()
     assert "## Not processed (the machinery failed, not the file)" in summary
     assert "## Skipped" not in summary
+
+
+def test_the_study_reaches_the_mat_file_and_the_filtered_header(study, tmp_path):
+    from scipy.io import loadmat
+
+    from bpms.analysis.batch import process_one
+
+    folder, _, rows, _ = study
+    job = Job(str(folder / rows[1][0]), "P01", "walk 2", {"condition": "high",
+                                                           "pressure_kpa": "60"})
+    outcome = process_one(job, str(tmp_path), ("filter", "mat"))
+    assert outcome.error is None, outcome.error
+    mat = loadmat(tmp_path / "P01" / "walk_2.mat", simplify_cells=True)
+    assert mat["study"] == {"subject": "P01", "trial": "walk 2", "condition": "high",
+                            "pressure_kpa": "60"}
+    assert mat["recording"] == "b.bpmsraw" and mat["filter"].startswith("mahony (")
+    head = (tmp_path / "P01" / "walk_2_filtered.csv").read_text().split("\ntime")[0]
+    assert "# study: subject=P01; trial=walk 2; condition=high; pressure_kpa=60" in head
+    assert "# recording: b.bpmsraw" in head
