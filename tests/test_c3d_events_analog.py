@@ -179,3 +179,20 @@ def test_walk_moves_the_figure_along_the_walked_path(walked):
     angle = np.degrees(np.arccos(moved @ truth[:2] / np.linalg.norm(moved)
                                  / np.linalg.norm(truth[:2])))
     assert angle < 10.0 and 0.5 < np.linalg.norm(moved) / np.linalg.norm(truth[:2]) < 1.2
+
+
+def test_more_than_255_events_keep_the_first_255_and_say_so(tmp_path):
+    """A C3D parameter dimension is one byte: the EVENT group holds 255 events."""
+    from bpms.analysis.c3d_export import C3dWriter
+
+    writer = C3dWriter(tmp_path / "many.c3d", 50.0, analog=False)
+    writer.write(np.zeros((100, 21, 3)), np.zeros((100, 28)))
+    for k in range(300):
+        writer.add_event("Foot Strike", "Right" if k % 2 else "Left", k * 0.01, "strike")
+    assert writer.dropped_events == 45
+    writer.close()
+    events = _events(ezc3d.c3d(str(tmp_path / "many.c3d")))
+    assert len(events) == 255
+    assert [e[2] for e in events] == pytest.approx([k * 0.01 for k in range(255)], abs=1e-5)
+    reader, frames = _c3d_reader(tmp_path / "many.c3d")
+    assert reader.get("EVENT:USED").int16_value == 255 and len(frames) == 100

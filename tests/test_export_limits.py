@@ -63,3 +63,19 @@ def test_a_mat_variable_past_4_gib_is_refused_before_writing(tmp_path):
         MatWriter(path, ExportMeta(0.0, n_frames=15_000_000))
     assert not path.exists()
     MatWriter(tmp_path / "ok.mat", ExportMeta(0.0, n_frames=1_000)).close()  # below: fine
+
+
+def test_opensim_states_the_rows_it_leaves_out_and_the_mot_keeps_them(without_zero, tmp_path,
+                                                                     capsys):
+    """Reset Zero only at 1.0 s: the 50 frames before it have no segment orientation."""
+    import numpy as np
+
+    from bpms.cli import main
+
+    assert main(["export", "opensim", str(without_zero), "-o", str(tmp_path / "x"),
+                 "--reset-at", "1.0"]) == 0
+    assert "50 of 150 frames left out of the .sto files" in capsys.readouterr().err
+    lines = (tmp_path / "x_joint_angles.mot").read_text().split("endheader\n")[1].splitlines()
+    rows = np.array([[float(v) for v in ln.split("\t")] for ln in lines[1:]])
+    assert rows.shape[0] == 150 and np.isnan(rows[:50, 1:]).all()
+    assert np.isfinite(rows[50:, 1:]).all()
