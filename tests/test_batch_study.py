@@ -115,10 +115,18 @@ def test_a_skip_reason_with_a_newline_keeps_the_table_one_row(tmp_path):
 
 def test_a_killed_worker_exits_3_and_is_not_called_a_bad_file(tmp_path):
     psutil = pytest.importorskip("psutil")
+    import numpy as np
+
+    from bpms.io.rawfile import new_header, write_raw
+
     folder = tmp_path / "study"
     folder.mkdir()
+    rec = simulate(20.0, seed=60)
+    reps = 12  # 4 minutes a file: the work outlasts the kill on a busy machine too
+    times = 1.7e9 + np.arange(len(rec.t) * reps) * 0.02
     for k in range(6):
-        simulate(20.0, seed=60 + k).save_raw(folder / f"Raw_t_{k:03d}.bpmsraw")
+        write_raw(folder / f"Raw_t_{k:03d}.bpmsraw", times, rec.frames * reps,
+                  new_header(calibration=rec.calibration.values))
     proc = subprocess.Popen([sys.executable, "-m", "bpms", "batch", str(folder), "--workers",
                              "2", "--no-figures"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
