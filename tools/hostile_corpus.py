@@ -387,6 +387,8 @@ def _outputs_text(outcome: Outcome) -> str:
             parts.append(f"{path.relative_to(outcome.out_dir)}\n{path.read_text()}")
     text = "\n".join(parts) + "\n" + outcome.stdout
     text = re.sub(r"/\S+", "PATH", text)
+    # the provenance names the recording: a legacy .txt is repaired into a .bpmsraw
+    text = re.sub(r"(recording[=: ]+[^;\n]+?)\.(txt|bpmsraw)\b", r"\1.RAW", text)
     return re.sub(r"\d+\.\d+ s\b", "T s", text)
 
 

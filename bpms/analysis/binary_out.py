@@ -13,11 +13,14 @@ Both state the recording's UTC start time (the receive time of its first frame) 
   ``quaternions`` [N×18×4], ``joint_angles`` [N×28] deg,
   ``joint_positions`` [N×21×3] m, ``segment_names``, ``joint_names``, ``point_names`` (cell
   arrays), ``units`` (struct), ``utc_start`` (ISO 8601 text), ``utc_start_posix`` (s since
-  1970), ``joint_angle_convention``, ``rate_hz``, ``source``.
+  1970), ``joint_angle_convention``, ``rate_hz``, ``source``, and where the file came from
+  (:func:`bpms.analysis.stamp.provenance`): ``heading``, ``bpms_version``, ``filter``,
+  ``reset_zero``, ``recording``.
 - Parquet: one row per frame, written one row group per chunk (constant memory): column
   ``time_s``, ``utc`` (timestamp, µs, UTC), ``imuN_SEGMENT_qw`` …, ``joint_JOINT_deg`` …,
   ``point_POINT_x_m`` … (the names of docs/analysis.md, "Column names");
-  the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, ...).
+  the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, and the
+  provenance: bpms_version, filter, reset_zero, recording).
   docs/analysis.md says why Parquet.
 """
 
@@ -43,6 +46,8 @@ UNITS = {"t": "s", "quaternions": "1 (unit quaternion w, x, y, z; segment -> wor
 
 
 SEGMENT_SLUGS = tuple(slug(n) for n in IMU_NAMES)
+#: :func:`bpms.analysis.stamp.provenance`'s keys: .mat variables of their own (text).
+PROVENANCE_KEYS = ("heading", "bpms_version", "filter", "reset_zero", "recording")
 
 
 @dataclass
@@ -56,6 +61,9 @@ class ExportMeta:
     source: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
     n_frames: int | None = None  # known in advance: the .mat file is written chunk by chunk
+    #: study columns (a batch's study sheet: trial, condition, ...): the same text on every
+    #: Parquet row (string columns after the data), the .mat file's ``study`` struct
+    columns: dict[str, str] = field(default_factory=dict)
 
     @property
     def utc_iso(self) -> str:
@@ -122,11 +130,14 @@ class MatWriter:
 
     def _small(self) -> dict:
         meta = self.meta.as_dict()
-        return {"segment_names": SEGMENT_SLUGS,
+        study = ({"study": {_field(k): str(v) for k, v in self.meta.columns.items()}}
+                 if self.meta.columns else {})
+        return {**study, "segment_names": SEGMENT_SLUGS,
                 "joint_names": [joint_column(j) for j in JOINT_ANGLE_NAMES],
                 "point_names": POINT_NAMES,
                 **{key: meta[key] for key in ("units", "utc_start", "utc_start_posix",
-                                              "joint_angle_convention", "rate_hz", "source")}}
+                                              "joint_angle_convention", "rate_hz", "source")},
+                **{key: str(meta[key]) for key in PROVENANCE_KEYS if key in meta}}
 
     def _write(self, lo: int, arrays: tuple[np.ndarray, ...]) -> None:
         t, *rest = arrays
@@ -152,6 +163,13 @@ class MatWriter:
         self._stream.close()
 
 
+def _field(name: str) -> str:
+    """A MATLAB struct field name for a study column: ``"Suit pressure"`` →
+    ``suit_pressure``; a leading digit gets ``c_``."""
+    text = slug(name)
+    return (text if text[:1].isalpha() else f"c_{text}")[:60]
+
+
 def parquet_columns() -> list[str]:
     """Column names of the Parquet table, in order."""
     return ["time_s", "utc",
@@ -175,11 +193,13 @@ class ParquetWriter:
         fields = [pa.field("time_s", pa.float64()),
                   pa.field("utc", pa.timestamp("us", tz="UTC"))]
         fields += [pa.field(n, pa.float32()) for n in names[2:]]
+        fields += [pa.field(k, pa.string()) for k in meta.columns]
         self._schema = pa.schema(fields, metadata={"bpms": json.dumps(meta.as_dict())})
         # Dictionary encoding of float columns costs 5× the write time and gains nothing on
-        # continuous signals; statistics only where queries filter (time).
+        # continuous signals (the study's text columns: one value, dictionary-encoded);
+        # statistics only where queries filter (time).
         self._writer = pq.ParquetWriter(self.path, self._schema, compression=compression,
-                                        use_dictionary=False,
+                                        use_dictionary=list(meta.columns) or False,
                                         write_statistics=["time_s", "utc"])
 
     def write(self, result) -> None:
@@ -197,6 +217,7 @@ class ParquetWriter:
         block = np.asfortranarray(block)  # contiguous columns: no copy per column
         cols = [pa.array(t), utc]
         cols += [pa.array(block[:, k]) for k in range(block.shape[1])]
+        cols += [pa.array([v] * n, type=pa.string()) for v in self.meta.columns.values()]
         self._writer.write_table(pa.Table.from_arrays(cols, schema=self._schema))
         self.rows += n
 

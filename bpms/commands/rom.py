@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
             acc.add(chunk.result.t, chunk.result.joint_angles)
         try:
             table = acc.table()
-            table.stamp = recording_stamp(opened)
+            table.stamp = recording_stamp(opened, args.reset_at)
             tables.append(table)
         except ValueError as exc:
             raise CliError(str(exc)) from exc
