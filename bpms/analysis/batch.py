@@ -139,7 +139,7 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
         outcome.origin = provenance(opened.door)
         target = Path(out_dir) / (safe_stem(job.subject) or "-")
         trial = safe_stem(job.trial) or "trial"
-        if "filter" in outputs or "mat" in outputs:
+        if {"filter", "mat", "compare"} & set(outputs):
             target.mkdir(parents=True, exist_ok=True)
         stem = target / trial
         study = {"subject": job.subject, "trial": job.trial, **job.info}
