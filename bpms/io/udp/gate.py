@@ -16,9 +16,10 @@ the active session, starts the first one, takes over, or is dropped:
   computer started a new run) takes over at once: the old run's datagrams are older from
   then on. Without a key the sender id and epoch are not authenticated and are not used.
 - **no lockout**: the session replaced by a takeover after its silence (the *incumbent*: the
-  suit that paused, the sender a stranger replaced) takes the receiver back as soon as it
-  sends ``return_datagrams`` (10) consecutive datagrams that continue its own numbering,
-  whatever the newcomer does. Until then, and for every other replaced session, its datagrams
+  suit that paused, the sender a stranger replaced) takes the receiver back with its first
+  datagram that continues its own numbering when the newcomer has been quiet for
+  :data:`RETURN_QUIET_S`, and otherwise once it has sent ``return_datagrams`` (10) such
+  datagrams in a row, whatever the newcomer does. Until then, and for every other replaced session, its datagrams
   are *stale*: dropped and counted. Another replaced session may come back only by the
   takeover rule.
 - **freshness within a session, with a key**: a known session (followed now or before) never
@@ -50,6 +51,9 @@ MAX_RETIRED = 8
 RETURN_DATAGRAMS = 10
 #: How far (sequence numbers) past the last one followed the incumbent's return may start.
 RETURN_GAP = 3000
+#: The incumbent returns at its first datagram when the session followed has been silent
+#: this long (s): the newcomer has gone quiet (no live sender pauses 12 frames at 50 Hz).
+RETURN_QUIET_S = 0.25
 _MOD = 1 << 32
 
 
@@ -147,16 +151,18 @@ class SessionGate:
         self.incumbent = None if (newer_run or returned) else old
         self._follow(key, now, seq)
 
-    def _returning(self, key: SessionKey, seq: int) -> bool:
-        """The incumbent's datagram: True once it has sent :attr:`return_datagrams` in a row
-        that continue its own numbering (the run's first just past its last followed)."""
+    def _returning(self, key: SessionKey, seq: int, now: float) -> bool:
+        """The incumbent's datagram: True when it continues its own numbering (the run's
+        first just past its last followed) and the newcomer has been quiet
+        :data:`RETURN_QUIET_S`, or once :attr:`return_datagrams` such datagrams came in a
+        row."""
         run = self._incumbent_run
-        if run is not None and run.extend(seq):
-            return run.count >= self.return_datagrams
-        if 0 < _ahead(seq, self._top.get(key, seq - 1)) <= RETURN_GAP:
+        if run is None or not run.extend(seq):
+            if not 0 < _ahead(seq, self._top.get(key, seq - 1)) <= RETURN_GAP:
+                return False
             self._incumbent_run = run = SeqRun(seq)
-            return run.count >= self.return_datagrams
-        return False
+        return (run.count >= self.return_datagrams
+                or now - self.last_active >= RETURN_QUIET_S)
 
     def admit(self, key: SessionKey, seq: int, now: float) -> Admission:
         """The verdict on one well-formed datagram of ``key`` with sequence number ``seq``
@@ -175,7 +181,7 @@ class SessionGate:
         if key in self._retired:
             if self.keyed and _ahead(seq, self._top.get(key, seq - 1)) <= 0:
                 return Admission.REPLAYED  # a number already followed: never again
-            if key == self.incumbent and self._returning(key, seq):
+            if key == self.incumbent and self._returning(key, seq, now):
                 self._switch(key, seq, now, returned=True)
                 return Admission.RETURN
             if key != self.incumbent and self._newcomer(key, seq, now):
