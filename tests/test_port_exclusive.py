@@ -19,7 +19,7 @@ from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.firmware.sim.server import pty_available
-from bpms.io.link import PortInUseError, SuitLink
+from bpms.io.link import DeviceGoneError, PortInUseError, SuitLink
 from bpms.io.rawfile import read_raw
 
 pytestmark = [pytest.mark.timeout(120),
@@ -36,6 +36,10 @@ def test_a_second_open_of_the_port_is_refused_and_the_first_keeps_reading():
         frames = []
         assert wait_until(lambda: frames.extend(first.read_frames()) or len(frames) >= 20, 10)
     assert frames[:20] == [motion.frame(j) for j in range(20)]
+    # the test's path is gone with its suit: a late opener can never reach another test's
+    with suit_pty(Arbiter(motion)) as (_, other), pytest.raises(DeviceGoneError):
+        SuitLink(path)
+    assert other != path
 
 
 def test_monitor_during_a_recording_is_refused_and_the_recording_loses_nothing(tmp_path):

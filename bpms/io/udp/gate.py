@@ -19,9 +19,9 @@ the active session, starts the first one, takes over, or is dropped:
   suit that paused, the sender a stranger replaced) takes the receiver back with its first
   datagram that continues its own numbering when the newcomer has been quiet for
   :data:`RETURN_QUIET_S`, and otherwise once it has sent ``return_datagrams`` (10) such
-  datagrams in a row, whatever the newcomer does. Until then, and for every other replaced session, its datagrams
-  are *stale*: dropped and counted. Another replaced session may come back only by the
-  takeover rule.
+  datagrams in a row, whatever the newcomer does. Until then, and for every other replaced
+  session, its datagrams are *stale*: dropped and counted. Another replaced session may come
+  back only by the takeover rule.
 - **freshness within a session, with a key**: a known session (followed now or before) never
   has a number accepted again: a datagram of a replaced session numbered at or below the
   highest one followed from it is *replayed* (the followed session's own numbers are the
@@ -139,6 +139,12 @@ class SessionGate:
         if self.keyed:
             self._newest_epoch[key.sender] = max(key.epoch,
                                                  self._newest_epoch.get(key.sender, 0))
+
+    def followed_to(self, key: SessionKey, seq: int) -> None:
+        """The session followed went on from number ``seq`` (a jump its tracker confirmed):
+        its highest number followed is that one."""
+        if key == self.active:
+            self._top[key] = seq
 
     def _switch(self, key: SessionKey, seq: int, now: float, newer_run: bool = False,
                 returned: bool = False) -> None:

@@ -356,6 +356,8 @@ class UdpSource(Closing):
             log.warning("UDP: %s", self._takeover_text(now))
         verdict = self._tracker.observe(key, dg.seq, zlib.crc32(dg.frame),
                                         switch=self._started)
+        if verdict is Verdict.RESYNC:
+            self._gate.followed_to(key, dg.seq)
         if verdict is Verdict.REPLAYED:
             self._note_refused("replayed", sender, now)
             self._replay_log.warn("UDP datagram from %s refused as replayed: number %d of "
