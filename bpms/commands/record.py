@@ -162,9 +162,9 @@ def run(args: argparse.Namespace) -> int:
     source = SuitFrameSource(port, options.serial, simulated=args.sim)
     # the kernels loaded before the suit streams: on a busy computer loading them takes
     # longer than the suit holds frames for a host that does not read (docs/pipeline.md)
-    from bpms.pipeline.steady import prepare_live_path
+    from bpms.pipeline.steady import warm_up
 
-    prepare_live_path(processor)
+    warm_up(processor)  # (the session freezes the heap when it starts, as always)
     try:
         source.connect()
     except LinkError as exc:
