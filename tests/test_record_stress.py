@@ -23,7 +23,7 @@ from bpms.io.rawfile import read_raw
 pytestmark = [pytest.mark.timeout(120),
               pytest.mark.skipif(not pty_available(), reason="needs pseudo-terminals")]
 ROOT = Path(__file__).resolve().parents[1]
-RECORD_S = 6
+RECORD_S = 4
 #: each competitor spins this long at most, even if the test dies (s)
 SPIN_LIMIT_S = 40
 SPIN = ("import time\nend = time.monotonic() + {limit}\n"
