@@ -190,7 +190,8 @@ def udp_status_line(elapsed: float, rate: float, frames: int, status: SourceStat
             f"duplicated {c['duplicated']}  reordered {c['reordered']}  "
             f"malformed {c['malformed']}  foreign {c['foreign']}  "
             f"unauthenticated {c['unauthenticated']}  replayed {c['replayed']}  "
-            f"implausible {c['implausible']}  conflicts {c['conflicts']}  {status.state}")
+            f"implausible {c['implausible']}  conflicts {c['conflicts']}  stale {c['stale']}  "
+            f"switches {c['takeovers']}  {status.state}")
     if status.warning:
         line += f"  WARNING: {status.warning}"
     return line

@@ -160,6 +160,11 @@ def run(args: argparse.Namespace) -> int:
         port = server.address
         print(f"recording the SIMULATED suit on {port}", flush=True)
     source = SuitFrameSource(port, options.serial, simulated=args.sim)
+    # the kernels loaded before the suit streams: on a busy computer loading them takes
+    # longer than the suit holds frames for a host that does not read (docs/pipeline.md)
+    from bpms.pipeline.steady import warm_up
+
+    warm_up(processor)  # (the session freezes the heap when it starts, as always)
     try:
         source.connect()
     except LinkError as exc:
