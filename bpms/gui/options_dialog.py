@@ -8,7 +8,7 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from PyQt6.QtCore import Qt
+from PyQt6.QtCore import QRect, Qt
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -24,6 +24,7 @@ from PyQt6.QtWidgets import (
 )
 
 from bpms.gui.safety import guard_wheel
+from bpms.gui.screen_fit import fit_dialog
 from bpms.gui.widgets import label
 from bpms.io import defaults
 from bpms.io.options import Options, options_from_dict, save_options
@@ -74,7 +75,8 @@ class OptionsDialog(QDialog):
     rejected (factory values used instead).
     """
 
-    def __init__(self, options: Options, parent: QWidget | None = None) -> None:
+    def __init__(self, options: Options, parent: QWidget | None = None,
+                 available: QRect | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("BPMS options")
         self.base = options
@@ -132,7 +134,7 @@ class OptionsDialog(QDialog):
         layout = QVBoxLayout(self)
         layout.addWidget(tabs)
         layout.addWidget(buttons)
-        self.resize(640, 560)
+        fit_dialog(self, 640, 560, available)  # never taller than the screen: the tabs scroll
         self.problems: list[FileProblem] = []
 
     def form_data(self) -> dict[str, dict[str, Any]]:

@@ -99,10 +99,10 @@ def remember_startup(window: Any, store: SettingsStore | None = None) -> None:
     store.sync()
 
 
-def restore_main(window: Any, store: SettingsStore | None = None) -> None:
-    store = store or SettingsStore()
-    if (geometry := store.get("main_geometry")) is not None:
-        window.restoreGeometry(geometry)
+def saved_main_geometry(store: SettingsStore | None = None) -> QByteArray | None:
+    """The main window's remembered geometry (``saveGeometry()`` bytes), or None; the
+    window uses it only when it fits its screen (:mod:`bpms.gui.screen_fit`)."""
+    return (store or SettingsStore()).get("main_geometry")
 
 
 def remember_main(window: Any, store: SettingsStore | None = None) -> None:
@@ -118,5 +118,5 @@ def remember_main(window: Any, store: SettingsStore | None = None) -> None:
     store.sync()
 
 
-__all__ = ["KEYS", "SettingsStore", "remember_main", "remember_startup", "restore_main",
-           "restore_startup", "settings_path"]
+__all__ = ["KEYS", "SettingsStore", "remember_main", "remember_startup", "restore_startup",
+           "saved_main_geometry", "settings_path"]

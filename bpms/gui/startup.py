@@ -426,8 +426,7 @@ class StartupWindow(QWidget):
         return box
 
     def open_main_window(self, runner: SessionRunner) -> MainWindow:
-        window = MainWindow(runner)
-        settings_store.restore_main(window)
+        window = MainWindow(runner, saved_geometry=settings_store.saved_main_geometry())
         window.closed.connect(lambda: settings_store.remember_main(window))
         window.closed.connect(self._main_closed)
         self.main_window = window
