@@ -23,7 +23,8 @@ pile up whole turns:
   two triples that describe the rotation, the one nearer the previous frame's angles, unwrapped
   to within 180° of it: roll and yaw sweep there, they do not jump, and pitch may pass ±90°.
   Leaving that region on the far side (pitch past ±90°), the readout returns to the standard
-  triple in one frame: pitch ``180° − pitch``, roll and yaw turned by 180°.
+  triple in one frame: pitch ``180° − pitch``, roll and yaw turned by 180°. There too roll and
+  yaw never run more than :data:`WRAP_BAND_DEG` past ±180° (a whole turn is taken off).
 
 So the readout never drifts by whole turns, live, after a seek or after an hour; it is always
 the same rotation (the same ``R``) as the filters' angles.
@@ -122,6 +123,12 @@ class ContinuousAngles:
                             | (same[:, [0, 2]] == e[:, [0, 2]]), axis=1)
             standard = np.where(inside[:, None], same, e)
             chosen[away] = standard[away]
+        # near it too, roll and yaw never run more than the band past ±180° (whole turns
+        # taken off: a step in cells marked poorly defined, never a pile of turns)
+        ry = chosen[:, [0, 2]]
+        over = np.abs(ry) > np.pi + _BAND
+        if over.any():
+            chosen[:, [0, 2]] = np.where(over, (ry + np.pi) % _TWO_PI - np.pi, ry)
         # an IMU without finite angles (or before its first) starts again from its own
         fresh = ~np.isfinite(prev).all(axis=1) | ~np.isfinite(chosen).all(axis=1)
         chosen[fresh] = e[fresh]

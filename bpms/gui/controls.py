@@ -365,6 +365,9 @@ class PlaybackPanel(QGroupBox):
         self.replay = runner.replay
         self.step_buttons: list[QToolButton] = []
         self.shown = self.replay.position  # the frame at the slider
+        #: frames delivered up to the one shown after a paused seek (the plots' window; the
+        #: main window sets it to its plot history)
+        self.window_frames = 1
         layout = QVBoxLayout(self)
         self.slider = QSlider(Qt.Orientation.Horizontal)
         self.slider.setRange(0, max(0, len(self.replay) - 1))
@@ -439,21 +442,28 @@ class PlaybackPanel(QGroupBox):
 
     def seek(self, index: int) -> None:
         """Jump to frame ``index`` (the filters are pre-rolled; Reset Zero is kept). While
-        paused the frame itself is delivered, so every view shows it."""
+        paused the frame itself is delivered with the :attr:`window_frames` before it, so
+        every view shows it and the plots their window up to it."""
         if self.replay.playing:
             self.replay.seek(index)
         else:
-            self.runner.show_frame(index)
+            self.runner.show_frame(index, self.window_frames - 1)
         self.shown = index
         self._update_label(index)
 
     def step(self, n: int) -> None:
-        """Paused: move ``n`` frames (clamped to the recording)."""
+        """Paused: move ``n`` frames (clamped to the recording). Forward from the frame last
+        delivered, the frames are delivered as playing would (no seek); back, it seeks."""
         if self.replay.playing:
             return
         index = min(max(0, self.shown + n), max(0, len(self.replay) - 1))
         with QSignalBlocker(self.slider):
             self.slider.setValue(index)
+        if index > self.shown and self.replay.position == self.shown + 1 \
+                and self.runner.show_next(index - self.shown):
+            self.shown = index
+            self._update_label(index)
+            return
         self.seek(index)
 
     def _update_label(self, index: int) -> None:

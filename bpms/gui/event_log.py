@@ -20,6 +20,9 @@ log = logging.getLogger(__name__)
 
 #: At most this many entries are kept (the oldest go first).
 MAX_ENTRIES = 2000
+#: Session events not listed: what follows from the user's own seek or frame step in
+#: playback (the filters pre-rolled at the new position), which would fill the log.
+UNLISTED = ("filters re-initialised (seek)",)
 
 
 class EventLog(QListWidget):
@@ -68,6 +71,8 @@ class EventLog(QListWidget):
         warned = set(warnings)
         for entry in events[start:]:
             when, _, text = entry.partition(" ")
+            if text.startswith(UNLISTED):
+                continue
             self.add(text, "warning" if entry in warned else "info", when)
         self._session_seen = list(events)
 

@@ -259,16 +259,31 @@ class SessionRunner:
         self._data_on = True
         return self.session
 
-    def show_frame(self, index: int) -> None:
-        """File mode, paused: jump to frame ``index`` and deliver exactly that frame (filters
-        pre-rolled), so every view shows the frame at the slider. Starts the session's threads
-        if needed (nothing plays: the replay stays paused)."""
+    def show_frame(self, index: int, before: int = 0) -> None:
+        """File mode, paused: jump to frame ``index`` and deliver it, with the ``before``
+        frames that precede it (the plots' window, redrawn from the file; filters pre-rolled
+        before the first), so every view shows the frame at the slider. Starts the session's
+        threads if needed (nothing plays: the replay stays paused)."""
         assert self.replay is not None and self.session is not None
-        self.replay.seek(index)
-        if index < len(self.replay):
-            self.replay.step(1)
+        last = min(index, len(self.replay) - 1)
+        first = max(0, last - max(0, before))
+        self.replay.seek(first)
+        if last >= first:
+            self.replay.step(last - first + 1)
         if not self.session.running:
             self.session.start()
+
+    def show_next(self, n: int) -> bool:
+        """File mode, paused, the last frame delivered being the one before the replay's
+        position: deliver the ``n`` next frames as playing would (the filters go on: no seek,
+        no re-initialisation). False (nothing done) when the replay is elsewhere."""
+        assert self.replay is not None and self.session is not None
+        if n < 1 or not self.session.running or self.replay.playing:
+            return False
+        n = min(n, len(self.replay) - self.replay.position)
+        if n > 0:
+            self.replay.step(n)
+        return True
 
     def stop_data(self) -> None:
         """Stop Data: suit stream stopped, playback paused, UDP session stopped."""

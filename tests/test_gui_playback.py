@@ -1,0 +1,129 @@
+"""Playback keeps its plots and its angles (issue 44 items 6, 7): a seek or a frame step while
+paused redraws the plots' window up to the new position from the file (no empty plot, no log
+line per step), and after 200 random seeks the readout is in the standard ranges."""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bpms.filter.door import process_file
+from bpms.firmware.sim.session import simulate
+from bpms.gui.angle_readout import poorly_defined
+from bpms.gui.layouts import LayoutStore
+from bpms.gui.main_window import MainWindow
+from bpms.gui.modes import ModeConfig, SessionRunner
+from bpms.io.options import Options
+
+DT = 0.02  # s a frame (SPEC: 50 Hz)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory) -> Path:
+    rec = simulate(duration_s=24.0, seed=2)  # the script's arm phases: forearms past 90°
+    return rec.save_raw(tmp_path_factory.mktemp("pb") / "Raw_pb_001.bpmsraw")
+
+
+@pytest.fixture(scope="module")
+def batch(recording):
+    """The recording filtered as one stream by the batch road (``bpms filter``)."""
+    return process_file(recording)
+
+
+def _window(qtbot, recording: Path, tmp_path: Path) -> MainWindow:
+    config = ModeConfig(mode="file", path=str(recording), recording_dir=str(tmp_path))
+    runner = SessionRunner(config, Options())
+    runner.prepare()
+    window = MainWindow(runner, layout_store=LayoutStore(tmp_path / "layouts.json"),
+                        restore_last=False)
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    window.model.set_refresh_hz(100)
+    return window
+
+
+def _wait_shown(qtbot, window: MainWindow, index: int) -> None:
+    qtbot.waitUntil(lambda: window.model.latest is not None
+                    and window.model.latest.index == index
+                    and window.history.block(window.table_model.calibration) is not None
+                    and abs(window.history.block(window.table_model.calibration).t[-1]
+                            - index * DT) < 1e-9, timeout=10000)
+
+
+def test_a_paused_seek_and_steps_redraw_the_plots_window(qtbot, tmp_path, recording, batch):
+    window = _window(qtbot, recording, tmp_path)
+    try:
+        joints = next(p for p in window.plot_windows if p.kind == "joints")
+        window.table.select_cells([(5, 1)])  # the right forearm's pitch
+        cells = window.plot_selection()
+        panel = window.playback_panel
+        assert panel.window_frames == window.history.buffer.capacity == 3000
+        target = 900  # 18 s in: the window is the 18 s before it, from frame 0
+        panel.slider.setValue(target)
+        _wait_shown(qtbot, window, target)
+        for plot in (joints, cells):
+            qtbot.waitUntil(lambda p=plot: len(p.buffer) == target + 1, timeout=5000)
+            t = plot.buffer.view()[:, 0]
+            np.testing.assert_allclose(t, np.arange(target + 1) * DT)
+            x, y = plot.curves[0].getData()
+            assert x is not None and len(x) > 100 and np.isfinite(y).sum() > 100
+        # the plotted values are the file's: the batch road's numbers (same stream from
+        # frame 0, the recorded events at their frames)
+        data = cells.buffer.view()
+        np.testing.assert_allclose(data[:, 1], np.degrees(batch.euler_output[:target + 1, 5, 1]),
+                                   atol=1e-6)
+        # a step forward continues (no seek, nothing re-initialised, no log line)
+        seeks = sum("re-initialised (seek)" in e for e in window.model.last_status.events)
+        window.step_frames(1)
+        _wait_shown(qtbot, window, target + 1)
+        qtbot.waitUntil(lambda: len(cells.buffer) == target + 2, timeout=5000)
+        assert cells.buffer.view()[-1, 1] == pytest.approx(
+            np.degrees(batch.euler_output[target + 1, 5, 1]), abs=1e-6)
+        window.model.tick()
+        assert sum("re-initialised (seek)" in e
+                   for e in window.model.last_status.events) == seeks
+        # a step back redraws the window up to the frame before (pre-rolled, not empty)
+        window.step_frames(-50)
+        _wait_shown(qtbot, window, target + 1 - 50)
+        qtbot.waitUntil(lambda: len(cells.buffer) == target + 2 - 50, timeout=5000)
+        assert not any("re-initialised (seek)" in t for t in window.event_log.texts())
+    finally:
+        window.close()
+
+
+def _standard(euler: np.ndarray) -> np.ndarray:
+    """(roll, pitch, yaw) rad with pitch in [-90°, 90°], roll and yaw in (-180°, 180°]."""
+    roll, pitch, yaw = np.moveaxis(euler, -1, 0)
+    flip = np.cos(pitch) < 0
+    roll, yaw = roll + np.pi * flip, yaw + np.pi * flip
+    pitch = np.where(flip, np.pi - pitch, pitch)
+    pitch = np.angle(np.exp(1j * pitch))
+    return np.stack([np.angle(np.exp(1j * roll)), pitch, np.angle(np.exp(1j * yaw))], -1)
+
+
+def test_the_readout_after_200_random_seeks_is_in_the_standard_ranges(qtbot, tmp_path,
+                                                                      recording):
+    window = _window(qtbot, recording, tmp_path)
+    try:
+        panel = window.playback_panel
+        rng = random.Random(44)
+        n = len(window.runner.replay)
+        for _ in range(200):
+            target = rng.randrange(n)
+            # a run of up to 2 s up to the frame (the readout follows it from its start)
+            panel.window_frames = rng.randrange(1, 100)
+            panel.seek(target)
+            _wait_shown(qtbot, window, target)
+            shown = window.table_model.euler  # [18, 3] rad, what the table reads
+            own = _standard(np.asarray(window.model.latest.euler_output, np.float64))
+            away = ~poorly_defined(own[:, 1])
+            assert np.abs(np.degrees(shown[away, 1])).max() <= 90.0 + 1e-9
+            assert np.abs(np.degrees(shown[:, [0, 2]])).max() <= 200.0 + 1e-9
+            clear = away & (np.abs(np.degrees(own[:, [0, 2]])) < 160.0).all(axis=1)
+            np.testing.assert_allclose(shown[clear], own[clear], atol=1e-9)
+    finally:
+        window.close()
