@@ -127,3 +127,100 @@ def test_the_readout_after_200_random_seeks_is_in_the_standard_ranges(qtbot, tmp
             np.testing.assert_allclose(shown[clear], own[clear], atol=1e-9)
     finally:
         window.close()
+
+
+@pytest.fixture(scope="module")
+def changes_recording(tmp_path_factory) -> Path:
+    """A recording made with the factory filter (mahony) whose session changed a gain at
+    frame 100 and switched to the observer filter at frame 300 (events as a live session
+    writes them, the settings in force at its start first)."""
+    import dataclasses
+
+    from bpms.io.options import FilterOptions
+    from bpms.io.rawfile import new_header, write_raw
+    from bpms.io.session_events import SessionEvent
+
+    rec = simulate(duration_s=10.0, seed=6)
+    path = tmp_path_factory.mktemp("pbc") / "Raw_pbc_001.bpmsraw"
+    header = new_header(calibration=rec.calibration.values, notes="changes",
+                        extra={"session_events": True})
+    start = {k: v for k, v in dataclasses.asdict(FilterOptions()).items() if k != "algorithm"}
+    events = [SessionEvent("filter", 0, data={"algorithm": "mahony", "source": "in force"}),
+              SessionEvent("gains", 0, data={"values": start, "source": "in force"}),
+              SessionEvent("gains", 100, data={"values": {"kp_yaw": 0.3}}),
+              SessionEvent("filter", 300, data={"algorithm": "observer"})]
+    write_raw(path, 1.7e9 + rec.t, rec.frames, header, events)
+    return path
+
+
+def _seek_values(qtbot, window: MainWindow, target: int) -> np.ndarray:
+    """Right forearm pitch (deg) of frames 0..target after a paused seek to ``target``."""
+    window.table.select_cells([(5, 1)])
+    plot = window.plot_selection()
+    window.model.latest = None  # (the frame shown before: the same index)
+    window.playback_panel.seek(target)
+    _wait_shown(qtbot, window, target)
+    qtbot.waitUntil(lambda: len(plot.buffer) == target + 1
+                    and plot.buffer.view()[0, 0] == 0.0, timeout=5000)
+    return plot.buffer.view()[:, 1].copy()
+
+
+def test_playback_replays_the_recorded_filter_and_gains_not_the_apps(qtbot, tmp_path,
+                                                                     changes_recording):
+    """Issue 44.2: a filter picked earlier in the app (vqf) does not override the recording's
+    own filter and gain changes; choosing one in the playback controls does, and says so."""
+    options = Options()
+    options.filter.algorithm = "adaptive"  # picked in an earlier session of this app run
+    config = ModeConfig(mode="file", path=str(changes_recording), recording_dir=str(tmp_path))
+    runner = SessionRunner(config, options)
+    runner.prepare()
+    assert runner.recorded_filter == "mahony" and runner.playback_filter is None
+    window = MainWindow(runner, layout_store=LayoutStore(tmp_path / "layouts.json"),
+                        restore_last=False)
+    qtbot.addWidget(window)
+    window.show()
+    window.model.set_refresh_hz(100)
+    try:
+        panel = window.playback_panel
+        assert panel.override_label.isHidden()
+        assert window.gains_panel.filter_combo.currentText() == "mahony"
+        shown = _seek_values(qtbot, window, 400)
+        # the recorded filter switch was applied at its frame
+        assert runner.session.processor.options.filter.algorithm == "observer"
+        recorded = process_file(changes_recording)  # the batch road, as recorded
+        np.testing.assert_allclose(shown, np.degrees(recorded.euler_output[:401, 5, 1]),
+                                   atol=1e-6)
+        # chosen in the playback controls: played again with it, and said on screen
+        panel.filter_combo.setCurrentIndex(panel.filter_combo.findData("adaptive"))
+        assert not panel.override_label.isHidden()
+        assert "adaptive" in panel.override_label.text()
+        assert "not applied" in panel.override_label.text()
+        shown = _seek_values(qtbot, window, 400)
+        assert runner.session.processor.options.filter.algorithm == "adaptive"
+        chosen = process_file(changes_recording, algorithm="adaptive")
+        np.testing.assert_allclose(shown, np.degrees(chosen.euler_output[:401, 5, 1]),
+                                   atol=1e-6)
+        assert np.abs(chosen.euler_output[:401, 5, 1]
+                      - recorded.euler_output[:401, 5, 1]).max() > 1e-3  # a real difference
+        # back to "as recorded": no word on screen, the recorded numbers again
+        panel.filter_combo.setCurrentIndex(0)
+        assert panel.override_label.isHidden()
+        shown = _seek_values(qtbot, window, 400)
+        np.testing.assert_allclose(shown, np.degrees(recorded.euler_output[:401, 5, 1]),
+                                   atol=1e-6)
+    finally:
+        window.close()
+
+
+def test_a_filter_switch_inside_a_run_keeps_the_estimates_per_frame():
+    """The playback tick reads every sample's estimates: a run with a switch from mahony (no
+    body acceleration) to the observer (one) has them for every frame, NaN before."""
+    from bpms.filter.processor import BodyPoseProcessor
+    from bpms.io.session_events import SessionEvent
+
+    rec = simulate(duration_s=2.0, seed=7)
+    result = BodyPoseProcessor(rec.calibration).process(
+        rec.raw, rec.errors, [(60, SessionEvent("filter", data={"algorithm": "observer"}))])
+    est = result.estimates
+    assert est.shape == (len(rec.raw), 18, 6)
+    assert np.isnan(est[:60, :, 3:]).all() and np.isfinite(est[60:, :, 3:]).any()

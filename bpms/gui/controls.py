@@ -432,7 +432,47 @@ class PlaybackPanel(QGroupBox):
             lambda i: self.runner.set_playback_reset_zero(ZERO_CHOICES[i][1]))
         guard_wheel(self.zero_combo)
         layout.addLayout(row(QLabel("Reset Zero"), self.zero_combo, grow=self.zero_combo))
+        self._filter_row(layout)
         self._update_label(self.replay.position)
+
+    def _filter_row(self, layout: QVBoxLayout) -> None:
+        """The filter played with: the recording's own (its filter and gain changes at their
+        frames), or another chosen here, said in red under it."""
+        own = self.runner.recorded_filter or "?"
+        self.filter_combo = QComboBox()
+        choices = dataclasses.fields(FilterOptions)
+        names = next(f for f in choices if f.name == "algorithm").metadata["choices"]
+        self.filter_combo.addItem(f"as recorded ({own})", None)
+        for name in names:
+            self.filter_combo.addItem(name, name)
+        chosen = self.runner.playback_filter
+        if chosen is not None:
+            self.filter_combo.setCurrentIndex(self.filter_combo.findData(chosen))
+        self.filter_combo.setToolTip("as recorded: the recording's filter, with its filter and "
+                                     "gain changes at their frames; another: played with it "
+                                     "instead, the recorded changes left out. Changing it "
+                                     "plays the recording again from its start")
+        self.filter_combo.currentIndexChanged.connect(self._filter_chosen)
+        guard_wheel(self.filter_combo)
+        layout.addLayout(row(QLabel("Filter"), self.filter_combo, grow=self.filter_combo))
+        self.override_label = label(style="color: #d62728; font-weight: bold")
+        layout.addWidget(self.override_label)
+        self._show_override()
+
+    def _filter_chosen(self, index: int) -> None:
+        try:
+            self.runner.set_playback_filter(self.filter_combo.itemData(index))
+        except ValueError as exc:  # e.g. vqf not installed
+            self.override_label.setText(str(exc))
+            return
+        self._show_override()
+
+    def _show_override(self) -> None:
+        chosen = self.runner.playback_filter
+        text = (f"Not as recorded: filter {chosen} chosen here; the recording's filter "
+                f"and gain changes are not applied") if chosen else ""
+        self.override_label.setText(text)
+        self.override_label.setVisible(bool(text))
 
     def _slider_moved(self, value: int) -> None:
         if not self.slider.isSliderDown() and self.slider.isEnabled() \

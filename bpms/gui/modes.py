@@ -11,6 +11,7 @@ stays open); file → play/pause; UDP → a fresh session listening again / the 
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -19,7 +20,6 @@ from bpms.io.calib_file import CalibrationTable
 from bpms.io.link import LinkError
 from bpms.io.options import Options
 from bpms.io.rawfile import RawFileError
-from bpms.io.recordings import open_replay
 from bpms.io.replay import ReplaySource
 from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
 
@@ -107,7 +107,12 @@ class SessionRunner:
         self.playback_options: Options | str | None = None
         #: which Reset Zero playback applies (bpms.filter.zero_choice: events, auto, none)
         self.playback_reset_zero: str | None = None
+        #: the filter chosen in the playback controls (None: the recording's own, its
+        #: recorded filter and gain changes applied); recorded_filter: the recording's own
+        self.playback_filter: str | None = None
+        self.recorded_filter: str | None = None
         self._opened = None  # the door's OpenedRecording of the recording played
+        self._start_filter: dict = {}  # its filter settings at the start (FilterOptions)
         #: Where the calibration / options in force came from (for the data panel).
         self.calibration_source = getattr(calibration, "source", "factory")
         self.options_source = getattr(options, "source", "factory")
@@ -171,24 +176,27 @@ class SessionRunner:
         if cfg.mode == "file":
             if not cfg.path:
                 raise ModeError("choose a raw recording to play")
-            try:  # the one reader, from disk as it plays (docs/opening-recordings.md)
-                recording = open_replay(cfg.path)
-            except (RawFileError, OSError) as exc:
-                raise ModeError(f"cannot play {cfg.path}: {exc}") from None
-            self.problems = list(getattr(recording, "problems", []) or [])
             from bpms.filter.door import open_for_processing
 
             try:
-                # the filter chosen in the GUI is an explicit run-time choice (like --filter)
+                # once, through the one door (docs/opening-recordings.md): the recording's
+                # own calibration, options and events; the filter only when chosen in the
+                # playback controls (a filter picked earlier in the app never overrides it)
                 opened = open_for_processing(cfg.path, self.playback_calibration,
                                              self.playback_options,
-                                             algorithm=self.options.filter.algorithm,
-                                             reset_zero=self.playback_reset_zero)
+                                             algorithm=self.playback_filter,
+                                             reset_zero=self.playback_reset_zero,
+                                             for_replay=True)
             except (RawFileError, OSError, ValueError) as exc:
                 raise ModeError(f"cannot play {cfg.path}: {exc}") from None
+            recording = opened.slots
+            assert recording is not None
+            self.problems = list(getattr(recording, "problems", []) or [])
             self.calibration_source = opened.calibration_source
             self.options_source = opened.options_source
             self._opened = opened
+            self.recorded_filter = opened.processor.options.filter.algorithm
+            self._start_filter = dataclasses.asdict(opened.processor.options.filter)
             # the recorded events (Reset Zero, alignment, gains, markers) at their frames
             self.replay = ReplaySource(recording, speed=1.0, autoplay=False,
                                        events=opened.replay_events(recording.events))
@@ -239,6 +247,24 @@ class SessionRunner:
         if opened is None or replay is None:
             return
         opened.use_reset_zero(ResetZeroChoice.parse(choice))
+        replay.set_events(opened.replay_events(replay.recording.events))
+        replay.seek(0)  # a new stream: the filters and Reset Zero start again
+
+    def set_playback_filter(self, algorithm: str | None) -> None:
+        """Playback: play with ``algorithm`` instead of the recording's filter (its recorded
+        filter and gain changes then left out), or None: as recorded. The recording plays
+        again from its start. Raises ValueError for an unknown filter."""
+        opened, replay, session = self._opened, self.replay, self.session
+        self.playback_filter = algorithm
+        if opened is None or replay is None or session is None:
+            return
+        opened.settings_given = algorithm is not None or self.playback_options is not None
+        # the recording's starting settings again, with the filter chosen (the session's one
+        # road, applied before the next frame); recorded changes then follow, or not
+        start = dict(self._start_filter)
+        recorded = start.pop("algorithm")
+        session.set_gains(**start)
+        session.select_filter(algorithm or recorded)
         replay.set_events(opened.replay_events(replay.recording.events))
         replay.seek(0)  # a new stream: the filters and Reset Zero start again
 

@@ -139,7 +139,11 @@ class WindowPanels:
         return session_box
 
     def _build_filter_box(self) -> QWidget:
-        self.gains_panel = GainsPanel(self.options.filter)
+        # playback: the recording's own filter and values (its processor's), not the app's
+        processor = getattr(self.runner.session, "processor", None)
+        shown = processor.options.filter if self.runner.replay is not None \
+            and processor is not None else self.options.filter
+        self.gains_panel = GainsPanel(shown)
         self.gains_panel.gainsChanged.connect(self._set_gains)
         self.gains_panel.filterChanged.connect(self.select_filter)
         self.gains_panel.logged.connect(lambda text, level: self.event_log.add(text, level))
