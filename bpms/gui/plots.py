@@ -88,8 +88,7 @@ class PlotWindow(QWidget):
         self.follow_button = button("Follow", tip="The time axis follows the newest data "
                                     "(double-click the plot or View All turns it back on)",
                                     checkable=True, checked=True)
-        self.follow_button.toggled.connect(lambda on: self.reset_view() if on
-                                           else self._manual_range())
+        self.follow_button.toggled.connect(self._follow_toggled)  # (bound: no cycle)
         self.lock_button = button("Lock y", tip="Keep each plot's y range as it is now (Follow "
                                   "and double-click no longer rescale it)", checkable=True)
         self.lock_button.toggled.connect(self.lock_y)
@@ -376,6 +375,12 @@ class PlotWindow(QWidget):
     def toggle_pause(self) -> None:
         """Space: pause or resume the drawing."""
         self.pause_button.toggle()
+
+    def _follow_toggled(self, on: bool) -> None:
+        if on:
+            self.reset_view()
+        else:
+            self._manual_range()
 
     def _manual_range(self, *_args) -> None:
         self.follow = False
