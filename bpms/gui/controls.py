@@ -280,6 +280,7 @@ class FilePanel(QGroupBox):
         self.message = ""
         self.last_recording = None
         self.stopping: BackgroundTask | None = None
+        self._focus_back = False  # the button had the focus when Stop Logging was pressed
         self.on_stopped: list = []  # callables(RecordingStatus | None) after a stop completes
 
     @property
@@ -294,7 +295,10 @@ class FilePanel(QGroupBox):
         if session is None or (self.stopping is not None and self.stopping.running):
             return
         if self.logging:
-            self.log_button.setEnabled(False)
+            # the focus stays on this panel (Qt would hand it to the next field, the UDP
+            # targets, text selected: one keystroke replaced them)
+            self._focus_back = self.log_button.hasFocus()
+            set_enabled_keeping_focus(False, self, self.log_button)
             self.log_button.setText("Stopping…")
             self.stopping = BackgroundTask(self, session.stop_logging, self._stopped,
                                            name="bpms-stop-logging")
@@ -315,6 +319,8 @@ class FilePanel(QGroupBox):
 
     def _stopped(self, rec, error: BaseException | None) -> None:
         self.log_button.setEnabled(True)
+        if self._focus_back and self.hasFocus():
+            self.log_button.setFocus(Qt.FocusReason.OtherFocusReason)
         self.log_button.setText("Start Logging")
         self.last_recording = rec
         if error is not None:

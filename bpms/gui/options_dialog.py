@@ -15,9 +15,9 @@ from PyQt6.QtWidgets import (
     QDialog,
     QDialogButtonBox,
     QFileDialog,
-    QFormLayout,
     QLineEdit,
     QScrollArea,
+    QSizePolicy,
     QTabWidget,
     QVBoxLayout,
     QWidget,
@@ -87,10 +87,10 @@ class OptionsDialog(QDialog):
         self.scrolls: dict[str, QScrollArea] = {}
         for name, section in options.sections().items():
             page = QWidget()
-            form = QFormLayout(page)
-            # Name and help above the field: long help texts never push the field off-screen.
-            form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapAllRows)
-            form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+            # Name and help above the field, the form's whole width: a plain column lays the
+            # wrapped help out at its full height (a form layout's wrapped rows clipped
+            # two-line help texts)
+            form = QVBoxLayout(page)
             for f in dataclasses.fields(section):
                 value = getattr(section, f.name)
                 help_text = f.metadata.get("help", "")
@@ -110,10 +110,13 @@ class OptionsDialog(QDialog):
                 title = label(f"<b>{f.name}</b> <small>{help_text}</small>")
                 title.setBuddy(editor)
                 guard_wheel(editor)
-                # the name and help on a row of their own, the form's whole width (as a label
-                # column they wrap at about 200 px), the field under them
-                form.addRow(title)
-                form.addRow(editor)
+                policy = QSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
+                policy.setHeightForWidth(True)
+                title.setSizePolicy(policy)
+                form.addWidget(title)
+                form.addWidget(editor)
+                form.addSpacing(4)
+            form.addStretch(1)
             scroll = _FormScroll()
             scroll.setWidget(page)
             scroll.setWidgetResizable(True)

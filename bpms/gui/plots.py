@@ -40,6 +40,7 @@ from bpms.gui.plot_style import (
     RoomyAxis,
     SideLegend,
     curve_pen,
+    curve_pens,
     fit_axis_title,
     style_axes,
 )
@@ -124,6 +125,7 @@ class PlotWindow(QWidget):
             plot = self._new_plot(group_title, specs[0].unit if specs else "")
             for spec in specs:
                 self._add_curve(plot, spec)
+        self._restyle()
         self.buffer = RingBuffer(self.capacity, 1 + len(self.specs))
         self._last_click = (0.0, QPointF())
         self.graphics.scene().sigMouseClicked.connect(self._clicked)
@@ -184,8 +186,7 @@ class PlotWindow(QWidget):
     def _add_curve(self, plot: pg.PlotItem, spec: CurveSpec) -> pg.PlotCurveItem:
         k = sum(1 for c in self.curves if c.getViewBox() is plot.getViewBox())
         # PlotCurveItem, not PlotDataItem: a history of ≤ 60 s × 50 Hz needs no
-        # downsampling, and its setData costs a third. Pens 1 px wide: wider ones are
-        # much slower to draw.
+        # downsampling, and its setData costs a third.
         curve = pg.PlotCurveItem(name=spec.label, connect="finite", pen=curve_pen(k))
         plot.addItem(curve)
         self.curves.append(curve)
@@ -211,6 +212,7 @@ class PlotWindow(QWidget):
         for spec in new:
             plot = self._plot_unit.get(spec.unit) or self._new_plot("", spec.unit)
             self._add_curve(plot, spec)
+        self._restyle()
         old = self.buffer.view().copy()
         self.buffer = RingBuffer(self.capacity, 1 + len(self.specs))
         if len(old):
@@ -219,6 +221,16 @@ class PlotWindow(QWidget):
             self.buffer.extend(rows)
         self.redraw()
         return len(new)
+
+    def _restyle(self) -> None:
+        """Each subplot's pens from its curves' limbs (:func:`curve_pens`)."""
+        for plot in self.plots:
+            box = plot.getViewBox()
+            mine = [(c, s) for c, s in zip(self.curves, self.specs, strict=True)
+                    if c.getViewBox() is box]
+            pens = curve_pens([s.cell[0] if s.cell else None for _, s in mine])
+            for (curve, _), pen in zip(mine, pens, strict=True):
+                curve.setPen(pen)
 
     def description(self) -> dict[str, Any]:
         """What a saved layout needs to re-create this plot: its curves, the locked y ranges

@@ -389,6 +389,8 @@ class StartupWindow(QWidget):
                     f"{type(error).__name__}: {error}"
                 self.status_label.setText(message)
                 if runner.mode == "suit":
+                    if runner.config.port:  # not offered again at the next launch
+                        settings_store.forget_port(runner.config.port)
                     self.last_dialog = self._offer_simulated_suit(error)
                 else:
                     self.last_dialog = show_error(self, "Cannot start", message)

@@ -23,6 +23,7 @@ from bpms.gui.optional import optional_module
 from bpms.gui.plots import PlotDropArea
 from bpms.gui.safety import guard_wheel
 from bpms.gui.widgets import button, row
+from bpms.io.timebase import stream_time
 
 
 def _column() -> tuple[QWidget, QVBoxLayout]:
@@ -41,6 +42,9 @@ class WindowPanels:
         session_box = self._build_session_box()
         filter_box = self._build_filter_box()
         self.event_log = EventLog()
+        if self.playback_panel is not None:  # one clock in playback: the recording's
+            panel = self.playback_panel
+            self.event_log.use_recording_clock(lambda: stream_time(panel.shown))
         self.docks: dict[str, QDockWidget] = {
             "table": make_dock("Data table", "table", table_box),
             "status": make_dock("Status", "status", status_box, scroll=True),
