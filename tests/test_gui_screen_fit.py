@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from PyQt6.QtCore import QByteArray, QRect, Qt
-from PyQt6.QtWidgets import QAbstractScrollArea, QMainWindow, QWidget
+from PyQt6.QtWidgets import QAbstractScrollArea, QMainWindow, QTabBar, QWidget
 
 from bpms.firmware.sim.session import simulate
 from bpms.gui.layouts import LayoutStore
@@ -128,6 +128,15 @@ def test_at_1366x768_rec_reset_zero_and_the_link_light_are_in_view(qtbot, tmp_pa
                        window.health_panel.light, window.status_panel.reset_button):
             assert _fully_in_view(widget, window), widget
         assert window.frameGeometry().height() <= SMALL.height()
+        # tab labels whole (not elided) and in the window
+        for bar in window.findChildren(QTabBar):
+            if not bar.isVisible():
+                continue
+            for i in range(bar.count()):
+                text = bar.tabText(i)
+                assert bar.tabRect(i).width() >= bar.fontMetrics().horizontalAdvance(text) + 8
+                corner = bar.mapTo(window, bar.tabRect(i).bottomRight())
+                assert window.rect().contains(corner), text
     finally:
         if window.file_panel.logging:
             window.file_panel.toggle_logging()
