@@ -195,6 +195,8 @@ def test_playback_replays_the_recorded_filter_and_gains_not_the_apps(qtbot, tmp_
         assert not panel.override_label.isHidden()
         assert "adaptive" in panel.override_label.text()
         assert "not applied" in panel.override_label.text()
+        assert "adaptive (chosen in playback)" in \
+            window.status_panel.labels["options"].text()
         shown = _seek_values(qtbot, window, 400)
         assert runner.session.processor.options.filter.algorithm == "adaptive"
         chosen = process_file(changes_recording, algorithm="adaptive")
@@ -205,6 +207,7 @@ def test_playback_replays_the_recorded_filter_and_gains_not_the_apps(qtbot, tmp_
         # back to "as recorded": no word on screen, the recorded numbers again
         panel.filter_combo.setCurrentIndex(0)
         assert panel.override_label.isHidden()
+        assert "chosen" not in window.status_panel.labels["options"].text()
         shown = _seek_values(qtbot, window, 400)
         np.testing.assert_allclose(shown, np.degrees(recorded.euler_output[:401, 5, 1]),
                                    atol=1e-6)

@@ -362,7 +362,10 @@ class FilePanel(QGroupBox):
 
 
 class PlaybackPanel(QGroupBox):
-    """File mode: seek slider, speed, position. Slider and speed disabled while playing."""
+    """File mode: seek slider, speed, position. Slider and speed disabled while playing.
+    ``filterChosen`` after the filter played with changed (the options' source too)."""
+
+    filterChosen = pyqtSignal()
 
     def __init__(self, runner: SessionRunner, parent: QWidget | None = None) -> None:
         super().__init__("Playback", parent)
@@ -472,6 +475,7 @@ class PlaybackPanel(QGroupBox):
             self.override_label.setText(str(exc))
             return
         self._show_override()
+        self.filterChosen.emit()
 
     def _show_override(self) -> None:
         chosen = self.runner.playback_filter

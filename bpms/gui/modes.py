@@ -259,6 +259,8 @@ class SessionRunner:
         if opened is None or replay is None or session is None:
             return
         opened.settings_given = algorithm is not None or self.playback_options is not None
+        self.options_source = opened.options_source + (
+            f" with filter {algorithm} (chosen in playback)" if algorithm else "")
         # the recording's starting settings again, with the filter chosen (the session's one
         # road, applied before the next frame); recorded changes then follow, or not
         start = dict(self._start_filter)

@@ -122,6 +122,7 @@ class WindowPanels:
         self.status_panel = StatusPanel()
         self.status_panel.set_sources(self.runner.calibration_source,
                                       self.runner.options_source)
+
         self.status_panel.dataToggled.connect(self.set_data)
         self.status_panel.resetZeroClicked.connect(self.reset_zero)
         status_box, status_layout = _column()
@@ -135,6 +136,10 @@ class WindowPanels:
         self.file_panel = FilePanel(self.runner)
         self.file_panel.on_stopped.append(self._logging_stopped)
         self._build_mode_panels()
+        if self.playback_panel is not None:  # the options' source says a filter chosen
+            self.playback_panel.filterChosen.connect(
+                lambda: self.status_panel.set_sources(self.runner.calibration_source,
+                                                      self.runner.options_source))
         session_box, session_layout = _column()
         for panel in (self.playback_panel, self.file_panel, self.udp_panel):
             if panel is not None:
