@@ -16,7 +16,7 @@ from bpms.gui.layouts import LayoutStore
 from bpms.gui.main_window import MainWindow
 from bpms.gui.modes import ModeConfig, SessionRunner
 from bpms.gui.options_dialog import OptionsDialog
-from bpms.gui.screen_fit import place_window, plan_geometry
+from bpms.gui.screen_fit import place_window, plan_geometry, saved_frame
 from bpms.io.options import Options
 
 #: 1366 x 768 less a 40-px task bar at the bottom; a title bar of 30 px inside it.
@@ -79,6 +79,16 @@ def test_place_window_reads_saved_bytes_and_refuses_a_window_too_big(qtbot):
     assert not plan.restored and plan.maximised
     plan = place_window(window, QByteArray(b"not a geometry"), available=SMALL)
     assert plan.maximised and not plan.restored
+    # read as saved: restoreGeometry would clamp a window larger than this (800 x 800)
+    # test screen until it "fits"; saved on a 2560 x 1440 monitor, it does not fit 1920
+    huge = QMainWindow()
+    qtbot.addWidget(huge)
+    huge.setGeometry(100, 60, 2400, 1300)
+    frame, maximised = saved_frame(huge.saveGeometry())
+    assert (frame.width(), frame.height(), maximised) == (2400, 1300, False)
+    plan = place_window(QMainWindow(), huge.saveGeometry(), available=QRect(0, 0, 1920, 1040))
+    assert not plan.restored and not plan.maximised
+    assert (plan.geometry.width(), plan.geometry.height()) == (1500, 860)
 
 
 # -- the window -------------------------------------------------------------------------

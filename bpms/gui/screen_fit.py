@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from PyQt6.QtCore import QByteArray, QRect, QSize, Qt
+from PyQt6.QtCore import QByteArray, QDataStream, QRect, QSize, Qt
 from PyQt6.QtGui import QGuiApplication
 from PyQt6.QtWidgets import QWidget
 
@@ -59,6 +59,32 @@ def plan_geometry(available: QRect, saved: QRect | None = None,
     return Placement(rect, False, False)
 
 
+#: ``QWidget.saveGeometry()``'s first word.
+_GEOMETRY_MAGIC = 0x1D9D0CB
+
+
+def saved_frame(saved: QByteArray) -> tuple[QRect, bool] | None:
+    """(frame geometry, maximised) as written by ``QWidget.saveGeometry()`` — read as saved,
+    not as ``restoreGeometry`` would clamp it to a screen — or None for other bytes."""
+    if saved.size() < 4 + 2 + 2 + 16 + 16 + 4 + 1:
+        return None
+    stream = QDataStream(saved)
+    stream.setByteOrder(QDataStream.ByteOrder.BigEndian)
+    if stream.readUInt32() != _GEOMETRY_MAGIC:
+        return None
+    stream.readUInt16()  # major version
+    stream.readUInt16()  # minor version
+    frame = QRect()
+    stream >> frame
+    normal = QRect()
+    stream >> normal
+    stream.readInt32()  # screen number
+    maximised = bool(stream.readUInt8())
+    if stream.status() != QDataStream.Status.Ok or not frame.isValid():
+        return None
+    return frame, maximised
+
+
 def available_geometry(widget: QWidget | None = None) -> QRect:
     """The available geometry of the screen ``widget`` is on (else the primary screen)."""
     screen = widget.screen() if widget is not None else None
@@ -73,14 +99,11 @@ def place_window(window: QWidget, saved: QByteArray | None = None,
     ``saved`` bytes of ``saveGeometry()`` when they fit."""
     area = QRect(available) if available is not None else None
     saved_rect, saved_max = None, False
-    if saved is not None and not saved.isEmpty():
-        probe = QWidget()  # read the bytes without moving the window there first
-        if probe.restoreGeometry(saved):
-            saved_rect = probe.geometry()
-            saved_max = bool(probe.windowState() & Qt.WindowState.WindowMaximized)
-            if area is None and (screen := QGuiApplication.screenAt(saved_rect.center())):
-                area = screen.availableGeometry()
-        probe.deleteLater()
+    read = saved_frame(saved) if saved is not None else None
+    if read is not None:
+        saved_rect, saved_max = read
+        if area is None and (screen := QGuiApplication.screenAt(saved_rect.center())):
+            area = screen.availableGeometry()
     if area is None:
         area = available_geometry(window)
     plan = plan_geometry(area, saved_rect, saved_max)
