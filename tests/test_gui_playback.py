@@ -227,3 +227,29 @@ def test_a_filter_switch_inside_a_run_keeps_the_estimates_per_frame():
     est = result.estimates
     assert est.shape == (len(rec.raw), 18, 6)
     assert np.isnan(est[:60, :, 3:]).all() and np.isfinite(est[60:, :, 3:]).any()
+
+
+def test_playback_opens_the_recording_once_through_the_door(tmp_path, recording,
+                                                            monkeypatch):
+    """Issue 44.1: one pass over the file at opening (it was two: the replay's reader and the
+    door's survey), and the door's processor is the session's."""
+    from bpms.io import raw_reader
+
+    passes: list[Path] = []
+    original = raw_reader.RawFile.pieces
+
+    def counted(self, offset=None, *args, **kwargs):
+        if offset is None:  # a pass from the data's start
+            passes.append(self.path)
+        return original(self, offset, *args, **kwargs)
+
+    monkeypatch.setattr(raw_reader.RawFile, "pieces", counted)
+    runner = SessionRunner(ModeConfig(mode="file", path=str(recording),
+                                      recording_dir=str(tmp_path)), Options())
+    try:
+        runner.prepare()
+        assert passes == [recording]
+        assert runner.session.processor is runner._opened.processor
+        assert runner.replay.recording is runner._opened.slots
+    finally:
+        runner.close()
