@@ -43,7 +43,7 @@ from bpms.filter.zero_choice import ResetZeroChoice, capture_at, identity_zero
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
-from bpms.io.raw_reader import RawFile, no_frame_message
+from bpms.io.raw_reader import RawFile, RawFrames, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
 from bpms.io.recordings import read_head
 from bpms.io.session_events import SessionEvent
@@ -160,6 +160,9 @@ class OpenedRecording:
     settings_given: bool = False
     #: host receive time of the first valid frame (s since the epoch; NaN unknown)
     first_host_time: float = math.nan
+    #: the recording's slots for replay (``for_replay``: a native one read from disk as it
+    #: plays, a legacy one in memory); None otherwise
+    slots: RawFrames | RawRecording | None = field(default=None, repr=False)
 
     @property
     def has_raw(self) -> bool:
@@ -381,7 +384,8 @@ def is_raw_recording(path: str | Path) -> bool:
 def open_for_processing(path: str | Path, calibration: str | Path | CalibrationTable | None = None,
                         options: str | Path | Options | None = None,
                         algorithm: str | None = None, heading: str | None = None,
-                        reset_zero: str | ResetZeroChoice | None = None) -> OpenedRecording:
+                        reset_zero: str | ResetZeroChoice | None = None,
+                        for_replay: bool = False) -> OpenedRecording:
     """Open a recording and build its processor (the module docstring has the precedence).
 
     path: a native raw recording, a legacy pickled raw file, or a filtered CSV file;
@@ -389,7 +393,9 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     precedence; algorithm: the attitude filter (``FilterOptions.algorithm``) and heading: the
     Reset Zero heading reference (``PoseOptions.heading_reference``), overriding the options;
     reset_zero: which Reset Zero (:class:`bpms.filter.zero_choice.ResetZeroChoice` or its
-    text). Raises :class:`bpms.io.rawfile.RawFileError` / :class:`bpms.io.filtered_file.
+    text); for_replay: also keep the recording's slots for a replay (:attr:`OpenedRecording.
+    slots`, a raw recording only: the one scan of the file serves both). Raises
+    :class:`bpms.io.rawfile.RawFileError` / :class:`bpms.io.filtered_file.
     FilteredFileError` for an unreadable file or one with no valid frame, ValueError for a bad
     ``reset_zero``, ``VqfMissingError`` for vqf without the package.
     """
@@ -399,7 +405,16 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     recording = None
     file = None
     first_time = math.nan
-    if read_head(path) == MAGIC:
+    slots: RawFrames | RawRecording | None = None
+    if read_head(path) == MAGIC and for_replay:
+        kind = "raw"
+        slots = RawFrames(path)
+        file, header, n = slots.file, slots.header, len(slots)
+        if not slots.valid_frames:
+            raise RawFileError(no_frame_message(path, n))
+        first = int(np.setdiff1d(np.arange(min(n, len(slots.damaged) + 1)), slots.damaged)[0])
+        first_time = float(slots.read(first, first + 1)[0][0])
+    elif read_head(path) == MAGIC:
         kind = "raw"
         file = RawFile(path)
         header = file.header
@@ -416,7 +431,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         if not recording.valid_frames:
             raise RawFileError(no_frame_message(path, len(recording)))
         first_time = float(recording.times[0])
-    elif path.suffix.lower() in FILTERED_SUFFIXES:
+        slots = recording if for_replay else None
+    elif path.suffix.lower() in FILTERED_SUFFIXES and not for_replay:
         from bpms.io.filtered_file.reader import FilteredReader
 
         FilteredReader(path).close()  # a file that is not a filtered file fails here
@@ -448,7 +464,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     problems.extend(processor.problems)
     opened = OpenedRecording(path, kind, header, int(n), processor, calibration_source,
                              options_source, problems, recording, file, choice, settings_given,
-                             first_time)
+                             first_time, slots)
     opened.use_reset_zero()
     return opened
 

@@ -24,6 +24,8 @@ from bpms.io.frames import N_IMUS
 from bpms.io.options import BodyOptions
 
 #: Result fields that are running totals (the last part's value stands for the whole stream).
+#: Per-frame estimates some filters make and others do not (NaN where not made).
+_ESTIMATE_FIELDS = ("gyro_bias", "body_acc")
 _RUNNING_FIELDS = frozenset({"held_count", "reinit_count"})
 
 
@@ -169,9 +171,16 @@ class Result:
             if f.name == "euler" and not all(_EULER.known(p) for p in parts):
                 continue  # computed from the joined R when read, in one call
             items = [getattr(p, f.name) for p in parts]
-            if f.name in _RUNNING_FIELDS or not isinstance(items[0], np.ndarray | list
-                                                             | Disturbance):
+            # (the first part may lack what a later one has: a filter switched between them)
+            known = next((v for v in items if v is not None), None)
+            if f.name in _RUNNING_FIELDS or not isinstance(known, np.ndarray | list
+                                                           | Disturbance):
                 values[f.name] = getattr(last, f.name)
+            elif any(v is None for v in items) and isinstance(known, np.ndarray) \
+                    and f.name in _ESTIMATE_FIELDS:  # NaN where a filter estimates none
+                values[f.name] = np.concatenate([
+                    np.full((len(p), *known.shape[1:]), np.nan) if v is None else v
+                    for p, v in zip(parts, items, strict=True)])
             elif any(v is None for v in items):
                 values[f.name] = None
             elif isinstance(items[0], list):
