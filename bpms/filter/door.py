@@ -83,7 +83,8 @@ def resolve_calibration(explicit: str | Path | CalibrationTable | None, header: 
     from bpms.io.defaults import default_calibration
 
     if explicit is not None:
-        label = explicit.source if isinstance(explicit, CalibrationTable) else str(explicit)
+        label = (str(explicit) if isinstance(explicit, str | Path)
+                 else getattr(explicit, "source", "table"))
         return explicit, f"given ({label})"
     if header is not None and header.get("calibration") is not None:
         table = header_calibration(header, where)

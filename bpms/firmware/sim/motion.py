@@ -24,10 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpms.firmware.sim.body import POINT, imu_positions, point_positions
+from bpms.firmware.sim.body import POINT, SubjectDimensions, imu_positions, point_positions
 from bpms.firmware.sim.geometry import zyx
 from bpms.io.frames import FRAME_PERIOD_S, N_IMUS
-from bpms.io.options import BodyOptions
 
 DT = FRAME_PERIOD_S  # s, sample k is at t = k * DT
 
@@ -167,7 +166,7 @@ def script_duration(script: list[Step]) -> float:
     return total
 
 
-def _dof_track(script: list[Step], t: np.ndarray, heading0: float, body: BodyOptions):
+def _dof_track(script: list[Step], t: np.ndarray, heading0: float, body: SubjectDimensions):
     """DOFs ``[N, D]`` rad, pelvis walk offset ``[N, 3]``, heel strikes, phases."""
     n = len(t)
     dofs = np.zeros((n, len(DOFS)))
@@ -288,11 +287,11 @@ def _still_windows(dofs: np.ndarray, pelvis: np.ndarray, t: np.ndarray,
 
 
 def generate_motion(n_samples: int | None = None, *, script: list[Step] | None = None,
-                    heading_deg: float = 30.0, body: BodyOptions | None = None) -> Motion:
+                    heading_deg: float = 30.0, body: SubjectDimensions | None = None) -> Motion:
     """Sample the script at 50 Hz. ``n_samples`` None = the whole script; beyond its end the
     final pose is held. ``heading_deg`` is the subject's initial magnetic heading (yaw)."""
     script = default_script() if script is None else script
-    body = body or BodyOptions()
+    body = body or SubjectDimensions()
     if n_samples is None:
         n_samples = round(script_duration(script) / DT)
     t = np.arange(n_samples) * DT

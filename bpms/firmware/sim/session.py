@@ -35,7 +35,7 @@ from bpms.firmware.sim.sensors import (
     to_raw,
 )
 from bpms.firmware.sim.sensors import mounting_errors as make_mounting_errors
-from bpms.io.calib_file import CalibrationTable, load_factory_calibration
+from bpms.firmware.sim.table import TrueTable, table_2_2
 from bpms.io.frames import encode_frames
 
 
@@ -76,7 +76,7 @@ class Recording:
     truth: Truth
     still_windows: list[tuple[float, float]]
     phases: list[tuple[float, float, str]]
-    calibration: CalibrationTable  # the true table the counts were made with
+    calibration: TrueTable  # the true table the counts were made with
     disturbances: list[MagDisturbance] = field(default_factory=list)
     #: The sensor settings the counts were made with (noise, dip, accelerometer range, ...).
     model: SensorModel = field(default_factory=SensorModel)
@@ -89,6 +89,8 @@ class Recording:
         """Write the frames as a native raw recording (receive time ``start_time + t`` s, the
         true calibration table and the accelerometer range in the header), as a live recording
         of this suit would be."""
+        # The product's file container (the one writer of the format); no number of the
+        # simulated suit goes through product code on the way (pyproject.toml's contract).
         from bpms.io.rawfile import new_header, write_raw
 
         path = Path(path)
@@ -125,7 +127,7 @@ def magnet_near(motion: Motion, imu: int, t0: float, t1: float,
 
 def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance: bool = False,
              mounting_errors: bool = True, noise: bool = True, error_rate: float = 0.0,
-             calibration: CalibrationTable | None = None,
+             calibration: TrueTable | None = None,
              model: SensorModel | None = None, heading_deg: float = 30.0,
              script: list[Step] | None = None,
              disturbances: list[MagDisturbance] | None = None) -> Recording:
@@ -135,13 +137,14 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
     seed: seeds mounting errors, noise, gyro biases and injected errors (independently).
     mag_disturbance: add :func:`default_disturbance` (or ``disturbances`` when given).
     error_rate: probability per frame, IMU and sensor of a failed reading (error bit set).
-    calibration: the suit's *true* calibration table (default: the factory table).
+    calibration: the suit's *true* calibration table, anything with ``values [18, 16]``
+    (default: Table 2.2, read by :func:`.table.table_2_2`).
     model: sensor settings (dip, noise levels, gyro bias, mounting error size, heel strikes,
     the accelerometer's configured range ``accel_range_g``: ±16 g by default, as the firmware).
     heading_deg: the subject's initial magnetic heading (yaw of the pelvis), degrees.
     """
     model = model or SensorModel()
-    table = calibration if calibration is not None else load_factory_calibration()
+    table = calibration if calibration is not None else table_2_2()
     n = None if duration_s is None else max(round(duration_s / DT), 1)
     motion = generate_motion(n, script=script, heading_deg=heading_deg)
     base = np.random.SeedSequence(seed)
