@@ -10,11 +10,12 @@ Sample k is at ``t = k * 0.02`` s. See docs/simulated-suit.md for the script and
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from bpms.firmware.sim.body import POINTS, SubjectDimensions, point_positions
 from bpms.firmware.sim.motion import (
     DT,
     TRUE_JOINT_NAMES,
@@ -35,6 +36,7 @@ from bpms.firmware.sim.sensors import (
     to_raw,
 )
 from bpms.firmware.sim.sensors import mounting_errors as make_mounting_errors
+from bpms.firmware.sim.subject import functional_script, parse_posture
 from bpms.firmware.sim.table import TrueTable, table_2_2
 from bpms.io.frames import encode_frames
 
@@ -63,6 +65,13 @@ class Truth:
     heel_strikes: list[tuple[float, str]]
     sensors: SensorValues
     joint_names: tuple[str, ...] = TRUE_JOINT_NAMES
+    #: ``[N, 21, 3]`` m, world NED: the skeleton's points (``point_names``, the pelvis first)
+    #: where the simulated subject's own lengths put them (``dimensions``).
+    joint_positions: np.ndarray | None = None
+    point_names: tuple[str, ...] = POINTS
+    dimensions: SubjectDimensions = field(default_factory=SubjectDimensions)
+    #: The calibration posture held in the still windows, DOF → degrees ({}: neutral).
+    posture: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -130,7 +139,10 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
              calibration: TrueTable | None = None,
              model: SensorModel | None = None, heading_deg: float = 30.0,
              script: list[Step] | None = None,
-             disturbances: list[MagDisturbance] | None = None) -> Recording:
+             disturbances: list[MagDisturbance] | None = None,
+             posture: str | dict | None = None, subject: SubjectDimensions | None = None,
+             functional: bool = False, mounting_error_deg: float | None = None,
+             ) -> Recording:
     """Generate a recording of the scripted motion.
 
     duration_s: None = the whole script (≈ 75 s); longer holds the final (calibration) pose.
@@ -142,11 +154,25 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
     model: sensor settings (dip, noise levels, gyro bias, mounting error size, heel strikes,
     the accelerometer's configured range ``accel_range_g``: ±16 g by default, as the firmware).
     heading_deg: the subject's initial magnetic heading (yaw of the pelvis), degrees.
+    posture: the calibration posture (:func:`.subject.parse_posture`: ``neutral``, ``suit``,
+    ``"dof=deg,..."`` or a dict), held wherever the script is still or at rest.
+    subject: the subject's dimensions (default: Table 2.4's, 1.73 m).
+    functional: put the functional-calibration movements (:func:`.subject.functional_script`)
+    in front of the script.
+    mounting_error_deg: rms per axis of the IMUs' mounting misalignment, ° (default: the
+    model's, 3°).
     """
     model = model or SensorModel()
+    if mounting_error_deg is not None:
+        model = replace(model, mounting_error_deg=float(mounting_error_deg))
+    rest = parse_posture(posture)
+    dims = subject or SubjectDimensions()
+    if functional:
+        script = functional_script(script)
     table = calibration if calibration is not None else table_2_2()
     n = None if duration_s is None else max(round(duration_s / DT), 1)
-    motion = generate_motion(n, script=script, heading_deg=heading_deg)
+    motion = generate_motion(n, script=script, heading_deg=heading_deg, body=dims,
+                             posture=rest)
     base = np.random.SeedSequence(seed)
     rng_mount, rng_noise, rng_bias, rng_err = (np.random.default_rng(s) for s in base.spawn(4))
     E = (make_mounting_errors(rng_mount, model.mounting_error_deg) if mounting_errors
@@ -166,6 +192,8 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
         R=R, C=motion.C, E=E, joint_angles=true_joint_angles(motion.dofs),
         pelvis_position=motion.pelvis, imu_position=motion.imu_pos,
         imu_acceleration=acc_lin, heel_strikes=motion.heel_strikes, sensors=ideal,
+        joint_positions=point_positions(motion.C, dims) + motion.pelvis[:, None, :],
+        dimensions=dims, posture=rest,
     )
     return Recording(
         t=motion.t, raw=raw, errors=errors, frames=encode_frames(raw, errors), truth=truth,
