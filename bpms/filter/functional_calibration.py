@@ -204,7 +204,12 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
     R, acc, gyr = (np.asarray(v, dtype=np.float64) for v in (R, acc_g, gyr))
     down = _unit(np.nanmean(acc[still], axis=0))  # [18, 3] gravity in each sensor frame
     R_still = average_dcm(R[still])
-    dw = np.gradient(gyr, dt, axis=0)
+    # The suit's gyroscope reports the rate over the sample interval, the accelerometer the
+    # value at the sample: the rate at sample k is the mean of intervals k and k + 1.
+    w_at = gyr.copy()
+    w_at[:-1] = 0.5 * (gyr[:-1] + gyr[1:])
+    dw = np.zeros_like(gyr)
+    dw[:-1] = (gyr[1:] - gyr[:-1]) / dt
     M = np.full((len(down), 3, 3), np.nan)
     report = FunctionalReport()
     right_world = []
@@ -227,8 +232,8 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
         turning &= (np.linalg.norm(np.where(ok[:, None], w1, 0.0), axis=1) > MOVING_RAD_S) | (
             np.linalg.norm(np.where(ok[:, None], w2, 0.0), axis=1) > MOVING_RAD_S)
         o1, o2, q.centre_residual = joint_centre(
-            acc[moves, p][turning] * G, w1[turning], dw[moves, p][turning],
-            acc[moves, d][turning] * G, w2[turning], dw[moves, d][turning],
+            acc[moves, p][turning] * G, w_at[moves, p][turning], dw[moves, p][turning],
+            acc[moves, d][turning] * G, w_at[moves, d][turning], dw[moves, d][turning],
             0.2 * down[p], -0.2 * down[d])
         z1, z2 = o1 - (o1 @ j1) * j1, -(o2 - (o2 @ j2) * j2)
         q.centre_m = (float(np.linalg.norm(o1)), float(np.linalg.norm(o2)))
