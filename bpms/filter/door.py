@@ -161,6 +161,9 @@ class OpenedRecording:
     settings_given: bool = False
     #: host receive time of the first valid frame (s since the epoch; NaN unknown)
     first_host_time: float = math.nan
+    #: the pose calibration's event, ``(slot, reset_zero event)`` (:meth:`use_pose_calibration`)
+    pose_event: tuple[int, SessionEvent] | None = field(default=None, repr=False)
+    pose_report: object | None = field(default=None, repr=False)
 
     @property
     def has_raw(self) -> bool:
@@ -184,6 +187,22 @@ class OpenedRecording:
             self.reset_zero = choice
         self.processor.pose.auto = self.reset_zero.automatic(self.has_events)
         self.processor.pose.provisional = self.reset_zero.provisional(self.has_events)
+
+    def use_pose_calibration(self, choice: str | None, posture: str | dict | None = None
+                             ) -> str:
+        """``--pose-calibration`` (:mod:`bpms.filter.pose_methods`): ``reset-zero`` (None)
+        changes nothing; ``posture`` / ``functional`` make their event from a first pass now,
+        applied by every later :meth:`chunks`. Returns its description. Raises ValueError."""
+        from bpms.filter.pose_methods import PoseCalibrationChoice, calibration_event
+
+        method = PoseCalibrationChoice.parse(choice, posture)
+        self.pose_event = None
+        if not method.default:
+            if self.reset_zero.mode == "none":
+                raise ValueError(f"{method.describe()} needs a Reset Zero still window, not "
+                                 "--reset-zero none")
+            self.pose_event = calibration_event(self, method)
+        return method.describe()
 
     def chunks(self, zero_at_s: Sequence[float] = (), progress: Progress | None = None,
                chunk_frames: int = CHUNK_FRAMES,
@@ -234,6 +253,9 @@ class OpenedRecording:
             planned = planned_events(recorded, self.reset_zero, self.settings_given,
                                      [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
             skipped += planned.skipped
+            if self.pose_event is not None and lo <= self.pose_event[0] < lo + len(host):
+                planned.append(self.pose_event)
+                planned.sort(key=lambda item: item[0])
             result = proc.process(decoded.raw, decoded.errors,
                                   [(slot - lo, event) for slot, event in planned])
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
@@ -354,18 +376,22 @@ def process_file(path: str | Path, calibration: str | Path | CalibrationTable | 
                  zero_at_s: Sequence[float] = (), zero_at_frames: Sequence[int] = (),
                  algorithm: str | None = None, heading: str | None = None,
                  reset_zero: str | ResetZeroChoice | None = None,
-                 progress: Progress | None = None) -> Result:
+                 progress: Progress | None = None, pose_calibration: str | None = None,
+                 posture: str | dict | None = None) -> Result:
     """Filter a whole recording (native raw, the original suite's pickled raw, or a filtered
     CSV) through :func:`open_for_processing`: calibration and options given here, else the
     recording's header, else the user's default, else factory (the result's
     ``calibration_source`` / ``options_source`` say which); the recorded events applied at
     their frames. ``reset_zero``: ``events`` (default), ``auto``, ``at SECONDS``, ``none``
     (:mod:`bpms.filter.zero_choice`); ``zero_at_s`` / ``zero_at_frames``: extra Reset Zero
-    captures. Raises :class:`bpms.io.rawfile.RawFileError` for an unreadable file or one with
-    no valid frame. For long recordings in constant memory iterate
-    ``open_for_processing(path).chunks()`` instead."""
+    captures; ``pose_calibration``: ``reset-zero`` (None, default), ``posture`` (with
+    ``posture``) or ``functional`` (:mod:`bpms.filter.pose_methods`). Raises
+    :class:`bpms.io.rawfile.RawFileError` for an unreadable file or one with no valid frame,
+    ValueError for a pose calibration that cannot be made. For long recordings in constant
+    memory iterate ``open_for_processing(path).chunks()`` instead."""
     opened = open_for_processing(path, calibration, options, algorithm=algorithm,
                                  heading=heading, reset_zero=reset_zero)
+    opened.use_pose_calibration(pose_calibration, posture)
     return opened.result(zero_at_s, progress, zero_at_frames=zero_at_frames)
 
 
