@@ -75,6 +75,7 @@ RUNS: dict[tuple[str, str], Run] = {
                   "from bpms.io.options import Options\n"
                   "opts = Options()\nopts.filter.algorithm = 'observer'\n")),
     ("docs/simulated-suit.md", "rec = simulate(seed=1)"): Run(),
+    ("docs/simulated-suit.md", "rec = simulate(seed=1, posture="): Run(),
     ("docs/filtered-file.md", "register_column_group(ColumnGroup("): Run(subprocess=True),
 }
 SCRIPTS = {("docs/udp.md", "# bpms-udp-reader"), ("docs/lsl.md", "# bpms-lsl-inlet")}

@@ -18,7 +18,7 @@ import numpy as np
 
 from bpms.io.frames import N_IMUS
 
-#: The 16 numbers per IMU, in the table's column order (SPEC §4).
+#: The 16 numbers per IMU, in the table's column order (docs/units.md).
 TABLE_FIELDS: tuple[str, ...] = (
     "Gravity", "AxMin", "AxMax", "AyMin", "AyMax", "AzMin", "AzMax",
     "MxMin", "MxMax", "MyMin", "MyMax", "MzMin", "MzMax", "GxAvg", "GyAvg", "GzAvg",
