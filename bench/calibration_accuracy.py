@@ -38,8 +38,9 @@ START_S = 2.0  # after the still window's capture
 
 
 def run_one(path: Path, rec, method: str, posture: str, dims: SubjectDimensions
-            ) -> tuple[np.ndarray, float]:
-    """(per-joint RMSE ° [28], joint-position RMSE m) of one method on one recording."""
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """(per-joint RMSE ° [28], per-point position RMSE m [21]) of one method on one
+    recording."""
     options = Options()
     options.body = BodyOptions(**dims.lengths(), height=dims.height)
     opened = open_for_processing(path, options=options)
@@ -53,7 +54,7 @@ def run_one(path: Path, rec, method: str, posture: str, dims: SubjectDimensions
     mine = res.joint_positions[k] - res.joint_positions[k][:, pelvis:pelvis + 1]
     true = rec.truth.joint_positions[k][:, order]
     true = true - true[:, pelvis:pelvis + 1]
-    pos = float(np.sqrt(np.nanmean(np.sum((mine - true) ** 2, axis=-1))))
+    pos = np.sqrt(np.nanmean(np.sum((mine - true) ** 2, axis=-1), axis=0))
     return rmse, pos
 
 
@@ -67,23 +68,26 @@ def main(argv: list[str] | None = None) -> int:
     errors = [10.0] if args.quick else args.errors
     names = None
     table: dict[tuple, list[np.ndarray]] = {}
-    positions: dict[tuple, list[float]] = {}
+    positions: dict[tuple, list[np.ndarray]] = {}
     t0 = time.perf_counter()
+    # the floor: a perfect neutral pose and no mounting error, Reset Zero (the filter's own
+    # error, which no calibration removes)
+    configs = [("neutral", 0.0, ("reset-zero",))]
+    configs += [(posture, error, METHODS) for posture in POSTURES for error in errors]
     with tempfile.TemporaryDirectory() as tmp:
-        for posture in POSTURES:
-            for error in errors:
-                for height in args.heights:
-                    dims = SubjectDimensions.of_height(height)
-                    for seed in range(args.seeds):
-                        rec = simulate(seed=seed, posture=posture, functional=True,
-                                       mounting_error_deg=error, subject=dims,
-                                       duration_s=DURATION_S)
-                        names = rec.truth.joint_names
-                        path = rec.save_raw(Path(tmp) / f"{posture}-{error}-{height}-{seed}.raw")
-                        for method in METHODS:
-                            rmse, pos = run_one(path, rec, method, posture, dims)
-                            table.setdefault((method, posture, error), []).append(rmse)
-                            positions.setdefault((method, posture, error), []).append(pos)
+        for posture, error, methods in configs:
+            for height in args.heights:
+                dims = SubjectDimensions.of_height(height)
+                for seed in range(args.seeds):
+                    rec = simulate(seed=seed, posture=posture, functional=True,
+                                   mounting_error_deg=error, subject=dims,
+                                   duration_s=DURATION_S)
+                    names = rec.truth.joint_names
+                    path = rec.save_raw(Path(tmp) / f"{posture}-{error}-{height}-{seed}.raw")
+                    for method in methods:
+                        rmse, pos = run_one(path, rec, method, posture, dims)
+                        table.setdefault((method, posture, error), []).append(rmse)
+                        positions.setdefault((method, posture, error), []).append(pos)
     elapsed = time.perf_counter() - t0
     n = args.seeds * len(args.heights)
     print(f"# Pose calibration accuracy ({n} recordings per row: seeds 0..{args.seeds - 1}, "
@@ -96,6 +100,8 @@ def main(argv: list[str] | None = None) -> int:
         worst = int(np.argmax(per_joint))
         overall = float(np.sqrt(np.mean(per_joint ** 2)))
         pos = 100 * float(np.sqrt(np.mean(np.square(positions[(method, posture, error)]))))
+        if error == 0.0:
+            method = f"{method} (floor)"
         print(f"| {method} | {posture} | {error:g} | {overall:.2f} | {names[worst]} | "
               f"{per_joint[worst]:.2f} | {pos:.2f} |")
     goal = [k for k in table if k[1] == "suit" and k[2] == 10.0]
@@ -105,6 +111,15 @@ def main(argv: list[str] | None = None) -> int:
         print("|---|" + "---|" * len(goal))
         cols = [np.sqrt(np.mean(np.square(table[k]), axis=0)) for k in goal]
         for j, name in enumerate(names):
+            print(f"| {name} | " + " | ".join(f"{c[j]:.2f}" for c in cols) + " |")
+        print("\n## Joint positions relative to the pelvis, suit posture, 10° (RMSE, cm)\n")
+        floor = ("reset-zero", "neutral", 0.0)
+        keys = [floor, *goal]
+        print("| point | " + " | ".join("floor (neutral, 0°, reset-zero)" if k == floor
+                                        else k[0] for k in keys) + " |")
+        print("|---|" + "---|" * len(keys))
+        cols = [100 * np.sqrt(np.mean(np.square(positions[k]), axis=0)) for k in keys]
+        for j, name in enumerate(POINT_NAMES[1:], 1):
             print(f"| {name} | " + " | ".join(f"{c[j]:.2f}" for c in cols) + " |")
     return 0
 
