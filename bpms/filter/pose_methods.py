@@ -18,16 +18,13 @@ quality in the event's data; a later Reset Zero in the recording replaces it, as
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from bpms.filter.functional_calibration import functional_calibration
 from bpms.filter.posture_calibration import parse_posture, posture_zero
 from bpms.io.session_events import SessionEvent
-
-if TYPE_CHECKING:
-    from bpms.filter.door import OpenedRecording
 
 METHODS = ("reset-zero", "posture", "functional")
 
@@ -69,9 +66,10 @@ class PoseCalibrationChoice:
         return {"reset-zero": "Reset Zero", "functional": "functional calibration"}[self.method]
 
 
-def calibration_event(opened: OpenedRecording, choice: PoseCalibrationChoice
+def calibration_event(opened: Any, choice: PoseCalibrationChoice
                       ) -> tuple[int, SessionEvent]:
-    """(slot, event): the pose calibration of ``opened`` (a raw recording), from a first pass
+    """(slot, event): the pose calibration of ``opened`` (a raw recording opened by
+    :func:`bpms.filter.door.open_for_processing`, not imported here), from a first pass
     over it. Raises ValueError when it cannot be made (a filtered file, no still window)."""
     if not opened.has_raw:
         raise ValueError(f"{opened.path}: {choice.describe()} needs a raw recording")
