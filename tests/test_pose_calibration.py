@@ -81,6 +81,7 @@ def test_functional_calibration_within_3deg_per_joint(suit_file):
         assert q.long_axis == "joint centre", (name, q)
         assert q.moving >= 100 and q.constraint_residual_dps < 2.0, (name, q)
     slot, event = opened.pose_event
+    assert slot == event.frame
     assert event.kind == "reset_zero" and event.data["source"] == "functional"
     assert event.data["quality"]["hinges"]["knee_r"]["long_axis"] == "joint centre"
     assert [z.source for z in opened.result().zeros][-1] == "functional"

@@ -12,6 +12,8 @@ What the file holds (docs/analysis.md, "C3D"):
   Plug-in Gait writes ``LKneeAngles``: X = flexion, Y = abduction, Z = rotation of the joint
   angles of :data:`bpms.filter.joints.JOINT_ANGLE_NAMES` in the convention in force (the
   hinges' Y and Z are 0: the body model's elbow and knee have one axis).
+- **The whole body's centre of mass**, the last point (``centre_of_mass``, mm, the same
+  frame; :mod:`bpms.filter.centre_of_mass`).
 - ``POINT:RATE`` (50 Hz), ``POINT:UNITS`` (mm), ``POINT:LABELS`` and ``POINT:DESCRIPTIONS``;
   a ``BPMS`` group states the recording's UTC start, the joint-angle convention, the axes and
   the source file.
@@ -28,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.body_model import POINT_NAMES
+from bpms.filter.centre_of_mass import centre_of_mass
 from bpms.io.closing import Closing
 from bpms.io.names import BALL_NAMES, HINGE_NAMES, JOINT_ANGLE_NAMES
 
@@ -39,14 +42,18 @@ ANGLE_JOINTS: tuple[str, ...] = (*HINGE_NAMES, *BALL_NAMES)
 _J = {name: k for k, name in enumerate(JOINT_ANGLE_NAMES)}
 
 
+COM_LABEL = "centre_of_mass"
+
+
 def angle_label(joint: str) -> str:
     """The angle point of ``joint``: ``knee_r`` → ``knee_r_angles``."""
     return f"{joint}_angles"
 
 
 def point_labels() -> list[str]:
-    """Every point label in file order: the 21 joint centres, then the 12 angle points."""
-    return [*POINT_NAMES, *(angle_label(j) for j in ANGLE_JOINTS)]
+    """Every point label in file order: the 21 joint centres, the 12 angle points, then the
+    centre of mass."""
+    return [*POINT_NAMES, *(angle_label(j) for j in ANGLE_JOINTS), COM_LABEL]
 
 
 def angle_points(joint_angles: np.ndarray) -> np.ndarray:
@@ -85,17 +92,18 @@ class C3dWriter(Closing):
 
     def write(self, joint_positions: np.ndarray, joint_angles: np.ndarray) -> None:
         """``joint_positions[N, 21, 3]`` m NED and ``joint_angles[N, 28]`` rad."""
-        self._positions.append(np.asarray(joint_positions, dtype=np.float64) @ NED_TO_C3D.T
-                               * MM_PER_M)
+        positions = np.asarray(joint_positions, dtype=np.float64)
+        positions = np.concatenate([positions, centre_of_mass(positions)[:, None]], axis=1)
+        self._positions.append(positions @ NED_TO_C3D.T * MM_PER_M)
         self._angles.append(angle_points(joint_angles))
         self.frames += len(joint_positions)
 
     def close(self) -> None:
         ezc3d = self._ezc3d
         n = self.frames
-        pos = np.concatenate([np.zeros((0, len(POINT_NAMES), 3)), *self._positions])
+        pos = np.concatenate([np.zeros((0, len(POINT_NAMES) + 1, 3)), *self._positions])
         ang = np.concatenate([np.zeros((0, len(ANGLE_JOINTS), 3)), *self._angles])
-        xyz = np.concatenate([pos, ang], axis=1)  # [N, P, 3]
+        xyz = np.concatenate([pos[:, :-1], ang, pos[:, -1:]], axis=1)  # [N, P, 3]
         labels = point_labels()
         points = np.ones((4, len(labels), n))
         points[:3] = np.transpose(xyz, (2, 1, 0))
@@ -109,7 +117,8 @@ class C3dWriter(Closing):
         p["DESCRIPTIONS"]["value"] = (
             [f"joint centre {name}, mm, X north Y west Z up" for name in POINT_NAMES]
             + [f"{joint} angles, deg: X flexion, Y abduction, Z rotation"
-               for joint in ANGLE_JOINTS])
+               for joint in ANGLE_JOINTS]
+            + ["whole-body centre of mass, mm, X north Y west Z up"])
         c3d["data"]["points"] = points
         c3d["data"]["meta_points"]["residuals"] = np.where(valid, 0.0, -1.0)[None]
         c3d["data"]["meta_points"]["camera_masks"] = np.zeros((7, len(labels), n), dtype=bool)
