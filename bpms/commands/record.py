@@ -53,6 +53,10 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "else the per-user recordings folder)")
     p.add_argument("--name", default=None, help="file name stem (default: a time stamp)")
     p.add_argument("--notes", default="", help="free text stored in the raw file's header")
+    p.add_argument("--subject", default=None, metavar="PROFILE",
+                   help="the subject's profile, stored in the header and used for the body "
+                        "model: 'id=S01,height=1.80,mass=75,thigh=0.46' or a TOML file "
+                        "(docs/subject.md)")
     p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
                    help="also forward the live stream over UDP (repeatable)")
     p.add_argument("--filtered", action="store_true", help="also record the filtered file")
@@ -147,6 +151,15 @@ def run(args: argparse.Namespace) -> int:
 
     # explicit file > the user's default > factory (a one-line notice when factory)
     options = options_or_default(args.options, announce=False)
+    profile = None
+    if args.subject:
+        from bpms.io.subject import SubjectProfile
+
+        try:
+            profile = SubjectProfile.parse(args.subject)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+        options.body = profile.body_options()
     table = calibration_or_default(args.calibration, announce=False)
     for problem in (*options.problems, *table.problems):
         print(f"warning: {problem}", file=sys.stderr)
@@ -170,6 +183,8 @@ def run(args: argparse.Namespace) -> int:
     announce_factory(options=not args.options, calibration=not args.calibration)
     folder = Path(args.output) if args.output else None  # None: options, else per-user folder
     session = LiveSession(source, options, processor, recording_dir=folder, notes=args.notes)
+    if profile is not None:
+        session.header_extra["subject"] = profile.to_header()
     stop_on_signals()
     recording = None
     bridges: list = []

@@ -47,6 +47,7 @@ from bpms.io.raw_reader import RawFile, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
 from bpms.io.recordings import read_head
 from bpms.io.session_events import SessionEvent
+from bpms.io.subject import header_subject
 
 log = logging.getLogger(__name__)
 
@@ -453,6 +454,12 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
                            "original suite's raw file, nor a filtered .csv file)")
     opts, options_source = resolve_options(options, header if kind != "filtered" else None,
                                            str(path))
+    profile, trouble = header_subject(header) if options is None else (None, None)
+    if trouble:
+        problems.append(f"{path}: {trouble}")
+    if profile is not None:  # the subject's own lengths (docs/subject.md)
+        opts = dataclasses.replace(opts, body=profile.body_options())
+        options_source += f" with subject {profile.subject_id}"
     changes = []
     if algorithm is not None and algorithm != opts.filter.algorithm:
         changes.append(f"filter {algorithm}")

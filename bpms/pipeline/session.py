@@ -96,6 +96,8 @@ class LiveSession:
         self._reinit_noted = -1e9
         self._reinit_imus: set[int] = set()
         self.notes = notes
+        #: more header fields of the next raw recordings (``subject``: docs/subject.md)
+        self.header_extra: dict = {}
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
@@ -221,7 +223,7 @@ class LiveSession:
             header = new_header(calibration=self.processor.table.values,
                                 options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description,
-                                extra={"session_events": True})
+                                extra={"session_events": True, **self.header_extra})
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
             logger = RawLogger(writer, status, self.note, self.options.logging.disk_reserve_s)
             logger.start()

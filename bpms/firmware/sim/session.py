@@ -94,17 +94,22 @@ class Recording:
         return len(self.t)
 
     def save_raw(self, path: str | Path, start_time: float = 1.7e9,
-                 notes: str = "simulated suit") -> Path:
+                 notes: str = "simulated suit", subject_id: str | None = None) -> Path:
         """Write the frames as a native raw recording (receive time ``start_time + t`` s, the
         true calibration table and the accelerometer range in the header), as a live recording
-        of this suit would be."""
+        of this suit would be. ``subject_id``: also store the simulated subject's measured
+        lengths as the header's subject profile (docs/subject.md's ``subject`` table)."""
         # The product's file container (the one writer of the format); no number of the
         # simulated suit goes through product code on the way (pyproject.toml's contract).
         from bpms.io.rawfile import new_header, write_raw
 
         path = Path(path)
         extra = ({"accel_range_g": float(self.model.accel_range_g)}
-                 if getattr(self, "model", None) is not None else None)
+                 if getattr(self, "model", None) is not None else {})
+        if subject_id is not None:
+            dims = self.truth.dimensions
+            extra["subject"] = {"id": subject_id, "height_m": float(dims.height),
+                                "mass_kg": None, "segments_m": dims.lengths()}
         write_raw(path, start_time + self.t, self.frames,
                   new_header(calibration=self.calibration.values, notes=notes, extra=extra))
         return path
