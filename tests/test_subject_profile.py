@@ -74,7 +74,8 @@ def test_the_door_uses_the_headers_profile(tmp_path):
         got = np.linalg.norm(with_profile.joint_positions[-1, index[name]]
                              - with_profile.joint_positions[-1, index[parent]])
         assert got == pytest.approx(getattr(dims, length), abs=1e-9), name
-    knee, hip = plain.joint_positions[-1, index["knee_r"]], plain.joint_positions[-1, index["hip_r"]]
+    knee = plain.joint_positions[-1, index["knee_r"]]
+    hip = plain.joint_positions[-1, index["hip_r"]]
     assert np.linalg.norm(knee - hip) == pytest.approx(0.43)  # the options' length
 
 
