@@ -14,6 +14,8 @@ Field commands, typed on standard input (for use over SSH), each followed by Ent
   z        Reset Zero (the subject stands in the calibration pose)
   v        alignment off/on: the output angles corrected by Reset Zero or the sensor angles
   m TEXT   a marker note, stored in the recording at this frame
+  p [POSTURE]  pose calibration in a declared posture (--posture, or the one given here:
+           suit, neutral or 'elbow_r.flexion=15,...'; docs/pose-calibration.md)
 
 Each goes into the raw recording at the frame it applies at, the event lines and the LSL event
 stream; ``bpms filter`` and ``bpms replay`` of the recording apply them where they happened.
@@ -53,6 +55,9 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "else the per-user recordings folder)")
     p.add_argument("--name", default=None, help="file name stem (default: a time stamp)")
     p.add_argument("--notes", default="", help="free text stored in the raw file's header")
+    p.add_argument("--posture", default=None, metavar="POSTURE",
+                   help="the declared posture of the field command p (default neutral): "
+                        "suit or 'elbow_r.flexion=15,...' (docs/pose-calibration.md)")
     p.add_argument("--subject", default=None, metavar="PROFILE",
                    help="the subject's profile, stored in the header and used for the body "
                         "model: 'id=S01,height=1.80,mass=75,thigh=0.46' or a TOML file "
@@ -108,10 +113,11 @@ def summary(status: RecordingStatus) -> tuple[str, int]:
     return f"recorded {status.raw_on_disk} frames to {status.raw_path}{lost}", (1 if lost else 0)
 
 
-FIELD_HELP = "field commands: z + Enter = Reset Zero, v = alignment off/on, m TEXT = marker"
+FIELD_HELP = ("field commands: z + Enter = Reset Zero, v = alignment off/on, m TEXT = marker, "
+              "p [POSTURE] = pose calibration in a declared posture")
 
 
-def field_command(session, line: str) -> str | None:
+def field_command(session, line: str, posture: str | None = None) -> str | None:
     """Run one line typed on standard input; the reply to print (None: nothing to say)."""
     text = line.strip()
     if not text:
@@ -120,6 +126,16 @@ def field_command(session, line: str) -> str | None:
     if word == "z":
         session.reset_zero("manual")
         return "Reset Zero at the next frame"
+    if word == "p":
+        from bpms.filter.posture_calibration import parse_posture
+
+        text = rest.strip() or posture or "neutral"
+        try:
+            declared = parse_posture(text)
+        except ValueError as exc:
+            return str(exc)
+        session.calibrate_posture(declared)
+        return f"pose calibration in the declared posture ({text}) at the next frame"
     if word == "v":
         session.set_corrected_output(None)
         return "alignment switched at the next frame"
@@ -131,12 +147,12 @@ def field_command(session, line: str) -> str | None:
     return f"unknown command {word!r}; {FIELD_HELP}"
 
 
-def _read_commands(session, stream) -> None:
+def _read_commands(session, stream, posture: str | None = None) -> None:
     """Standard input, line by line, until it ends (a recorder started without one, or with
     /dev/null, simply has no field commands)."""
     try:
         for line in stream:
-            reply = field_command(session, line)
+            reply = field_command(session, line, posture)
             if reply:
                 print(reply, flush=True)
     except (OSError, ValueError):  # closed under the thread at exit
@@ -151,6 +167,13 @@ def run(args: argparse.Namespace) -> int:
 
     # explicit file > the user's default > factory (a one-line notice when factory)
     options = options_or_default(args.options, announce=False)
+    if args.posture:
+        from bpms.filter.posture_calibration import parse_posture
+
+        try:
+            parse_posture(args.posture)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
     profile = None
     if args.subject:
         from bpms.io.subject import SubjectProfile
@@ -218,7 +241,7 @@ def run(args: argparse.Namespace) -> int:
               flush=True)
         if sys.stdin is not None and not sys.stdin.closed:
             print(FIELD_HELP, flush=True)
-            threading.Thread(target=_read_commands, args=(session, sys.stdin),
+            threading.Thread(target=_read_commands, args=(session, sys.stdin, args.posture),
                              name="bpms-field-commands", daemon=True).start()
         t0 = time.monotonic()
         shown_events = 0

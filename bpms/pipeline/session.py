@@ -98,6 +98,8 @@ class LiveSession:
         self.notes = notes
         #: more header fields of the next raw recordings (``subject``: docs/subject.md)
         self.header_extra: dict = {}
+        self._posture: dict | None = None  # a declared posture waiting for its capture
+        self._adopting: dict | None = None  # ... then for its zero to take effect
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
@@ -184,6 +186,24 @@ class LiveSession:
         UDP sender's Reset Zero is no longer followed: the user's own one holds."""
         self._own_zero = True
         self.settings.reset_zero(source)
+
+    def calibrate_posture(self, posture: dict[str, float]) -> None:
+        """Declared-posture pose calibration (docs/pose-calibration.md): Reset Zero at the next
+        frame (source ``posture``), then, from the next batch of frames (the next frame, live),
+        the zero that gives the declared ``posture`` (ISB joint angles, degrees) in that
+        window, adopted and recorded as a ``reset_zero`` event (``adopt``, its ``R0``), so
+        ``bpms filter`` of the recording repeats it."""
+        self._posture = dict(posture)
+        self.reset_zero("posture")
+
+    def _adopt_posture(self, zero) -> None:
+        """After the ``posture`` capture ``zero``: adopt its declared-posture zero."""
+        from bpms.filter.posture_calibration import posture_zero
+
+        posture, self._posture = self._posture, None
+        R0, yaw0 = posture_zero(zero.R0, posture)
+        self.processor.pose.adopt(R0, yaw0, "posture", zero.window)
+        self._adopting = posture  # its event, when it takes effect, says it was adopted
 
     def marker(self, text: str) -> None:
         """A marker note at the next processed frame: in the raw recording, the event log and
@@ -475,8 +495,14 @@ class LiveSession:
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
         for z in result.zeros:
+            data = z.event_data()
+            if z.source == "posture" and self._adopting is not None:  # the adopted zero
+                data |= {"adopt": True, "heading": "mean", "posture": self._adopting}
+                self._adopting = None
             self.events.emit(SessionEvent("reset_zero", head.index + z.frame - first,
-                                          data=z.event_data()), warning=z.moved)
+                                          data=data), warning=z.moved)
+            if z.source == "posture" and self._posture is not None:  # the capture
+                self._adopt_posture(z)
         for k, m in marks:
             if m.kind != "reset_zero":
                 self.events.emit(m.at(events[k].index))
