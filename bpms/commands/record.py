@@ -16,6 +16,8 @@ Field commands, typed on standard input (for use over SSH), each followed by Ent
   m TEXT   a marker note, stored in the recording at this frame
   p [POSTURE]  pose calibration in a declared posture (--posture, or the one given here:
            suit, neutral or 'elbow_r.flexion=15,...'; docs/pose-calibration.md)
+  f [SECONDS]  functional pose calibration: stand still 0.5 s, then knee and elbow flexions,
+           an arm swing, a few steps for SECONDS (default 30)
 
 Each goes into the raw recording at the frame it applies at, the event lines and the LSL event
 stream; ``bpms filter`` and ``bpms replay`` of the recording apply them where they happened.
@@ -114,7 +116,8 @@ def summary(status: RecordingStatus) -> tuple[str, int]:
 
 
 FIELD_HELP = ("field commands: z + Enter = Reset Zero, v = alignment off/on, m TEXT = marker, "
-              "p [POSTURE] = pose calibration in a declared posture")
+              "p [POSTURE] = pose calibration in a declared posture, f [SECONDS] = "
+              "functional pose calibration")
 
 
 def field_command(session, line: str, posture: str | None = None) -> str | None:
@@ -136,6 +139,16 @@ def field_command(session, line: str, posture: str | None = None) -> str | None:
             return str(exc)
         session.calibrate_posture(declared)
         return f"pose calibration in the declared posture ({text}) at the next frame"
+    if word == "f":
+        try:
+            seconds = float(rest) if rest.strip() else 30.0
+        except ValueError:
+            seconds = -1.0
+        if not 5.0 <= seconds <= 600.0:
+            return "f wants the movements' length in seconds, 5 to 600: f 30"
+        session.calibrate_functional(seconds)
+        return (f"functional calibration: stand still 0.5 s, then {seconds:g} s of knee and "
+                "elbow flexions, an arm swing, a few steps")
     if word == "v":
         session.set_corrected_output(None)
         return "alignment switched at the next frame"

@@ -99,7 +99,8 @@ class LiveSession:
         #: more header fields of the next raw recordings (``subject``: docs/subject.md)
         self.header_extra: dict = {}
         self._posture: dict | None = None  # a declared posture waiting for its capture
-        self._adopting: dict | None = None  # ... then for its zero to take effect
+        self._adopting: tuple[str, dict] | None = None  # a zero adopted: (source, its data)
+        self._functional = None  # a live functional calibration collecting its frames
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
@@ -203,7 +204,30 @@ class LiveSession:
         posture, self._posture = self._posture, None
         R0, yaw0 = posture_zero(zero.R0, posture)
         self.processor.pose.adopt(R0, yaw0, "posture", zero.window)
-        self._adopting = posture  # its event, when it takes effect, says it was adopted
+        # its event, when it takes effect, says it was adopted
+        self._adopting = ("posture", {"adopt": True, "heading": "mean", "posture": posture})
+
+    def calibrate_functional(self, seconds: float = 30.0, still_s: float = 0.5) -> None:
+        """Functional pose calibration (docs/pose-calibration.md): from the next frame,
+        ``still_s`` s still, then ``seconds`` s of movements; then its zero is adopted and
+        recorded (``reset_zero``, source ``functional``, ``adopt``, its quality)."""
+        from bpms.pipeline.functional_live import FunctionalCollector
+
+        dt = self.processor.options.filter.dt
+        collector = FunctionalCollector(round(still_s / dt), round(seconds / dt), dt)
+        self._commands.put(lambda: setattr(self, "_functional", collector))
+
+    def _collect_functional(self, result, raw) -> None:
+        done = self._functional.add(result.R, raw, self.processor.sensor_calibration)
+        if done is None:
+            return
+        R0, yaw0, report, data = done
+        self._functional = None
+        self.processor.pose.adopt(R0, yaw0, "functional", data["window"])
+        self._adopting = ("functional", {k: v for k, v in data.items()
+                                         if k not in ("R0", "yaw0", "source")})
+        if report.missing:
+            self.note("functional calibration: missing " + ", ".join(report.missing))
 
     def marker(self, text: str) -> None:
         """A marker note at the next processed frame: in the raw recording, the event log and
@@ -496,13 +520,15 @@ class LiveSession:
         first = proc.frames - len(events)  # stream frame number of events[0]
         for z in result.zeros:
             data = z.event_data()
-            if z.source == "posture" and self._adopting is not None:  # the adopted zero
-                data |= {"adopt": True, "heading": "mean", "posture": self._adopting}
+            if self._adopting is not None and z.source == self._adopting[0]:  # adopted
+                data |= self._adopting[1]
                 self._adopting = None
             self.events.emit(SessionEvent("reset_zero", head.index + z.frame - first,
                                           data=data), warning=z.moved)
             if z.source == "posture" and self._posture is not None:  # the capture
                 self._adopt_posture(z)
+        if self._functional is not None:
+            self._collect_functional(result, raw)
         for k, m in marks:
             if m.kind != "reset_zero":
                 self.events.emit(m.at(events[k].index))
