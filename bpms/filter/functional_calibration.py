@@ -101,6 +101,21 @@ class FunctionalReport:
         return out
 
 
+def sensor_values(calibration, raw: np.ndarray, errors: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(accelerometer in g, gyroscope rad/s), each ``[N, 18, 3]`` in the filter frame, of raw
+    counts ``[N, 18, 9]`` through the processor's ``calibration``
+    (:class:`bpms.filter.calibration.SensorCalibration`); NaN where ``errors [N, 18, 3]``
+    (accel, mag, gyro) flags a failed reading."""
+    acc, _, gyr = calibration.calibrate(raw)
+    acc = acc / calibration.gravity[None, :, None]
+    if errors is not None:
+        errors = np.asarray(errors, dtype=bool)
+        acc[errors[..., 0]] = np.nan
+        gyr[errors[..., 2]] = np.nan
+    return acc, gyr
+
+
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
@@ -217,8 +232,10 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
         w1, w2 = gyr[moves, p], gyr[moves, d]
         rel = np.swapaxes(R[moves, d], -1, -2) @ R[moves, p]
         ok = np.isfinite(w1).all(1) & np.isfinite(w2).all(1) & np.isfinite(rel).all((1, 2))
+        w1, w2 = np.where(ok[:, None], w1, 0.0), np.where(ok[:, None], w2, 0.0)
+        rel = np.where(ok[:, None, None], rel, np.eye(3))
         wr = w2 - np.einsum("kij,kj->ki", rel, w1)
-        moving = ok & (np.linalg.norm(np.where(ok[:, None], wr, 0.0), axis=1) > MOVING_RAD_S)
+        moving = ok & (np.linalg.norm(wr, axis=1) > MOVING_RAD_S)
         q = HingeQuality(int(moving.sum()))
         report.hinges[name] = q
         if q.moving < MIN_MOVING:
@@ -228,9 +245,10 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
             w1[moving], w2[moving], rel[moving])
         # the joint centre's constraint holds whenever either segment turns (an arm swing
         # with a still elbow helps too)
-        turning = ok & np.isfinite(acc[moves, p]).all(1) & np.isfinite(acc[moves, d]).all(1)
-        turning &= (np.linalg.norm(np.where(ok[:, None], w1, 0.0), axis=1) > MOVING_RAD_S) | (
-            np.linalg.norm(np.where(ok[:, None], w2, 0.0), axis=1) > MOVING_RAD_S)
+        turning = ok & np.all([np.isfinite(v[moves, i]).all(1) for v in (acc, w_at, dw)
+                               for i in (p, d)], axis=0)
+        turning &= (np.linalg.norm(w1, axis=1) > MOVING_RAD_S) | (
+            np.linalg.norm(w2, axis=1) > MOVING_RAD_S)
         o1, o2, q.centre_residual = joint_centre(
             acc[moves, p][turning] * G, w_at[moves, p][turning], dw[moves, p][turning],
             acc[moves, d][turning] * G, w_at[moves, d][turning], dw[moves, d][turning],

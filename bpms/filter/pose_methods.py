@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from bpms.filter.functional_calibration import functional_calibration
+from bpms.filter.functional_calibration import functional_calibration, sensor_values
 from bpms.filter.posture_calibration import parse_posture, posture_zero
 from bpms.io.session_events import SessionEvent
 
@@ -76,11 +76,12 @@ def calibration_event(opened: Any, choice: PoseCalibrationChoice
     proc = opened.processor
     dt = proc.options.filter.dt
     span = round(choice.functional_s / dt)
-    R_parts, raw_parts, zero = [], [], None
+    R_parts, raw_parts, error_parts, zero = [], [], [], None
     held = 0
     for chunk in opened.chunks():
         R_parts.append(chunk.result.R)
         raw_parts.append(chunk.raw)
+        error_parts.append(chunk.errors)
         held += len(chunk)
         if zero is None:
             zero = next((z for z in chunk.result.zeros if z.source != "provisional"), None)
@@ -97,9 +98,8 @@ def calibration_event(opened: Any, choice: PoseCalibrationChoice
         data |= {"source": "posture", "posture": dict(choice.posture)}
     else:
         R = np.concatenate(R_parts)
-        raw = np.concatenate(raw_parts)
-        acc, _, gyr = proc.sensor_calibration.calibrate(raw)
-        acc = acc / proc.sensor_calibration.gravity[None, :, None]
+        acc, gyr = sensor_values(proc.sensor_calibration, np.concatenate(raw_parts),
+                                 np.concatenate(error_parts))
         moves = slice(zero.frame, min(zero.frame + span, len(R)))
         R0, yaw0, report = functional_calibration(R, acc, gyr, slice(lo, zero.frame + 1), moves,
                                                   dt)

@@ -14,7 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from bpms.filter.functional_calibration import FunctionalReport, functional_calibration
+from bpms.filter.functional_calibration import (
+    FunctionalReport,
+    functional_calibration,
+    sensor_values,
+)
 
 
 class FunctionalCollector:
@@ -32,16 +36,17 @@ class FunctionalCollector:
     def needed(self) -> int:
         return self.still + self.moves
 
-    def add(self, R: np.ndarray, raw: np.ndarray, calibration
+    def add(self, R: np.ndarray, raw: np.ndarray, errors: np.ndarray, calibration
             ) -> tuple[np.ndarray, float, FunctionalReport, dict] | None:
-        """``R[N, 18, 3, 3]`` the batch's DCMs, ``raw[N, 18, 9]`` its counts, ``calibration``
-        the processor's :class:`bpms.filter.calibration.SensorCalibration`."""
+        """``R[N, 18, 3, 3]`` the batch's DCMs, ``raw[N, 18, 9]`` its counts and ``errors
+        [N, 18, 3]`` its error bits, ``calibration`` the processor's
+        :class:`bpms.filter.calibration.SensorCalibration`."""
         take = min(len(R), self.needed - self.frames)
         if take <= 0:
             return None
-        acc, _, gyr = calibration.calibrate(raw[:take])
+        acc, gyr = sensor_values(calibration, raw[:take], errors[:take])
         self._R.append(np.array(R[:take]))
-        self._acc.append(acc / calibration.gravity[None, :, None])
+        self._acc.append(acc)
         self._gyr.append(gyr)
         self.frames += take
         if self.frames < self.needed:

@@ -217,8 +217,8 @@ class LiveSession:
         collector = FunctionalCollector(round(still_s / dt), round(seconds / dt), dt)
         self._commands.put(lambda: setattr(self, "_functional", collector))
 
-    def _collect_functional(self, result, raw) -> None:
-        done = self._functional.add(result.R, raw, self.processor.sensor_calibration)
+    def _collect_functional(self, result, raw, errors) -> None:
+        done = self._functional.add(result.R, raw, errors, self.processor.sensor_calibration)
         if done is None:
             return
         R0, yaw0, report, data = done
@@ -528,7 +528,7 @@ class LiveSession:
             if z.source == "posture" and self._posture is not None:  # the capture
                 self._adopt_posture(z)
         if self._functional is not None:
-            self._collect_functional(result, raw)
+            self._collect_functional(result, raw, errors)
         for k, m in marks:
             if m.kind != "reset_zero":
                 self.events.emit(m.at(events[k].index))
