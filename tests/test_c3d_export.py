@@ -50,7 +50,7 @@ def test_ezc3d_reads_the_joint_centres_within_a_tenth_of_a_millimetre(exported):
     assert labels[:21] == list(POINT_NAMES)
     assert point["RATE"]["value"][0] == 50.0 and point["UNITS"]["value"] == ["mm"]
     xyz = f["data"]["points"][:3]  # [3, points, frames]
-    assert xyz.shape == (3, 33, round(SECONDS * 50))
+    assert xyz.shape == (3, 34, round(SECONDS * 50))  # the last: the centre of mass
     truth = np.einsum("ij,npj->ipn", P, result.joint_positions) * 1000.0  # mm
     ok = np.isfinite(truth).all(axis=0)
     assert ok[:, -1].all() and ok.mean() > 0.9

@@ -70,6 +70,7 @@ RUNS: dict[tuple[str, str], Run] = {
     ("docs/filters.md", "proc.select_filter(\"vqf\")"): Run(),
     ("docs/analysis.md", "rom.groupby([\"joint\", \"condition\"])"): Run(),
     ("docs/simulated-suit.md", "rec = simulate(seed=1)"): Run(),
+    ("docs/simulated-suit.md", "rec = simulate(seed=1, posture="): Run(),
     ("docs/filtered-file.md", "register_column_group(ColumnGroup("): Run(subprocess=True),
 }
 SCRIPTS = {("docs/udp.md", "# bpms-udp-reader"), ("docs/lsl.md", "# bpms-lsl-inlet")}

@@ -44,10 +44,20 @@ def scratch_copy(tmp_path: Path) -> Path:
      "SensorCalibration\n    return SensorCalibration\n",
      "The simulated suit imports nothing from bpms.filter"),
     ("bpms/filter/_planted.py", "import PyQt6.QtCore\n", "Qt only in bpms.gui"),
+    ("bpms/firmware/sim/_planted.py", "from bpms.io.options import BodyOptions\n",
+     "The simulated suit imports from bpms only bpms.io.frames and bpms.io.events"),
+    ("bpms/firmware/sim/_planted.py", "def f():\n    from bpms.io.calib_file import "
+     "load_factory_calibration\n    return load_factory_calibration\n",
+     "The simulated suit imports from bpms only bpms.io.frames and bpms.io.events"),
+    # a bpms.io module added after the contract was written is forbidden too
+    ("bpms/firmware/sim/_planted.py", "from bpms.io._brand_new import X\n",
+     "The simulated suit imports from bpms only bpms.io.frames and bpms.io.events"),
 ])
 def test_planted_upward_import_is_caught(tmp_path, module, line, contract):
     root = scratch_copy(tmp_path)
+    (root / "bpms/io/_brand_new.py").write_text("X = 1\n")
     (root / module).write_text(line)
     result = lint(root)
     assert result.returncode != 0
     assert f"{contract} BROKEN" in result.stdout, result.stdout
+

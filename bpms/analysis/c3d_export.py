@@ -23,6 +23,8 @@ What the file holds (docs/analysis.md, "C3D"):
   track``), ``Reset Zero`` and the session's typed markers (``Marker``, the text in
   ``DESCRIPTIONS``), context ``General``. At most 255 (a C3D dimension is one byte): more
   are left out and the command says how many.
+- **The whole body's centre of mass**, the last point (``centre_of_mass``, mm, the same
+  frame; :mod:`bpms.filter.centre_of_mass`).
 - ``POINT:RATE`` (50 Hz), ``POINT:UNITS`` (mm), ``POINT:LABELS`` and ``POINT:DESCRIPTIONS``;
   a ``BPMS`` group states where the file came from (:mod:`bpms.analysis.stamp`).
 
@@ -39,6 +41,7 @@ import numpy as np
 
 from bpms.analysis.c3d_format import BLOCK, C3dStream, encode_parameters
 from bpms.filter.body_model import POINT_NAMES
+from bpms.filter.centre_of_mass import centre_of_mass
 from bpms.io.closing import Closing
 from bpms.io.frames import IMU_NAMES
 from bpms.io.names import BALL_NAMES, HINGE_NAMES, JOINT_ANGLE_NAMES
@@ -72,14 +75,18 @@ def analog_descriptions() -> list[str]:
             for a in "xyz"]
 
 
+COM_LABEL = "centre_of_mass"
+
+
 def angle_label(joint: str) -> str:
     """The angle point of ``joint``: ``knee_r`` → ``knee_r_angles``."""
     return f"{joint}_angles"
 
 
 def point_labels() -> list[str]:
-    """Every point label in file order: the 21 joint centres, then the 12 angle points."""
-    return [*POINT_NAMES, *(angle_label(j) for j in ANGLE_JOINTS)]
+    """Every point label in file order: the 21 joint centres, the 12 angle points, then the
+    centre of mass."""
+    return [*POINT_NAMES, *(angle_label(j) for j in ANGLE_JOINTS), COM_LABEL]
 
 
 def angle_points(joint_angles: np.ndarray) -> np.ndarray:
@@ -129,8 +136,9 @@ class C3dWriter(Closing):
         pos = np.asarray(joint_positions, dtype=np.float64)
         if walked is not None:
             pos = pos + np.asarray(walked, dtype=np.float64)[:, None, :]
-        xyz = np.concatenate([pos @ NED_TO_C3D.T * MM_PER_M, angle_points(joint_angles)],
-                             axis=1)
+        com = centre_of_mass(pos)[:, None]  # of the same (walked) joint centres
+        xyz = np.concatenate([pos @ NED_TO_C3D.T * MM_PER_M, angle_points(joint_angles),
+                              com @ NED_TO_C3D.T * MM_PER_M], axis=1)
         channels = None
         if self.analog:
             if imu is None:
@@ -158,7 +166,8 @@ class C3dWriter(Closing):
             ("DESCRIPTIONS",
              [f"joint centre {name}, mm, X north Y west Z up" for name in POINT_NAMES]
              + [f"{joint} angles, deg: X flexion, Y abduction, Z rotation"
-                for joint in ANGLE_JOINTS], ""),
+                for joint in ANGLE_JOINTS]
+             + ["whole-body centre of mass, mm, X north Y west Z up"], ""),
             ("ANGLES", [angle_label(j) for j in ANGLE_JOINTS], "angle points"),
             ("ANGLE_UNITS", "deg", ""),
             ("X_SCREEN", "+X", ""), ("Y_SCREEN", "+Z", "")])]

@@ -27,7 +27,8 @@ def _read_errors(path: str, *kinds: type[Exception]) -> Iterator[None]:
 
 def open_recording_for(command: str, path: str, calibration: str | None = None,
                        options: str | None = None, algorithm: str | None = None,
-                       heading: str | None = None, reset_zero=None):
+                       heading: str | None = None, reset_zero=None,
+                       pose_calibration: str | None = None, posture: str | None = None):
     """The door, with one-line errors; prints ``calibration: …; options: …`` and the
     warnings so far on stderr. Returns the :class:`bpms.filter.door.OpenedRecording`."""
     from bpms.filter.door import open_for_processing
@@ -43,6 +44,13 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     if opened.n_frames == 0:
         raise CliError(f"{path}: the recording holds no frames")
     opened.problems.clear()
+    if pose_calibration not in (None, "reset-zero") or posture is not None:
+        with _read_errors(path, ValueError):
+            what = opened.use_pose_calibration(pose_calibration, posture)
+        print(f"bpms {command}: pose calibration: {what}", file=sys.stderr)
+        report = opened.pose_report
+        for line in report.lines() if report is not None else []:
+            print(f"bpms {command}:   {line}", file=sys.stderr)
     return opened
 
 

@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from bpms.analysis.cli_support import add_filter_option
+from bpms.analysis.cli_support import add_filter_option, add_pose_calibration_option
 from bpms.commands import CliError
 from bpms.commands._shared import add_sources, refuse_existing
 from bpms.io.timebase import stream_time
@@ -74,6 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_sources(parser)
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     add_filter_option(parser)
+    add_pose_calibration_option(parser)
     return parser
 
 
@@ -87,7 +88,8 @@ def run(args: argparse.Namespace) -> int:
     if any(p.resolve() == Path(args.raw_file).resolve() for p in targets):
         raise CliError(f"{args.raw_file}: the output would overwrite the recording (give -o)")
     opened = open_recording_for("export", args.raw_file, args.calibration, args.options,
-                                args.filter_name, args.heading, args.reset_zero)
+                                args.filter_name, args.heading, args.reset_zero,
+                                args.pose_calibration, args.posture)
     proc = opened.processor
     dt = proc.options.filter.dt
     stamp = recording_stamp(opened, args.reset_at)
@@ -135,10 +137,11 @@ def run(args: argparse.Namespace) -> int:
 
             # the root walks the heel-strike path: a first pass finds the steps (constant
             # memory), the second writes the frames
-            steps = walked_steps(open_for_processing(args.raw_file, args.calibration,
-                                                     args.options, args.filter_name,
-                                                     args.heading, args.reset_zero),
-                                 args.reset_at)
+            first = open_for_processing(args.raw_file, args.calibration, args.options,
+                                        args.filter_name, args.heading, args.reset_zero)
+            if opened.pose_event is not None:  # the same pose calibration as the frames'
+                first.pose_event = opened.pose_event
+            steps = walked_steps(first, args.reset_at)
             bvh = BvhWriter(path, proc.options.body, dt)
             writers.append(bvh)
             for chunk in stream("export", opened, args.reset_at):

@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from bpms.analysis.cli_support import add_filter_option
+from bpms.analysis.cli_support import add_filter_option, add_pose_calibration_option
 from bpms.commands import CliError
 from bpms.commands._shared import add_sources
 
@@ -34,6 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_sources(parser, "each recording's, else your default")
     parser.add_argument("--no-figures", action="store_true", help="tables only")
     add_filter_option(parser)
+    add_pose_calibration_option(parser)
     return parser
 
 
@@ -50,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     tables = []
     for path, label in zip(args.raw_files, labels, strict=True):
         opened = open_recording_for("rom", path, args.calibration, args.options,
-                                    args.filter_name, args.heading, args.reset_zero)
+                                    args.filter_name, args.heading, args.reset_zero,
+                                    args.pose_calibration, args.posture)
         acc = RomAccumulator(label, args.t0, args.t1)
         for chunk in stream("rom", opened, args.reset_at):
             acc.add(chunk.result.t, chunk.result.joint_angles)

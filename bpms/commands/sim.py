@@ -72,6 +72,19 @@ def add_sim_options(p: argparse.ArgumentParser) -> None:
                    help="battery voltage at start (default 3.35)")
     g.add_argument("--drain", type=float, default=0.1, metavar="V_PER_H",
                    help="battery drain, V per hour (default 0.1; floor 2.6 V)")
+    b = p.add_argument_group("the simulated subject (docs/simulated-suit.md)")
+    b.add_argument("--calibration-posture", default="neutral", metavar="POSTURE",
+                   help="posture held in the still windows: neutral (default), suit "
+                        "(pressure suit: shoulders abducted 20°, elbows 15°, hips 10°, knees 15° "
+                        "flexed) or custom degrees of freedom 'elbow_r=15,knee_r=10'")
+    b.add_argument("--mounting-error", type=float, default=None, metavar="DEG",
+                   help="rms per axis of the IMUs' mounting misalignment, degrees (default 3)")
+    b.add_argument("--height", type=float, default=None, metavar="M",
+                   help="the subject's height, m: segment lengths scale from 1.73 m")
+    b.add_argument("--segment", action="append", default=[], metavar="NAME=M",
+                   help="one measured segment length, m (e.g. thigh=0.45); repeatable")
+    b.add_argument("--functional", action="store_true",
+                   help="begin with the functional-calibration movements")
     f = p.add_argument_group("fault injection (all off by default)")
     f.add_argument("--error-rate", type=float, default=0.0, metavar="P",
                    help="per frame, IMU and sensor: error bit set, values 0")
@@ -105,8 +118,33 @@ def build_source(args: argparse.Namespace) -> MotionSource:
     source = MotionSource.simulated(
         seed=args.seed, mag_disturbance=args.mag_disturbance,
         mounting_errors=not args.no_mounting_errors, noise=not args.no_noise,
-        calibration=table)
+        calibration=table, **subject_kwargs(args))
     return source.starting_at(round(getattr(args, "start_at", 0.0) / 0.02))
+
+
+def subject_kwargs(args: argparse.Namespace) -> dict:
+    """``simulate()`` arguments of the simulated subject's options (CliError when bad)."""
+    from bpms.firmware.sim.body import SubjectDimensions
+    from bpms.firmware.sim.subject import parse_posture
+
+    try:
+        posture = parse_posture(getattr(args, "calibration_posture", None))
+        lengths = {}
+        for item in getattr(args, "segment", []) or []:
+            name, sep, value = item.partition("=")
+            if not sep:
+                raise ValueError(f"--segment wants NAME=M, not {item!r}")
+            lengths[name.strip()] = float(value)
+        height = getattr(args, "height", None)
+        subject = (SubjectDimensions.of_height(height or 1.73, **lengths)
+                   if height is not None or lengths else None)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    error = getattr(args, "mounting_error", None)
+    if error is not None and not 0.0 <= error <= 45.0:
+        raise CliError(f"--mounting-error must be between 0 and 45 degrees, got {error:g}")
+    return {"posture": posture, "subject": subject, "mounting_error_deg": error,
+            "functional": bool(getattr(args, "functional", False))}
 
 
 def build_arbiter(args: argparse.Namespace) -> Arbiter:

@@ -47,6 +47,7 @@ from bpms.io.raw_reader import RawFile, RawFrames, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
 from bpms.io.recordings import read_head
 from bpms.io.session_events import SessionEvent
+from bpms.io.subject import header_subject
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +84,8 @@ def resolve_calibration(explicit: str | Path | CalibrationTable | None, header: 
     from bpms.io.defaults import default_calibration
 
     if explicit is not None:
-        label = explicit.source if isinstance(explicit, CalibrationTable) else str(explicit)
+        label = (str(explicit) if isinstance(explicit, str | Path)
+                 else getattr(explicit, "source", "table"))
         return explicit, f"given ({label})"
     if header is not None and header.get("calibration") is not None:
         table = header_calibration(header, where)
@@ -163,6 +165,9 @@ class OpenedRecording:
     #: the recording's slots for replay (``for_replay``: a native one read from disk as it
     #: plays, a legacy one in memory); None otherwise
     slots: RawFrames | RawRecording | None = field(default=None, repr=False)
+    #: the pose calibration's event, ``(slot, reset_zero event)`` (:meth:`use_pose_calibration`)
+    pose_event: tuple[int, SessionEvent] | None = field(default=None, repr=False)
+    pose_report: object | None = field(default=None, repr=False)
 
     @property
     def has_raw(self) -> bool:
@@ -186,6 +191,22 @@ class OpenedRecording:
             self.reset_zero = choice
         self.processor.pose.auto = self.reset_zero.automatic(self.has_events)
         self.processor.pose.provisional = self.reset_zero.provisional(self.has_events)
+
+    def use_pose_calibration(self, choice: str | None, posture: str | dict | None = None
+                             ) -> str:
+        """``--pose-calibration`` (:mod:`bpms.filter.pose_methods`): ``reset-zero`` (None)
+        changes nothing; ``posture`` / ``functional`` make their event from a first pass now,
+        applied by every later :meth:`chunks`. Returns its description. Raises ValueError."""
+        from bpms.filter.pose_methods import PoseCalibrationChoice, calibration_event
+
+        method = PoseCalibrationChoice.parse(choice, posture)
+        self.pose_event = None
+        if not method.default:
+            if self.reset_zero.mode == "none":
+                raise ValueError(f"{method.describe()} needs a Reset Zero still window, not "
+                                 "--reset-zero none")
+            self.pose_event = calibration_event(self, method)
+        return method.describe()
 
     def chunks(self, zero_at_s: Sequence[float] = (), progress: Progress | None = None,
                chunk_frames: int = CHUNK_FRAMES,
@@ -236,6 +257,9 @@ class OpenedRecording:
             planned = planned_events(recorded, self.reset_zero, self.settings_given,
                                      [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
             skipped += planned.skipped
+            if self.pose_event is not None and lo <= self.pose_event[0] < lo + len(host):
+                planned.append(self.pose_event)
+                planned.sort(key=lambda item: item[0])
             result = proc.process(decoded.raw, decoded.errors,
                                   [(slot - lo, event) for slot, event in planned])
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
@@ -356,18 +380,22 @@ def process_file(path: str | Path, calibration: str | Path | CalibrationTable | 
                  zero_at_s: Sequence[float] = (), zero_at_frames: Sequence[int] = (),
                  algorithm: str | None = None, heading: str | None = None,
                  reset_zero: str | ResetZeroChoice | None = None,
-                 progress: Progress | None = None) -> Result:
+                 progress: Progress | None = None, pose_calibration: str | None = None,
+                 posture: str | dict | None = None) -> Result:
     """Filter a whole recording (native raw, the original suite's pickled raw, or a filtered
     CSV) through :func:`open_for_processing`: calibration and options given here, else the
     recording's header, else the user's default, else factory (the result's
     ``calibration_source`` / ``options_source`` say which); the recorded events applied at
     their frames. ``reset_zero``: ``events`` (default), ``auto``, ``at SECONDS``, ``none``
     (:mod:`bpms.filter.zero_choice`); ``zero_at_s`` / ``zero_at_frames``: extra Reset Zero
-    captures. Raises :class:`bpms.io.rawfile.RawFileError` for an unreadable file or one with
-    no valid frame. For long recordings in constant memory iterate
-    ``open_for_processing(path).chunks()`` instead."""
+    captures; ``pose_calibration``: ``reset-zero`` (None, default), ``posture`` (with
+    ``posture``) or ``functional`` (:mod:`bpms.filter.pose_methods`). Raises
+    :class:`bpms.io.rawfile.RawFileError` for an unreadable file or one with no valid frame,
+    ValueError for a pose calibration that cannot be made. For long recordings in constant
+    memory iterate ``open_for_processing(path).chunks()`` instead."""
     opened = open_for_processing(path, calibration, options, algorithm=algorithm,
                                  heading=heading, reset_zero=reset_zero)
+    opened.use_pose_calibration(pose_calibration, posture)
     return opened.result(zero_at_s, progress, zero_at_frames=zero_at_frames)
 
 
@@ -442,6 +470,12 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
                            "original suite's raw file, nor a filtered .csv file)")
     opts, options_source = resolve_options(options, header if kind != "filtered" else None,
                                            str(path))
+    profile, trouble = header_subject(header) if options is None else (None, None)
+    if trouble:
+        problems.append(f"{path}: {trouble}")
+    if profile is not None:  # the subject's own lengths (docs/subject.md)
+        opts = dataclasses.replace(opts, body=profile.body_options())
+        options_source += f" with subject {profile.subject_id}"
     changes = []
     if algorithm is not None and algorithm != opts.filter.algorithm:
         changes.append(f"filter {algorithm}")

@@ -17,6 +17,7 @@ from functools import cached_property
 
 import numpy as np
 
+from bpms.filter.centre_of_mass import centre_of_mass
 from bpms.filter.disturbance import Disturbance
 from bpms.filter.pose import Zero, body_outputs, segment_angles
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
@@ -232,6 +233,12 @@ class Result:
     def joint_positions(self) -> np.ndarray:
         """``[N, 21, 3]`` m, order :data:`bpms.filter.body_model.POINT_NAMES`."""
         return self._body[1]
+
+    @cached_property
+    def centre_of_mass(self) -> np.ndarray:
+        """``[N, 3]`` m: the whole body's centre of mass, in the frame of
+        :attr:`joint_positions` (:mod:`bpms.filter.centre_of_mass`, docs/subject.md)."""
+        return centre_of_mass(self.joint_positions)
 
     @cached_property
     def quaternions(self) -> np.ndarray:

@@ -106,6 +106,19 @@ def _record_problem(values: list[str]) -> tuple[int, str] | None:
     return check_record(np.array([float(v) for v in values]))
 
 
+def as_table(table: object) -> CalibrationTable:
+    """A ``CalibrationTable`` of ``table``: itself when it is one, else a new table of its
+    ``values [18, 16]`` (and ``source`` when it has one), e.g. the simulated suit's own copy of
+    its true table. Raises ValueError when it has no such values."""
+    if isinstance(table, CalibrationTable):
+        return table
+    values = getattr(table, "values", None)
+    if values is None:
+        raise ValueError(f"not a calibration table: {type(table).__name__}")
+    return CalibrationTable(np.asarray(values, dtype=np.float64),
+                            str(getattr(table, "source", "given")))
+
+
 def check_record(row: np.ndarray) -> tuple[int, str] | None:
     """(field index, message) of the first unusable value of one IMU record, or None. The
     index is -1 for a min/max pair (the message names both fields).

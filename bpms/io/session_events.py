@@ -43,9 +43,10 @@ KINDS = (*sorted(CHANGE_KINDS), "marker", "logging", "note")
 #: Where a Reset Zero came from. ``provisional``: one frame, the first where every IMU has
 #: data; ``automatic``: the window after the filters settled, once the subject is still;
 #: ``in force``: the zero already in force when logging started; ``network``: the sender's,
-#: received over UDP; ``re-analysis``: asked for when a recording is filtered again.
+#: received over UDP; ``re-analysis``: asked for when a recording is filtered again;
+#: ``posture`` / ``functional``: a pose calibration (docs/pose-calibration.md), adopted.
 ZERO_SOURCES = ("manual", "automatic", "provisional", "3d-view", "network", "in force",
-                "re-analysis")
+                "re-analysis", "posture", "functional")
 
 
 @dataclass(frozen=True)
