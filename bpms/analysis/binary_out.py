@@ -12,14 +12,16 @@ Both state the recording's UTC start time (the receive time of its first frame) 
   recording; :mod:`bpms.analysis.mat5_stream`), else assembled at ``close``; no third-party
   package: ``t`` [N×1] s,
   ``quaternions`` [N×18×4], ``joint_angles`` [N×28] deg,
-  ``joint_positions`` [N×21×3] m, ``centre_of_mass`` [N×3] m, ``segment_names``, ``joint_names``, ``point_names`` (cell
-  arrays), ``units`` (struct), ``utc_start`` (ISO 8601 text), ``utc_start_posix`` (s since
-  1970), ``joint_angle_convention``, ``rate_hz``, ``source``, and where the file came from
+  ``joint_positions`` [N×21×3] m, ``centre_of_mass`` [N×3] m, ``segment_names``,
+  ``joint_names``, ``point_names`` (cell arrays), ``units`` (struct), ``utc_start`` (ISO
+  8601 text), ``utc_start_posix`` (s since 1970), ``joint_angle_convention``,
+  ``rate_hz``, ``source``, and where the file came from
   (:func:`bpms.analysis.stamp.provenance`): ``heading``, ``bpms_version``, ``filter``,
   ``reset_zero``, ``recording``.
 - Parquet: one row per frame, written one row group per chunk (constant memory): column
   ``time_s``, ``utc`` (timestamp, µs, UTC), ``imuN_SEGMENT_qw`` …, ``joint_JOINT_deg`` …,
-  ``point_POINT_x_m`` …, ``point_centre_of_mass_x_m`` … (the names of docs/analysis.md, "Column names");
+  ``point_POINT_x_m`` …, ``point_centre_of_mass_x_m`` … (the names of docs/analysis.md,
+  "Column names");
   the file's key-value metadata holds ``bpms`` (JSON: utc_start, units, convention, and the
   provenance: bpms_version, filter, reset_zero, recording).
   docs/analysis.md says why Parquet.
