@@ -160,8 +160,8 @@ def _open_source(args: argparse.Namespace):
             changed_table,
         )
 
-        if args.sim_speed < 0:
-            raise CliError("--sim-speed must be ≥ 0")
+        if 0 < args.sim_speed < 0.01:  # nan, inf and < 0: refused by the option's type
+            raise CliError("--sim-speed must be 0 (as fast as possible) or 0.01 to 1000")
         return ScriptedCalibrationSource(CalibrationSuit(changed_table()), speed=args.sim_speed)
     from bpms.io.link import LinkError
     from bpms.io.options import SerialOptions

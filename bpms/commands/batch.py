@@ -27,7 +27,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
-from bpms.commands._shared import require_formats, warn
+from bpms.commands._shared import number, require_formats, warn
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="DIR", help="output folder (default FOLDER/batch)")
     p.add_argument("--outputs", default="rom", metavar="LIST",
                    help="comma-separated: rom, filter, mat, parquet (default: rom)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=number(int, 1, 1024), default=None, metavar="N",
                    help="worker processes (default: the number of CPU cores)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run on a Dask distributed cluster (its scheduler's address) instead "

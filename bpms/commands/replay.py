@@ -20,7 +20,7 @@ import time
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
-from bpms.commands._shared import warn
+from bpms.commands._shared import number, warn
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_replay
@@ -35,12 +35,12 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="UDP destination of raw frames and poses (repeatable; multicast "
                         "groups allowed)")
     add_stream_arguments(p)
-    p.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+    p.add_argument("--lsl-wait", type=number(float, 0), default=0.0, metavar="SECONDS",
                    help="with --lsl: wait up to this long for a consumer (e.g. LabRecorder) "
                         "on every LSL stream before playing")
-    p.add_argument("--speed", type=float, default=1.0,
+    p.add_argument("--speed", type=number(float, 0, 1000), default=1.0,
                    help="playback speed, × real time (0 = as fast as possible; default 1)")
-    p.add_argument("--from", dest="start_s", type=float, default=0.0, metavar="SECONDS",
+    p.add_argument("--from", dest="start_s", type=number(float, 0), default=0.0, metavar="SECONDS",
                    help="start this many seconds into the recording")
     p.add_argument("--loop", action="store_true", help="start again at the end")
     p.add_argument("--options", default=None, metavar="FILE",
@@ -72,8 +72,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.pipeline.session import LiveSession
     from bpms.pipeline.streams import start_streams, stop_streams
 
-    if args.speed < 0:
-        raise CliError("--speed must be ≥ 0 (0 = as fast as possible)")
+    if 0 < args.speed < 0.01:  # nan, inf and < 0 are refused by the option's type
+        raise CliError("--speed must be 0 (as fast as possible) or 0.01 to 1000")
     if not (args.udp or args.lsl or args.mvn):
         raise CliError("nothing to send: give --udp HOST:PORT, --lsl and/or --mvn HOST:PORT")
     try:  # native (read from disk as it plays) or legacy; no valid frame is an error too
