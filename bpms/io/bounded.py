@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from bpms.io.paths import require_regular_input
+
 MAX_HEADER_BYTES = 16 * 1024 * 1024
 MAX_CONFIG_BYTES = 1024 * 1024
 MAX_JSON_DEPTH = 64
@@ -151,6 +153,7 @@ def read_config_bytes(path: str | Path, what: str = "the file") -> bytes:
     """The bytes of a configuration file after the size check (never more than the bound is
     read). Raises OSError (missing, unreadable, a directory) or :class:`BoundError`."""
     path = Path(path)
+    require_regular_input(path)  # a named pipe or a device would block or never end
     with path.open("rb") as f:
         data = f.read(MAX_CONFIG_BYTES + 1)
     check_size(max(len(data), _size(path)), MAX_CONFIG_BYTES, what)

@@ -11,6 +11,8 @@ Every frame of a stream has two times:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from bpms.io.frames import FRAME_PERIOD_S
@@ -36,3 +38,16 @@ def stream_time(index: int, dt: float = FRAME_PERIOD_S) -> float:
 def frame_at(seconds: float, dt: float = FRAME_PERIOD_S) -> int:
     """The frame index whose stream time is nearest ``seconds``."""
     return round(float(seconds) / float(dt))
+
+
+#: The host times a clock can give, s since the epoch: 1970 up to 2^37 s (the year 6325).
+#: Anything else in a file (1e308, a negative time) is damage or forgery, not a time.
+LATEST_HOST_TIME = float(2 ** 37)
+
+
+def plausible_host_time(seconds: float) -> bool:
+    """Whether ``seconds`` (s since the epoch) is a time a host clock can have given."""
+    try:
+        return math.isfinite(seconds) and 0.0 <= seconds <= LATEST_HOST_TIME
+    except TypeError:
+        return False
