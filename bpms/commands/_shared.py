@@ -56,9 +56,28 @@ def number(kind: type = float, low: float | None = None, high: float | None = No
 
 
 def refuse_existing(path: Path, force: bool) -> Path:
-    """``path``; a CliError when it exists and ``--force`` was not given."""
+    """``path``; a CliError when it exists and ``--force`` was not given, or when it is not a
+    file that ``--force`` may replace: a folder, a named pipe or a device such as
+    ``/dev/null`` is never replaced (nor written through)."""
+    from bpms.io.paths import special_kind
+
+    kind = special_kind(path) or ("a folder" if path.is_dir() else None)
+    if kind is not None:
+        raise CliError(f"{path} is {kind}, not a file: give the name of a file to write "
+                       "(--force replaces only a file)")
     if path.exists() and not force:
         raise CliError(f"{path} exists (use --force to overwrite)")
+    return path
+
+
+def refuse_special_output(path: Path) -> Path:
+    """``path``; a CliError when it is a named pipe or a device (writing would block or go
+    nowhere): for commands that overwrite their output without ``--force``."""
+    from bpms.io.paths import special_kind
+
+    kind = special_kind(path)
+    if kind is not None:
+        raise CliError(f"{path} is {kind}, not a file: give the name of a file to write")
     return path
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources, number
+from bpms.commands._shared import add_sources, number, refuse_special_output
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -93,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
     track = acc_track.track()
     peak_col = "swing_peak_rad_s" if detector == "gyro" else "peak_g"
     out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")
-    out = out if out.suffix == ".csv" else out.with_name(out.name + "_track.csv")
+    out = refuse_special_output(out if out.suffix == ".csv"
+                                else out.with_name(out.name + "_track.csv"))
     try:
         with open(out, "w", encoding="utf-8", newline="\n") as f:
             f.write(f"step,time_s,side,{peak_col},step_north_m,step_east_m,step_down_m,"

@@ -53,3 +53,18 @@ def require_regular_input(path: str | Path) -> None:
     kind = special_kind(path)
     if kind is not None:
         raise OSError(errno.EINVAL, f"{kind}, not a file", str(path))
+
+
+def remove_regular_file(path: str | Path) -> None:
+    """Remove ``path`` when it is a regular file (or a symbolic link, which is removed, not
+    what it points at); a missing path is fine. Anything else, a folder, a named pipe or a
+    device (``/dev/null``), raises OSError and is left as it was (issue 43: ``filter
+    --force`` unlinked ``/dev/null``)."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
+        raise OSError(errno.EPERM, f"{special_kind(path) or 'a folder'}, not a file: "
+                      "left in place", str(path))
+    os.unlink(path)
