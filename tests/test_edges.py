@@ -209,3 +209,41 @@ def test_the_regular_file_check_names_the_kind(tmp_path):
     assert special_kind(tmp_path) is None and special_kind(tmp_path / "none") is None
     (tmp_path / "f").write_text("")
     assert special_kind(tmp_path / "f") is None
+
+
+@pytest.mark.parametrize(("center", "why"), [
+    ((1e300, 0.0, 0.0), "centre x 1e+300 is outside the sensor's readings"),
+    ((0.0, 5000.0, 0.0), "centre y 5000 is outside the sensor's readings"),
+    ((0.0, 0.0, None), "centre z"),  # inside the readings, outside the IMU's MzMin … MzMax
+])
+def test_an_implausible_ellipsoid_is_dropped_with_a_warning_naming_the_imu(
+        tmp_path, sim, capsys, center, why):
+    """Calib.json beside Calib.cfg: the IMU's min/max calibration is used instead, with one
+    warning naming the IMU (a centre of 1e300 turned IMU 0 to NaN without a warning)."""
+    from bpms.io.calib_file import save_legacy
+    from bpms.io.calib_modern import ModernCalibration, modern_path, save_modern
+    from bpms.io.filtered_file.reader import read_filtered
+    from bpms.io.mag_ellipsoid import MagEllipsoid
+
+    table = sim.calibration
+    legacy = tmp_path / "Calib.cfg"
+    save_legacy(table, legacy)
+    imu = 2
+    mm = table.mag_min_max[imu]
+    c = mm.mean(axis=-1)
+    c = np.array([c[k] if v is None and k < 2 else (mm[2, 1] + 50 if v is None else v)
+                  for k, v in enumerate(center)])
+    matrix = np.diag(200.0 / (mm[:, 1] - mm[:, 0]))
+    save_modern(ModernCalibration(table, {imu: MagEllipsoid(c, matrix)}), modern_path(legacy))
+    rec = _recording(tmp_path / "r.bpmsraw", sim)
+    out = tmp_path / "f.csv"
+    assert main(["filter", str(rec), "-o", str(out), "--calibration", str(legacy)]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and f"IMU {imu} ellipsoid" in warnings[0], "\n".join(warnings)
+    assert why in warnings[0] and "min/max magnetometer calibration used" in warnings[0]
+    angles = read_filtered(out)
+    assert np.isfinite(angles.euler).all()
+    reference = tmp_path / "plain.csv"  # the same Calib.cfg without a companion
+    modern_path(legacy).unlink()
+    assert main(["filter", str(rec), "-o", str(reference), "--calibration", str(legacy)]) == 0
+    np.testing.assert_array_equal(angles.euler, read_filtered(reference).euler)

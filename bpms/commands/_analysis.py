@@ -42,8 +42,7 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     warn(command, opened.problems)
     if opened.n_frames == 0:
         raise CliError(f"{path}: the recording holds no frames")
-    opened.problems.clear()
-    return opened
+    return opened  # its problems stay: the door adds only new ones as it reads
 
 
 def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
@@ -52,6 +51,7 @@ def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
     from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.progress import stderr_progress
 
+    shown = set(opened.problems)  # printed already (each warning once)
     with _read_errors(opened.path, FilteredFileError):
         yield from opened.chunks(zero_at_s, stderr_progress)
-    warn(command, opened.problems)
+    warn(command, [p for p in opened.problems if p not in shown])
