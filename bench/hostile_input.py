@@ -202,6 +202,7 @@ def bad_inputs() -> tuple[str, str]:
     ok = sum(v.ok for v in control)
     for line in totals.failures:
         print("  " + line)
+    print(corpus_tool.table(totals.verdicts))
     return (f"{totals.tried} / {totals.tracebacks} / {totals.wrong}",
             f"control {ok}/{len(control)} correct")
 

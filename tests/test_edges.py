@@ -247,3 +247,14 @@ def test_an_implausible_ellipsoid_is_dropped_with_a_warning_naming_the_imu(
     modern_path(legacy).unlink()
     assert main(["filter", str(rec), "-o", str(reference), "--calibration", str(legacy)]) == 0
     np.testing.assert_array_equal(angles.euler, read_filtered(reference).euler)
+
+
+@needs_fifo
+def test_a_named_pipe_is_refused_as_a_motion_capture_export(tmp_path):
+    from bpms.analysis.mocap_import import MocapFormatError, read_qualisys, read_vicon
+
+    fifo = tmp_path / "trial.csv"
+    os.mkfifo(fifo)
+    for reader in (read_vicon, read_qualisys):
+        with pytest.raises(MocapFormatError, match="a named pipe, not a file"):
+            reader(fifo)
