@@ -73,6 +73,9 @@ def test_every_numeric_option_refuses_non_finite_and_out_of_range(command, actio
     ["replay", "REC", "--udp", "127.0.0.1:9", "--speed", "nan"],
     ["replay", "REC", "--udp", "127.0.0.1:9", "--speed", "inf"],
     ["replay", "REC", "--udp", "127.0.0.1:9", "--from", "nan"],
+    ["replay", "REC", "--udp", "127.0.0.1:9", "--from", "1e308"],  # an infinite frame index
+    ["filter", "REC", "--reset-zero", "at 1e308"],
+    ["record", "--sim", "--start-at", "1e308"],
     ["rom", "REC", "--reset-at", "nan"],
     ["rom", "REC", "--reset-at", "inf"],
     ["export", "bvh", "REC", "--reset-at", "nan"],
@@ -88,6 +91,17 @@ def test_the_reported_option_values_give_one_error_line_and_exit_2(capsys, argv)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err  # one line, without the usage
     assert err[0].startswith(f"bpms {argv[0]}") and "error: argument" in err[0], err
+
+
+def test_replay_refuses_to_start_after_the_end(tmp_path, capsys):
+    from bpms.firmware.sim.session import simulate
+    from bpms.io.rawfile import new_header, write_raw
+
+    rec = simulate(1.0, seed=1)
+    path = tmp_path / "r.bpmsraw"
+    write_raw(path, 1.7e9 + rec.t, rec.frames, new_header(source="test"))
+    assert main(["replay", str(path), "--udp", "127.0.0.1:9", "--from", "1e7"]) == 2
+    assert "--from 1e+07 s: the recording lasts 1.0 s" in capsys.readouterr().err
 
 
 def test_replay_refuses_a_speed_too_slow_to_end(tmp_path, capsys):

@@ -13,6 +13,10 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from bpms.commands import CliError
+from bpms.io.timebase import LONGEST_S
+
+__all__ = ["LONGEST_S", "add_sources", "number", "refuse_existing", "refuse_special_output",
+           "require_formats", "stop_on_signals", "warn"]
 
 
 def add_sources(parser: argparse.ArgumentParser,

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import argparse
 
-from bpms.commands._shared import number
+from bpms.commands._shared import LONGEST_S, number
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,7 +49,8 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="gyro readings averaged per axis (default 500 = 10 s)")
     p.add_argument("--accel-samples", type=number(int, 1, 10_000_000), default=200, metavar="N",
                    help="accel readings averaged per pose (default 200)")
-    p.add_argument("--sweep-s", type=number(float, 0, above=True), default=120.0, metavar="S",
+    p.add_argument("--sweep-s", type=number(float, 0, LONGEST_S, above=True),
+                   default=120.0, metavar="S",
                    help="magnetometer sweep duration, s (default 120)")
     p.add_argument("--ellipsoid", action="store_true",
                    help="also fit a magnetometer ellipsoid (hard + soft iron)")

@@ -20,7 +20,7 @@ import time
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
-from bpms.commands._shared import number, warn
+from bpms.commands._shared import LONGEST_S, number, warn
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_replay
@@ -35,12 +35,13 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="UDP destination of raw frames and poses (repeatable; multicast "
                         "groups allowed)")
     add_stream_arguments(p)
-    p.add_argument("--lsl-wait", type=number(float, 0), default=0.0, metavar="SECONDS",
+    p.add_argument("--lsl-wait", type=number(float, 0, LONGEST_S), default=0.0, metavar="SECONDS",
                    help="with --lsl: wait up to this long for a consumer (e.g. LabRecorder) "
                         "on every LSL stream before playing")
     p.add_argument("--speed", type=number(float, 0, 1000), default=1.0,
                    help="playback speed, × real time (0 = as fast as possible; default 1)")
-    p.add_argument("--from", dest="start_s", type=number(float, 0), default=0.0, metavar="SECONDS",
+    p.add_argument("--from", dest="start_s", type=number(float, 0, LONGEST_S),
+                   default=0.0, metavar="SECONDS",
                    help="start this many seconds into the recording")
     p.add_argument("--loop", action="store_true", help="start again at the end")
     p.add_argument("--options", default=None, metavar="FILE",
@@ -84,6 +85,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {problem}", file=sys.stderr)
     if len(recording) == 0:
         raise CliError(f"{args.raw_file}: the recording holds no frames")
+    if args.start_s >= recording.duration_s:  # nothing would play
+        raise CliError(f"--from {args.start_s:g} s: the recording lasts "
+                       f"{recording.duration_s:.1f} s")
     opened = _opened(args.raw_file, args.options, args.reset_zero)
     processor = opened.processor
     source = ReplaySource(recording, speed=args.speed or None, autoplay=False,

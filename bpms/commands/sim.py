@@ -21,7 +21,7 @@ import time
 from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
-from bpms.commands._shared import number, stop_on_signals, warn
+from bpms.commands._shared import LONGEST_S, number, stop_on_signals, warn
 
 if TYPE_CHECKING:  # numpy and the sensor model load when the suit is built, not for --help
     from bpms.firmware.sim.arbiter import Arbiter, MotionSource
@@ -66,7 +66,7 @@ def add_sim_options(p: argparse.ArgumentParser) -> None:
                    help="IMUs mounted exactly along their segments")
     g.add_argument("--calibration", metavar="Calib.cfg",
                    help="the suit's true calibration (default: the factory table)")
-    g.add_argument("--start-at", type=number(float, 0), default=0.0, metavar="SECONDS",
+    g.add_argument("--start-at", type=number(float, 0, LONGEST_S), default=0.0, metavar="SECONDS",
                    help="start the scripted motion this far in (docs/simulated-suit.md; e.g. "
                         "69.6: the subject is turning when the stream starts)")
     g.add_argument("--battery", type=number(float, 0, 10, above=True), default=3.35,
@@ -83,9 +83,10 @@ def add_sim_options(p: argparse.ArgumentParser) -> None:
                    help="per frame: one byte is altered")
     f.add_argument("--bursty", action="store_true",
                    help="Bluetooth-like delivery: frames held back up to 300 ms, then a burst")
-    f.add_argument("--silent-after", type=number(float, 0), default=None, metavar="SECONDS",
+    f.add_argument("--silent-after", type=number(float, 0, LONGEST_S),
+                   default=None, metavar="SECONDS",
                    help="go silent (a lost link) this long after start ...")
-    f.add_argument("--silent-for", type=number(float, 0), default=5.0, metavar="SECONDS",
+    f.add_argument("--silent-for", type=number(float, 0, LONGEST_S), default=5.0, metavar="SECONDS",
                    help="... for this long (default 5)")
 
 

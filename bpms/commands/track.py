@@ -13,7 +13,7 @@ import numpy as np
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources, number, refuse_special_output
+from bpms.commands._shared import LONGEST_S, add_sources, number, refuse_special_output
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                              "declination_deg)")
     parser.add_argument("--threshold-g", type=number(float, 0, above=True), metavar="G",
                         help="heel-strike threshold, g (default: options track.heel_strike_g)")
-    parser.add_argument("--min-interval", type=number(float, 0), metavar="S",
+    parser.add_argument("--min-interval", type=number(float, 0, LONGEST_S), metavar="S",
                         help="minimum time between heel strikes, s (default: options)")
     parser.add_argument("--detector", choices=("auto", "accel", "gyro"), default="auto",
                         help="heel strikes from the feet's accelerometers or the shanks' "
@@ -35,8 +35,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--include-hips", action="store_true",
                         help="feet measured from the pelvis centre (dissertation eq. 3.13): "
                              "the path zig-zags by the hip width")
-    parser.add_argument("--from", dest="t0", type=number(float, 0), metavar="T0", help="start, s")
-    parser.add_argument("--to", dest="t1", type=number(float, 0), metavar="T1", help="end, s")
+    parser.add_argument("--from", dest="t0", type=number(float, 0, LONGEST_S),
+                        metavar="T0", help="start, s")
+    parser.add_argument("--to", dest="t1", type=number(float, 0, LONGEST_S),
+                        metavar="T1", help="end, s")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="track CSV (default: <raw stem>_track.csv); the PNG beside it")
     add_sources(parser)

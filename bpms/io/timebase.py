@@ -40,6 +40,11 @@ def frame_at(seconds: float, dt: float = FRAME_PERIOD_S) -> int:
     return round(float(seconds) / float(dt))
 
 
+#: The longest time an option or a recording may name, s (116 days: 5 × 10^8 frames at
+#: 50 Hz). A time beyond it (``--from 1e308``) is refused, not turned into an infinite frame
+#: index.
+LONGEST_S = 1e7
+
 #: The host times a clock can give, s since the epoch: 1970 up to 2^37 s (the year 6325).
 #: Anything else in a file (1e308, a negative time) is damage or forgery, not a time.
 LATEST_HOST_TIME = float(2 ** 37)
