@@ -90,6 +90,9 @@ CASES: tuple[Case, ...] = (
     Case("v2_torn_event", "damaged events", N_SLOTS, events_damaged=True),
     Case("v2_frames_and_events", "v2 random bytes", N_SLOTS, events_damaged=True),
     Case("v2_random_bits", "v2 random bytes", N_SLOTS, events_damaged=True),
+    Case("v2_event_time_absurd", "absurd event time", N_SLOTS),
+    Case("header_escaped_quotes", "hostile header text", None),
+    Case("named_pipe", "not a file", None),
     Case("legacy_intact", "control", 40, suffix=".txt"),
     Case("legacy_reduce_exec", "pickle __reduce__", None, suffix=".txt"),
     Case("legacy_reduce_system", "pickle __reduce__", None, suffix=".txt"),
@@ -98,6 +101,7 @@ CASES: tuple[Case, ...] = (
     Case("legacy_reduce_protocol_2", "pickle __reduce__", None, suffix=".txt"),
     Case("legacy_random", "random bytes", None, suffix=".txt"),
     Case("legacy_empty", "empty file", None, suffix=".txt"),
+    Case("legacy_huge_int", "absurd legacy values", None, suffix=".txt"),
     # configurations, used with the intact recording
     Case("calib_gravity_tiny", "absurd calibration", N_FRAMES, "calibration", ("IMU 4",),
          ".cfg"),
@@ -112,6 +116,8 @@ CASES: tuple[Case, ...] = (
     Case("calib_directory", "directory", N_FRAMES, "calibration", ("cannot be read",), ".cfg"),
     Case("calib_huge", "200 MB header", N_FRAMES, "calibration", ("MiB",), ".cfg"),
     Case("calib_json_nested", "nested header", N_FRAMES, "calibration", ("nests",), ".cfg"),
+    Case("calib_json_quotes", "hostile header text", N_FRAMES, "calibration",
+         ("cannot be read",), ".cfg"),
     Case("options_gain_huge", "absurd options", N_FRAMES, "options", ("kp_rollpitch",),
          ".toml"),
     Case("options_gain_nan", "absurd options", N_FRAMES, "options", ("kp_yaw",), ".toml"),
@@ -424,6 +430,45 @@ class CorpusFiles:
 
         self._v2(path, flips)
 
+    def _make_v2_event_time_absurd(self, path: Path) -> None:
+        """The marker's time made 1e308 s and the note's -1e300 s, each record rebuilt with
+        a valid CRC (docs/raw-format.md): only the times are absurd."""
+        import json
+        import zlib
+
+        def retime(d: bytearray, pieces: list) -> set[int]:
+            for r in sorted((r for r in pieces if r.kind in ("marker", "note")),
+                            key=lambda r: -r.offset):  # from the end: offsets stay valid
+                body = json.loads(bytes(d[r.offset + 14:r.offset + r.size - 6]))
+                body["time"] = 1e308 if r.kind == "marker" else -1e300
+                payload = json.dumps(body).encode()
+                head = bytes(d[r.offset:r.offset + 10]) + struct.pack("<I", len(payload))
+                head += payload
+                d[r.offset:r.offset + r.size] = head + struct.pack("<I", zlib.crc32(head)) \
+                    + b"E$"
+            return set()
+
+        self._v2(path, retime)
+
+    def _make_header_escaped_quotes(self, path: Path) -> None:
+        """A header of 1 MiB of escaped quotes in an unterminated string: the depth check was
+        quadratic on it (hours; issue 43)."""
+        _write_raw_file(path, b'{"notes": "' + b'\\"' * (512 * 1024), self._body())
+
+    def _make_named_pipe(self, path: Path) -> None:
+        """A named pipe where the recording should be (opening it would wait for a writer
+        for ever); where there are none, an empty file."""
+        if hasattr(os, "mkfifo"):
+            os.mkfifo(path)
+        else:
+            path.write_bytes(b"")
+
+    def _make_legacy_huge_int(self, path: Path) -> None:
+        """Records whose time is a 400-digit integer (an OverflowError traceback before)."""
+        path.write_bytes(b"".join(
+            pickle.dumps([10 ** 400, self.frames[k].decode("latin1")], protocol=0)
+            for k in range(10)))
+
     # -- legacy pickles ------------------------------------------------------------------
     def _legacy_records(self, n: int, protocol: int = 0) -> bytes:
         return b"".join(pickle.dumps([float(self.times[k]), self.frames[k].decode("latin1")],
@@ -502,6 +547,13 @@ class CorpusFiles:
         self._write_calib(path, self._calib_rows())
         with path.open("a") as f:
             f.write("#" * (2 * 1024 * 1024))
+
+    def _make_calib_json_quotes(self, path: Path) -> None:
+        """A good Calib.cfg whose Calib.json holds 600 kB of escaped quotes in a string that
+        never ends (a 60 kB one took 14 s to refuse)."""
+        self._write_calib(path, self._calib_rows())
+        path.with_suffix(".json").write_text('{"format": "bpms-calibration", "notes": "'
+                                             + '\\"' * 300_000)
 
     def _make_calib_json_nested(self, path: Path) -> None:
         """A good Calib.cfg whose modern companion Calib.json nests 200,000 levels."""
