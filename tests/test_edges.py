@@ -258,3 +258,28 @@ def test_a_named_pipe_is_refused_as_a_motion_capture_export(tmp_path):
     for reader in (read_vicon, read_qualisys):
         with pytest.raises(MocapFormatError, match="a named pipe, not a file"):
             reader(fifo)
+
+
+def test_replay_ends_when_frames_fail_to_process(tmp_path, sim, capsys, monkeypatch):
+    """A processing error used to leave replay waiting for ever for the frames it lost: it
+    ends, says how many were not processed, and exits 1."""
+    from bpms.commands import replay
+    from bpms.filter.processor import BodyPoseProcessor
+
+    rec = _recording(tmp_path / "r.bpmsraw", sim)
+    real = BodyPoseProcessor.step_wire
+    calls = []
+
+    def failing(self, wire, *args, **kwargs):
+        if len(wire) > 340:  # a batch of the replay, not the warm-up's single frames
+            calls.append(1)
+            if len(calls) == 1:  # the first batch of frames fails
+                raise RuntimeError("planted processing error")
+        return real(self, wire, *args, **kwargs)
+
+    monkeypatch.setattr(BodyPoseProcessor, "step_wire", failing)
+    monkeypatch.setattr(replay, "STALL_S", 0.5)
+    code = main(["replay", str(rec), "--speed", "1000", "--udp", "127.0.0.1:9"])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert "frames were not processed" in err and "planted processing error" in err

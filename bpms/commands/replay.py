@@ -25,6 +25,10 @@ from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_replay
 
+#: Seconds without a frame processed, after the last was read and none waits, before replay
+#: ends saying which frames were lost (a processing error; it never ends otherwise).
+STALL_S = 5.0
+
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     from bpms.pipeline.streams import add_stream_arguments
@@ -116,12 +120,21 @@ def run(args: argparse.Namespace) -> int:
     session.start()
     source.play()
     last = time.monotonic()
+    stalled = (0, time.monotonic())  # (frames processed, since when)
+    unprocessed = 0
     try:
         while True:
             time.sleep(0.05)
             status = session.status()
             done = source.ended and status.processed >= status.frames
             now = time.monotonic()
+            if status.processed != stalled[0] or status.processing_backlog:
+                stalled = (status.processed, now)
+            elif source.ended and not done and now - stalled[1] > STALL_S:
+                # every frame was read, none is waiting, and the rest were never processed
+                # (an error in the pipeline): end, saying so, rather than wait for ever
+                unprocessed = status.frames - status.processed
+                done = True
             if now - last >= 1.0 or done:
                 print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
                       f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
@@ -137,4 +150,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         session.stop()  # every processed frame is published before the bridges drain
         stop_streams(bridges)
+    if unprocessed:
+        why = "; ".join(e for e in status.events if "error" in e)[-300:]
+        print(f"bpms replay: {unprocessed} of {status.frames} frames were not processed"
+              + (f" ({why})" if why else ""), file=sys.stderr)
+        return 1
     return 0
