@@ -431,8 +431,8 @@ class CorpusFiles:
         self._v2(path, flips)
 
     def _make_v2_event_time_absurd(self, path: Path) -> None:
-        """The marker's time made 1e308 s and the note's -1e300 s, each record rebuilt with
-        a valid CRC (docs/raw-format.md): only the times are absurd."""
+        """The marker's time made 1e308 s and its frame a 400-digit integer, the note's time
+        a 400-digit integer; each record rebuilt with a valid CRC (docs/raw-format.md)."""
         import json
         import zlib
 
@@ -440,7 +440,9 @@ class CorpusFiles:
             for r in sorted((r for r in pieces if r.kind in ("marker", "note")),
                             key=lambda r: -r.offset):  # from the end: offsets stay valid
                 body = json.loads(bytes(d[r.offset + 14:r.offset + r.size - 6]))
-                body["time"] = 1e308 if r.kind == "marker" else -1e300
+                body["time"] = 1e308 if r.kind == "marker" else 10 ** 400
+                if r.kind == "marker":
+                    body["frame"] = 10 ** 400
                 payload = json.dumps(body).encode()
                 head = bytes(d[r.offset:r.offset + 10]) + struct.pack("<I", len(payload))
                 head += payload
