@@ -283,3 +283,19 @@ def test_replay_ends_when_frames_fail_to_process(tmp_path, sim, capsys, monkeypa
     err = capsys.readouterr().err
     assert code == 1, err
     assert "frames were not processed" in err and "planted processing error" in err
+
+
+def test_calibrate_and_batch_never_replace_a_device(tmp_path, sim, capsys):
+    """The calibration tool saved over /dev/null (an atomic rename onto the device node);
+    batch given a device for its folder ended in a traceback."""
+    device = _char_device(tmp_path / "null")
+    assert main(["calibrate", "--sim", "--sim-speed", "0", "--sensor", "gyro",
+                 "--gyro-samples", "20", "--yes", "-o", str(device)]) == 2
+    assert "is a device, not a file" in _one_error_line(capsys, "calibrate")
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    _recording(folder / "r.bpmsraw", sim)
+    assert main(["batch", str(folder), "-o", str(device), "--workers", "1"]) == 2
+    assert "is not a folder" in _one_error_line(capsys, "batch")
+    assert stat.S_ISCHR(os.stat(device).st_mode)
+    assert not (tmp_path / "null.json").exists()

@@ -26,6 +26,7 @@ from bpms.calibration.procedures import (
 )
 from bpms.calibration.result import collect, format_summary, summary
 from bpms.commands import CliError
+from bpms.commands._shared import refuse_special_output
 from bpms.io.events import FrameSource
 from bpms.io.frames import N_IMUS
 from bpms.progress import is_terminal
@@ -281,6 +282,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.exists() and out.is_dir():
         raise CliError(f"{out} is a folder; give a file name such as Calib.cfg")
+    for path in (out, out.with_suffix(".json")):  # the result replaces files, never devices
+        refuse_special_output(path)
     existing_path = args.existing or (out if out.exists() else _user_default())
     if args.existing and not Path(args.existing).is_file():
         raise CliError(f"--existing {args.existing}: no such file")

@@ -69,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
                        f"choose from {', '.join(OUTPUTS)}")
     require_formats(kind for kind in ("mat", "parquet") if kind in outputs)
     out = Path(args.output) if args.output else folder / "batch"
+    if out.exists() and not out.is_dir():
+        raise CliError(f"{out} exists and is not a folder: give a folder for the outputs")
     jobs = [j for j in find_recordings(folder) if out.resolve() not in Path(j.path).resolve()
             .parents]
     if not jobs:

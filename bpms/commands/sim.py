@@ -21,7 +21,13 @@ import time
 from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
-from bpms.commands._shared import LONGEST_S, number, stop_on_signals, warn
+from bpms.commands._shared import (
+    LONGEST_S,
+    number,
+    refuse_special_output,
+    stop_on_signals,
+    warn,
+)
 
 if TYPE_CHECKING:  # numpy and the sensor model load when the suit is built, not for --help
     from bpms.firmware.sim.arbiter import Arbiter, MotionSource
@@ -270,7 +276,7 @@ def run_avr(args: argparse.Namespace) -> int:
                            "--avr (use --sensor-off to take a sensor chip off the bus)")
     sensor_off = [parse_sensor_off(text) for text in args.sensor_off]
     bus_stuck = [parse_bus_stuck(text) for text in args.bus_stuck]
-    report = Path(args.report) if args.report else None
+    report = refuse_special_output(Path(args.report)) if args.report else None
     if report is not None and not report.parent.is_dir():
         raise CliError(f"cannot write the report: no folder {report.parent}")
     source = build_source(args)
