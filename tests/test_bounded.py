@@ -42,6 +42,40 @@ def test_depth_is_the_same_across_block_boundaries(monkeypatch, block):
     assert json_depth('[1, "ab\\\\\\"[[') == 3
 
 
+def _reference_depth(text: str) -> int:
+    """The depth read one character at a time, as the docstring states it: a quote after an
+    even run of backslashes opens or closes a string; brackets count outside strings, and
+    after the opening quote of a string that never ends."""
+    inside, backslashes, depth, deepest = False, 0, 0, 0
+    opened_at = tail = tail_high = 0
+    for ch in text:
+        if ch == '"' and backslashes % 2 == 0:
+            inside = not inside
+            if inside:
+                opened_at, tail, tail_high = depth, 0, 0
+        elif ch in "[{]}":
+            step = 1 if ch in "[{" else -1
+            if inside:
+                tail += step
+                tail_high = max(tail_high, tail)
+            else:
+                depth += step
+                deepest = max(deepest, depth)
+        backslashes = backslashes + 1 if ch == "\\" else 0
+    return max(deepest, opened_at + tail_high) if inside else deepest
+
+
+@pytest.mark.parametrize("block", [1, 3, 16, 1 << 20])
+def test_random_texts_read_as_the_reference_reads_them(monkeypatch, block):
+    import random
+
+    monkeypatch.setattr(bounded, "_BLOCK", block)
+    rng = random.Random(block)
+    for _ in range(400):
+        text = "".join(rng.choice('[]{}"\\ab,:') for _ in range(rng.randrange(60)))
+        assert json_depth(text) == _reference_depth(text), repr(text)
+
+
 def _blocks_scanned(monkeypatch, text: str) -> list[int]:
     sizes: list[int] = []
     real = bounded._Scan.block

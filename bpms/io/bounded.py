@@ -29,7 +29,6 @@ MAX_CONFIG_BYTES = 1024 * 1024
 MAX_JSON_DEPTH = 64
 
 
-
 class BoundError(ValueError):
     """Input beyond a reader's bound (too big, nested too deeply); one-line message."""
 
