@@ -7,9 +7,11 @@ that reads one (issue 26.7), run in one interpreter.
 
 The corpus (tools/corpus_cases.py builds it) holds, beside an intact 6 s recording of the
 simulated suit (the control): truncations, random bytes, inserted and deleted bytes, lost
-record markers, a header nested 200,000 levels deep, a 200 MB header, empty files,
-directories, absurd headers, legacy pickles whose ``__reduce__`` would run code, and absurd
-calibration and options files.
+record markers, a header nested 200,000 levels deep, a 200 MB header, a header of escaped
+quotes, empty files, directories, a named pipe, absurd headers, legacy pickles whose
+``__reduce__`` would run code or whose times are 400-digit integers, absurd calibration and
+options files, and format-version-2 recordings with every event kind a live session writes
+(tools/corpus_events.py), damaged in their events and frames (issue 43.6).
 
 Every case knows what a correct command does with it, from how it was built (not from the
 code under test): a *refused* input gives exit 2 with a one-line ``bpms CMD: ...`` message;
@@ -18,7 +20,10 @@ frame and keep its slot, docs/raw-format.md), each at its time index × 0.02 s; 
 configuration gives a warning naming the bad value and the factory fallback. Commands that
 print no frame count (rom, track, drift) must give the same output as for the recording
 ``bpms.io.rawfile.read_raw`` reads from the damaged file, written back intact. A traceback
-is always a failure; so is exit 0 with wrong output, and a pickle that ran code.
+is always a failure; so is a command still running after :data:`HANG_S` (an alarm ends it),
+exit 0 with wrong output or without an output it was asked for, and a pickle that ran code.
+The closing table (tools/corpus_table.py) counts the runs by damage class and what went
+wrong; :data:`ISSUE_43_1_PAIRS` are the pairs known to fail until issue 43.1 is done.
 
 Commands run in this process through :func:`bpms.cli.main` (stdout and stderr captured), so
 the whole corpus costs seconds, not a process start per case. tests/test_hostile_corpus.py
