@@ -127,6 +127,7 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
     from bpms.analysis.stream_export import open_for_processing
     from bpms.filter.joints import JOINT_ANGLE_NAMES
     from bpms.io.naming import safe_stem
+    from bpms.io.paths import remove_regular_file
 
     t0 = time.perf_counter()
     outcome = Outcome(job)
@@ -149,7 +150,7 @@ def process_one(job: Job, out_dir: str, outputs: tuple[str, ...],
             from bpms.io.filtered_file.writer import FilteredWriter
 
             path = stem.with_name(f"{trial}_filtered.csv")
-            path.unlink(missing_ok=True)
+            remove_regular_file(path)  # never a folder, a named pipe or a device
             groups, kind = filtered_layout()  # as bpms filter and the live recording write
             filtered = FilteredWriter(path, degrees=True, groups=groups, euler=kind,
                                       convention=filtered_convention(opened.meta.convention),

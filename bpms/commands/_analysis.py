@@ -43,7 +43,6 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     warn(command, opened.problems)
     if opened.n_frames == 0:
         raise CliError(f"{path}: the recording holds no frames")
-    opened.problems.clear()
     if pose_calibration not in (None, "reset-zero") or posture is not None:
         with _read_errors(path, ValueError):
             what = opened.use_pose_calibration(pose_calibration, posture)
@@ -51,7 +50,7 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
         report = opened.pose_report
         for line in report.lines() if report is not None else []:
             print(f"bpms {command}:   {line}", file=sys.stderr)
-    return opened
+    return opened  # its problems stay: the door adds only new ones as it reads
 
 
 def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
@@ -60,6 +59,7 @@ def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
     from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.progress import stderr_progress
 
+    shown = set(opened.problems)  # printed already (each warning once)
     with _read_errors(opened.path, FilteredFileError):
         yield from opened.chunks(zero_at_s, stderr_progress)
-    warn(command, opened.problems)
+    warn(command, [p for p in opened.problems if p not in shown])

@@ -34,7 +34,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
-from bpms.commands._shared import require_formats, warn
+from bpms.commands._shared import number, require_formats, warn
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -45,7 +45,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="comma-separated: rom, filter, mat, parquet, compare (default: rom; "
                         "compare: each recording against the optical file beside it, "
                         "docs/compare.md)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=number(int, 1, 1024), default=None, metavar="N",
                    help="worker processes (default: the number of CPU cores)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run on a Dask distributed cluster (its scheduler's address) instead "
@@ -85,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
                        f"choose from {', '.join(OUTPUTS)}")
     require_formats(kind for kind in ("mat", "parquet") if kind in outputs)
     out = Path(args.output) if args.output else folder / "batch"
+    if out.exists() and not out.is_dir():
+        raise CliError(f"{out} exists and is not a folder: give a folder for the outputs")
     jobs = [j for j in find_recordings(folder) if out.resolve() not in Path(j.path).resolve()
             .parents]
     left_out = []

@@ -29,7 +29,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option, add_pose_calibration_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources, refuse_existing
+from bpms.commands._shared import LONGEST_S, add_sources, number, refuse_existing
 from bpms.io.timebase import stream_time
 
 #: format → the endings of the files it writes after the stem (docs/analysis.md).
@@ -63,7 +63,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("-o", "--output", metavar="STEM",
                         help="output path without the format's ending (default: beside the "
                              "recording, its name without the suffix)")
-    parser.add_argument("--reset-at", type=float, action="append", default=[], metavar="T",
+    parser.add_argument("--reset-at", type=number(float, 0, LONGEST_S), action="append", default=[],
+                        metavar="T",
                         help="extra Reset Zero at T s (repeatable)")
     parser.add_argument("--head-neck", action="store_true",
                         help="opensim: add head_imu and neck_imu (models with a head)")

@@ -61,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from bpms.io.background import InBackground
     from bpms.io.filtered_file.writer import FilteredWriter, default_output_path
+    from bpms.io.paths import remove_regular_file
 
     t_start = time.perf_counter()
     if args.filter is not None and args.filter not in ALGORITHMS:
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         if args.force:
-            out_path.unlink(missing_ok=True)
+            remove_regular_file(out_path)  # a file only (refuse_existing checked, and again)
         with InBackground(name="bpms-filtered-rows") as later:
             for chunk in stream("filter", opened):
                 res = chunk.result

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
-from bpms.commands._shared import stop_on_signals
+from bpms.commands._shared import LONGEST_S, number, stop_on_signals
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.link import LinkError
@@ -68,10 +68,11 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="also forward the live stream over UDP (repeatable)")
     p.add_argument("--filtered", action="store_true", help="also record the filtered file")
     add_stream_arguments(p)  # --lsl, --mvn (i16)
-    p.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+    p.add_argument("--lsl-wait", type=number(float, 0, LONGEST_S), default=0.0, metavar="SECONDS",
                    help="with --lsl: wait up to this long for a consumer (e.g. LabRecorder) on "
                         "every LSL stream before recording (the suit streams meanwhile)")
-    p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--seconds", type=number(float, 0, LONGEST_S, above=True), default=None,
+                   help="stop after this many seconds")
     p.add_argument("--options", default=None, metavar="FILE", help="options file (TOML)")
     p.add_argument("--sim", action="store_true", help="record the simulated suit")
     add_sim_options(p)

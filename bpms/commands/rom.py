@@ -10,7 +10,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option, add_pose_calibration_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources
+from bpms.commands._shared import LONGEST_S, add_sources, number
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -20,11 +20,12 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                     "time window; several recordings are compared side by side.")
     parser.add_argument("raw_files", nargs="+", metavar="RAW_FILE",
                         help="raw recording(s) or filtered .csv file(s)")
-    parser.add_argument("--from", dest="t0", type=float, metavar="T0",
+    parser.add_argument("--from", dest="t0", type=number(float, 0, LONGEST_S), metavar="T0",
                         help="window start, s since the recording started (default: start)")
-    parser.add_argument("--to", dest="t1", type=float, metavar="T1",
+    parser.add_argument("--to", dest="t1", type=number(float, 0, LONGEST_S), metavar="T1",
                         help="window end, s (default: end)")
-    parser.add_argument("--reset-at", type=float, action="append", default=[], metavar="T",
+    parser.add_argument("--reset-at", type=number(float, 0, LONGEST_S), action="append", default=[],
+                        metavar="T",
                         help="extra Reset Zero at T s (repeatable; same for every file)")
     parser.add_argument("--label", action="append", default=[],
                         help="label per file, in order (default: the file stems)")

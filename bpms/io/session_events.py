@@ -89,7 +89,11 @@ class SessionEvent:
                 or not isinstance(data, dict)
                 or not (when is None or isinstance(when, int | float))):
             raise ValueError("not an event (bad frame, time or data)")
-        return cls(body["kind"], frame, float("nan") if when is None else float(when), data)
+        try:
+            seconds = float("nan") if when is None else float(when)
+        except OverflowError:  # an integer no float holds: no clock's time (the reader
+            seconds = float("inf")  # checks times as it checks frame indices)
+        return cls(body["kind"], frame, seconds, data)
 
     def describe(self, dt: float = 0.02) -> str:
         """One line for the event log, the record command and the LSL marker text."""
