@@ -12,7 +12,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources, warn
+from bpms.commands._shared import LONGEST_S, add_sources, number, warn
 
 
 def _window(text: str) -> tuple[float, float]:
@@ -40,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="file pairing optical bodies with BPMS segments, one "
                              "'Body = Segment' per line (default: the standard Nexus and QTM "
                              "full-body names)")
-    parser.add_argument("--offset", type=float, metavar="S",
+    parser.add_argument("--offset", type=number(float, -LONGEST_S, LONGEST_S), metavar="S",
                         help="clock offset in s (recording time = optical time + S) instead of "
                              "the cross-correlation of the angular rates")
     parser.add_argument("--align", choices=("sensors", "orientation", "none"),

@@ -85,9 +85,9 @@ def add_sim_options(p: argparse.ArgumentParser) -> None:
                    help="posture held in the still windows: neutral (default), suit "
                         "(pressure suit: shoulders abducted 20°, elbows 15°, hips 10°, knees 15° "
                         "flexed) or custom degrees of freedom 'elbow_r=15,knee_r=10'")
-    b.add_argument("--mounting-error", type=float, default=None, metavar="DEG",
+    b.add_argument("--mounting-error", type=number(float, 0, 45), default=None, metavar="DEG",
                    help="rms per axis of the IMUs' mounting misalignment, degrees (default 3)")
-    b.add_argument("--height", type=float, default=None, metavar="M",
+    b.add_argument("--height", type=number(float, 0.5, 2.5), default=None, metavar="M",
                    help="the subject's height, m: segment lengths scale from 1.73 m")
     b.add_argument("--segment", action="append", default=[], metavar="NAME=M",
                    help="one measured segment length, m (e.g. thigh=0.45); repeatable")
