@@ -242,10 +242,17 @@ def run_batch(jobs: list[Job], out_dir: str | Path, outputs: tuple[str, ...] = (
             from bpms.filter.processor import BodyPoseProcessor
 
             BodyPoseProcessor().load_kernels()  # forked workers inherit the loaded kernels
+        from concurrent.futures.process import BrokenProcessPool
+
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            futures = {pool.submit(process_one, job, str(out_dir), outputs, options,
-                                   reset_zero): k
-                       for k, job in enumerate(jobs)}
+            futures = {}
+            for k, job in enumerate(jobs):
+                try:
+                    futures[pool.submit(process_one, job, str(out_dir), outputs, options,
+                                        reset_zero)] = k
+                except BrokenProcessPool as exc:  # a worker died while jobs were handed out
+                    results[k] = Outcome(job, error=infrastructure_reason(exc),
+                                         failure="infrastructure")
             _collect(futures, as_completed, jobs, results, progress)
     return [results[k] for k in range(len(jobs))]
 
