@@ -21,6 +21,10 @@ The figures table (issue 26), each figure beside a reference measured in the sam
   time must grow linearly with the size.
 - UDP receiver: CPU per datagram with a sequence jump of 40,000 at every datagram, beside
   in-order datagrams (reference).
+- Recording headers at the 16 MiB bound (issue 43: the depth check was quadratic on runs of
+  ``\\"``): seconds and peak memory above the baseline (a recording with a small header) to
+  read the header alone, and for a whole ``bpms filter`` of the file, each in a new process.
+  The bound is 1 s and 100 MB (``--headers`` runs this section alone).
 """
 
 from __future__ import annotations
@@ -81,6 +85,81 @@ def udp() -> None:
         print(f"UDP sequence tracking, {label:22}: {per * 1e6:6.2f} µs per datagram")
 
 
+_HEADER_PROBE = """
+import sys, time, tracemalloc
+from bpms.io.raw_layout import read_preamble
+from bpms.io.rawfile import RawFileError
+read_preamble(sys.argv[2])  # a small header first: everything imported
+tracemalloc.start()  # Python's and numpy's allocations from here on
+t = time.perf_counter()
+try:
+    read_preamble(sys.argv[1])
+    what = "read"
+except RawFileError as exc:
+    what = "refused: " + str(exc).split(": ", 1)[1][:60]
+dt = time.perf_counter() - t
+print(dt, tracemalloc.get_traced_memory()[1] / 1e6, what)
+"""
+
+
+def _header_files(folder: Path) -> dict[str, Path]:
+    """Recordings of the intact 6 s corpus body with absurd headers at the 16 MiB bound."""
+    import json
+    import struct
+
+    from bpms.firmware.sim.session import simulate
+    from bpms.io.rawfile import new_header, write_raw
+
+    rec = simulate(6.0, seed=26)
+    small = folder / "small.bpmsraw"
+    header = new_header(calibration=rec.calibration.values, source="bench")
+    write_raw(small, 1.7e9 + rec.t, rec.frames, header)
+    data = small.read_bytes()
+    length = struct.unpack_from("<I", data, 10)[0]
+    body = data[16 + length:]
+    cap = 16 * 1024 * 1024 - 64
+    texts = {
+        "16 MiB of \\\" in a string (unterminated)": b'{"notes": "' + b'\\"' * (cap // 2),
+        "16 MiB of \\\" in a string (closed)":
+            b'{"notes": "' + b'\\"' * (cap // 2 - 8) + b'"}',
+        "15 MiB of notes, a valid header": json.dumps(
+            {**header, "notes": "x" * (15 * 1024 * 1024)}).encode(),
+        "16 MiB of \"[ pairs": b'{"a": ' + b'"[' * (cap // 2) + b"}",
+    }
+    out = {"small header (reference)": small}
+    for k, (name, text) in enumerate(texts.items()):
+        text += b" " * ((-(16 + len(text))) % 16)
+        path = folder / f"header{k}.bpmsraw"
+        path.write_bytes(data[:10] + struct.pack("<I", len(text)) + text + body)
+        out[name] = path
+    return out
+
+
+def headers() -> None:
+    import os
+    import subprocess
+
+    print("recording headers: reading the header alone (s, MB allocated at the peak), then a "
+          "whole bpms filter (s, peak resident MB, beside the small header's)")
+    with tempfile.TemporaryDirectory() as tmp:
+        files = _header_files(Path(tmp))
+        small = files["small header (reference)"]
+        for name, path in files.items():
+            run = subprocess.run([sys.executable, "-c", _HEADER_PROBE, str(path), str(small)],
+                                 capture_output=True, text=True, cwd=ROOT, timeout=600)
+            seconds, mb, what = [*run.stdout.split(" ", 2), "", "", run.stderr[-200:]][:3]
+            t = time.perf_counter()
+            whole = subprocess.Popen([sys.executable, "-m", "bpms", "filter", str(path), "-o",
+                                      str(Path(tmp) / "f.csv"), "--force"], cwd=ROOT,
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            _, status, usage = os.wait4(whole.pid, 0)
+            whole.returncode = os.waitstatus_to_exitcode(status)
+            dt = time.perf_counter() - t
+            print(f"  {name:42} header {float(seconds or 'nan'):5.3f} s "
+                  f"{float(mb or 'nan'):5.1f} MB  {what.strip()[:46]:46}  filter exit "
+                  f"{whole.returncode} {dt:4.1f} s {usage.ru_maxrss / 1024:4.0f} MB")
+
+
 def _tool(name: str):
     import importlib.util
 
@@ -123,6 +202,7 @@ def bad_inputs() -> tuple[str, str]:
     ok = sum(v.ok for v in control)
     for line in totals.failures:
         print("  " + line)
+    print(corpus_tool.table(totals.verdicts))
     return (f"{totals.tried} / {totals.tracebacks} / {totals.wrong}",
             f"control {ok}/{len(control)} correct")
 
@@ -159,9 +239,14 @@ if __name__ == "__main__":
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="the figures table only")
+    parser.add_argument("--headers", action="store_true", help="the recording headers only")
     args = parser.parse_args()
+    if args.headers:
+        headers()
+        sys.exit(0)
     logging.getLogger().setLevel(logging.CRITICAL)  # the corpus's warnings are expected
     figures()
     if not args.quick:
         legacy()
         udp()
+        headers()

@@ -40,6 +40,8 @@ COMMANDS: dict[str, list[str]] = {
     "export opensim": ["export", "opensim", "{raw}", "-o", "{out}/os", "--force"],
     "export bvh": ["export", "bvh", "{raw}", "-o", "{out}/b.bvh", "--force"],
     "export matlab": ["export", "matlab", "{raw}", "-o", "{out}/m.csv", "--force"],
+    "export c3d": ["export", "c3d", "{raw}", "-o", "{out}/c", "--force"],
+    "convert mat": ["convert", "{raw}", "-f", "mat", "-o", "{out}/v", "--force"],
     "rom": ["rom", "{raw}", "-o", "{out}", "--no-figures"],
     "track": ["track", "{raw}", "-o", "{out}/t.csv", "--no-figure"],
     "extract raw": ["extract", "raw", "{raw}", "--imu", "all", "-o", "{out}/r.csv", "--force"],

@@ -87,6 +87,18 @@ def _plain_help(parser: argparse.ArgumentParser) -> None:
                 _plain_help(sub)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, except that a bad option value is one line (``bpms replay: error:
+    argument --speed: 'nan' is not a finite number``), without the usage before it: the
+    usage says nothing about the value (issue 43.4). Other errors (a missing argument) keep
+    the usage."""
+
+    def error(self, message: str):
+        if message.startswith("argument "):
+            self.exit(2, f"{self.prog}: error: {message}\n")
+        super().error(message)
+
+
 def build_parser(only: str | None = None, *, overview: bool = False) -> argparse.ArgumentParser:
     """The argument parser with every sub-command, or only the command ``only``.
 
@@ -94,7 +106,7 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
     source gives, without importing them (a module whose line cannot be read is imported)."""
     from bpms.docs_location import docs_hint
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="bpms",
         description="BPMS Suite: Body Pose Measurement System acquisition, filtering and analysis.",
         epilog=f"'bpms COMMAND --help' explains a command.\n{docs_hint()}",

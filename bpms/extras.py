@@ -17,8 +17,6 @@ EXTRAS: dict[str, tuple[str, str]] = {
     "vpython": ("vpython", "the browser 3D views"),
     "pylsl": ("lsl", "Lab Streaming Layer output"),
     "pyarrow": ("parquet", "Parquet output"),
-    "h5py": ("hdf5", "HDF5 output"),
-    "ezc3d": ("c3d", "C3D export"),
     "distributed": ("dask", "bpms batch --scheduler (a Dask cluster)"),
     "vqf": ("vqf", "the VQF filter"),
 }

@@ -42,7 +42,8 @@ def test_batch_writes_a_tidy_table_summary_and_outputs(study):
     out = subprocess.run([sys.executable, "-m", "bpms", "batch", str(folder), "--workers", "2",
                           "--outputs", "rom,mat"], cwd=ROOT, capture_output=True, text=True,
                          timeout=600)
-    assert out.returncode == 0, out.stderr
+    assert out.returncode == 1, out.stderr  # a recording could not be processed: incomplete
+    assert "INCOMPLETE: 1 recording(s) could not be processed" in out.stderr
     assert "[5/5]" in out.stdout and "skipped" in out.stderr and "Raw_broken_003" in out.stderr
     batch = folder / "batch"
     with open(batch / "batch_rom.csv", encoding="utf-8") as f:
@@ -61,6 +62,7 @@ def test_batch_writes_a_tidy_table_summary_and_outputs(study):
         assert m["joint_angles"].shape == (450, 28)
     summary = (batch / "batch_summary.md").read_text()
     assert "processed: 4; skipped: 1" in summary and "Raw_broken_003" in summary
+    assert "subject and trial from the file naming rules" in summary
     assert "batch_rom.png" in summary and (batch / "batch_rom.png").stat().st_size > 1000
 
 

@@ -1,5 +1,6 @@
 """``bpms batch --scheduler``: a study on a Dask distributed cluster made of separate processes
-on 127.0.0.1 (one scheduler, two workers) gives the same bytes as the local process pool."""
+on 127.0.0.1 (one scheduler, two workers) gives the same bytes as the local process pool; a
+scheduler killed mid-batch is reported as the machinery's failure, exit 3 (issue 43.4)."""
 
 from __future__ import annotations
 
@@ -25,9 +26,16 @@ def bpms(*args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture()
-def cluster(tmp_path):
-    """``tcp://127.0.0.1:PORT`` of a scheduler with two single-threaded workers, each its own
-    process (``python -m dask scheduler|worker``, no nanny, no dashboard)."""
+def cluster(cluster_processes):
+    """``tcp://127.0.0.1:PORT`` of a scheduler with two single-threaded workers."""
+    return cluster_processes[0]
+
+
+@pytest.fixture()
+def cluster_processes(tmp_path):
+    """(``tcp://127.0.0.1:PORT``, [scheduler, worker, worker] processes): a scheduler with two
+    single-threaded workers, each its own process (``python -m dask scheduler|worker``, no
+    nanny, no dashboard)."""
     env = dict(os.environ)
     info = tmp_path / "scheduler.json"
     procs = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1",
@@ -44,7 +52,7 @@ def cluster(tmp_path):
                  "--nthreads", "1", "--no-nanny", "--no-dashboard", "--name", f"w{k}",
                  "--local-directory", str(tmp_path / f"w{k}")],
                 cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        yield address
+        yield address, procs
     finally:  # the workers first (they would wait for a scheduler that has gone)
         for proc in reversed(procs):
             proc.terminate()
@@ -69,10 +77,10 @@ def test_a_dask_cluster_gives_the_same_bytes_as_local_processes(tmp_path, cluste
     outputs = "rom,filter,mat,parquet"
     local = bpms("batch", str(study), "-o", str(tmp_path / "local"), "--outputs", outputs,
                  "--workers", "2")
-    assert local.returncode == 0, local.stderr
+    assert local.returncode == 1, local.stderr  # the broken file: an incomplete study
     done = bpms("batch", str(study), "-o", str(tmp_path / "dask"), "--outputs", outputs,
                 "--scheduler", cluster)
-    assert done.returncode == 0, done.stderr
+    assert done.returncode == 1, done.stderr
     assert f"on the Dask cluster at {cluster} (2 workers)" in done.stdout
     assert "3 processed, 1 skipped" in done.stdout
     a, b = _files(tmp_path / "local"), _files(tmp_path / "dask")
@@ -99,3 +107,36 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert lines[-1].startswith("bpms batch: cannot reach the Dask scheduler at tcp://127.0.0.1:")
     assert "Traceback" not in done.stderr
+
+
+def test_a_scheduler_killed_mid_batch_exits_3(tmp_path, cluster_processes):
+    import threading
+
+    address, procs = cluster_processes
+    study = tmp_path / "study"
+    study.mkdir()
+    for k in range(8):
+        simulate(20.0, seed=70 + k).save_raw(study / f"Raw_t_{k:03d}.bpmsraw")
+    batch = subprocess.Popen([sys.executable, "-m", "bpms", "batch", str(study), "--scheduler",
+                              address, "--no-figures"], cwd=ROOT, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True,
+                             env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT":
+                                  "3s"})
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(batch.stdout), daemon=True)
+    reader.start()
+    try:
+        assert wait_until(lambda: any(ln.startswith("[1/8]") for ln in list(lines)), 120), \
+            "no recording finished"
+        procs[0].kill()  # the scheduler dies mid-batch
+        err = batch.stderr.read()
+        batch.wait(180)
+    finally:
+        if batch.poll() is None:
+            batch.kill()
+    reader.join(10)
+    assert batch.returncode == 3, err
+    assert "lost by the machinery" in err and "Traceback" not in err
+    summary = (study / "batch" / "batch_summary.md").read_text()
+    assert "## Not processed (the machinery failed, not the file)" in summary
+    assert "## Skipped" not in summary

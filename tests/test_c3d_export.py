@@ -50,7 +50,7 @@ def test_ezc3d_reads_the_joint_centres_within_a_tenth_of_a_millimetre(exported):
     assert labels[:21] == list(POINT_NAMES)
     assert point["RATE"]["value"][0] == 50.0 and point["UNITS"]["value"] == ["mm"]
     xyz = f["data"]["points"][:3]  # [3, points, frames]
-    assert xyz.shape == (3, 33, round(SECONDS * 50))
+    assert xyz.shape == (3, 34, round(SECONDS * 50))  # the last: the centre of mass
     truth = np.einsum("ij,npj->ipn", P, result.joint_positions) * 1000.0  # mm
     ok = np.isfinite(truth).all(axis=0)
     assert ok[:, -1].all() and ok.mean() > 0.9
@@ -105,8 +105,10 @@ def test_the_c3d_package_reads_the_same_points(exported):
     ("bvh", "out/b", ["out/b.bvh"]), ("bvh", "out/b.bvh", ["out/b.bvh"]),
     ("matlab", "out/e", ["out/e.csv"]), ("matlab", "out/e.csv", ["out/e.csv"]),
     ("c3d", "out/c", ["out/c.c3d"]),
-    ("opensim", "out/s", ["out/s_orientations.sto", "out/s_calibration.sto"]),
-    ("opensim", "out/s.sto", ["out/s_orientations.sto", "out/s_calibration.sto"]),
+    ("opensim", "out/s", ["out/s_orientations.sto", "out/s_calibration.sto",
+                          "out/s_joint_angles.mot"]),
+    ("opensim", "out/s.sto", ["out/s_orientations.sto", "out/s_calibration.sto",
+                              "out/s_joint_angles.mot"]),
     ("matlab", None, ["rec/Raw_1.csv"]), ("c3d", None, ["rec/Raw_1.c3d"]),
 ])
 def test_o_is_a_stem_for_every_export_format(fmt, given, expected):
@@ -124,4 +126,4 @@ def test_every_format_writes_exactly_the_named_files(tmp_path):
         assert main(["export", fmt, str(raw), "-o", str(tmp_path / "out" / fmt)]) == 0
     written = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert written == ["bvh.bvh", "c3d.c3d", "matlab.csv", "opensim_calibration.sto",
-                       "opensim_orientations.sto"]
+                       "opensim_joint_angles.mot", "opensim_orientations.sto"]

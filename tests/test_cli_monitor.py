@@ -151,7 +151,8 @@ def test_sim_rejects_bad_options_in_one_line():
     bad = subprocess.run(bpms("sim", "--pty", "--drop-rate", "2"), cwd=ROOT,
                          capture_output=True, text=True, timeout=30)
     assert bad.returncode == 2 and bad.stdout == ""
-    assert bad.stderr.strip() == "bpms sim: --drop-rate must be between 0 and 1, got 2"
+    assert bad.stderr.strip() == ("bpms sim: error: argument --drop-rate: 2: must be at least "
+                                  "0 and at most 1")
 
 
 def test_monitor_counts_the_error_bits_the_simulated_suit_set():

@@ -2,8 +2,9 @@
 line says why not (``# not run: REASON``, visible in the page).
 
 - The blocks of the pages run as they stand, with the files the page names (a sample
-  recording copied under the name the page uses, the shipped Calib.cfg and options) and, for
-  fragments, the names the page's text defines (a preamble listed here).
+  recording copied under the name the page uses, the shipped Calib.cfg and options); a block
+  that cannot run as it stands says so on its first line (``# not run: REASON``). A preamble
+  is for names no page can define (none now).
 - The UDP reader of docs/udp.md runs as a script, exactly as it stands, against
   ``bpms replay``; what it prints is checked against the recording and the Python API. A
   change of the UDP format (a new version number) fails here until the page is updated.
@@ -65,16 +66,11 @@ RUNS: dict[tuple[str, str], Run] = {
     ("docs/filter.md", 'proc = BodyPoseProcessor(calibration="Calib.cfg"'): Run(
         files=(*TRIAL, ("Calib.cfg", ROOT / "calib" / "Calib.cfg"),
                ("options.toml", ROOT / "calib" / "options.toml")),
-        preamble=("from bpms.io.recordings import open_recording\n"
-                  "_frames = open_recording('Raw_trial_001.bpmsraw').decode()\n"
-                  "raw, errors = _frames.raw, _frames.errors\n"
-                  "raw_18x9, errors_18x3 = _frames.raw[0], _frames.errors[0]\n"),
         raises="OptionRangeError"),
-    ("docs/filters.md", "proc.select_filter(\"vqf\")"): Run(
-        preamble=("from bpms.filter.processor import BodyPoseProcessor\n"
-                  "from bpms.io.options import Options\n"
-                  "opts = Options()\nopts.filter.algorithm = 'observer'\n")),
+    ("docs/filters.md", "proc.select_filter(\"vqf\")"): Run(),
+    ("docs/analysis.md", "rom.groupby([\"joint\", \"condition\"])"): Run(),
     ("docs/simulated-suit.md", "rec = simulate(seed=1)"): Run(),
+    ("docs/simulated-suit.md", "rec = simulate(seed=1, posture="): Run(),
     ("docs/filtered-file.md", "register_column_group(ColumnGroup("): Run(subprocess=True),
 }
 SCRIPTS = {("docs/udp.md", "# bpms-udp-reader"), ("docs/lsl.md", "# bpms-lsl-inlet")}

@@ -1,6 +1,7 @@
-"""Angles that read right (issue 27.6): in the simulated script's elbow-flexion phase (the
-forearms pass pitch 90°) no angle column the window shows by default jumps by more than 90°
-between frames, and the readout is the same rotation as the filters' own angles."""
+"""Angles that read right (issue 27.6, 44.6): in the simulated script's elbow-flexion phase
+(the forearms pass pitch 90°) no angle column the window shows by default jumps by more than
+90° between frames except where it returns to the standard range on leaving the singularity;
+the readout is the same rotation as the filters' own angles and never piles up whole turns."""
 
 from __future__ import annotations
 
@@ -38,7 +39,15 @@ def test_the_filters_own_angles_do_jump_there(trial):
 def test_no_default_angle_column_jumps_more_than_90_degrees(trial):
     result, window = trial
     shown = ContinuousAngles().feed(result.euler_output, np.arange(len(result.euler_output)))
-    assert _jumps_deg(shown[window]).max() < 90  # roll, pitch, yaw of all 18 IMUs
+    # roll, pitch, yaw of all 18 IMUs: a jump only where the readout leaves the marked region
+    # (pitch within 15° of ±90°) and returns to the filters' own standard triple
+    steps = np.degrees(np.abs(np.diff(shown[window], axis=0))).max(axis=2)  # [n-1, 18]
+    marked_before = poorly_defined(shown[window][:-1, :, 1])
+    for k, imu in zip(*np.nonzero(steps >= 90), strict=True):
+        assert marked_before[k, imu]
+        np.testing.assert_allclose(shown[window][k + 1, imu],
+                                   result.euler_output[window][k + 1, imu], atol=1e-12)
+    assert (steps >= 90).sum() <= 8  # a few returns, not a flickering
     assert _jumps_deg(np.asarray(result.joint_angles)[window]).max() < 90  # joint angles
     # the same rotations: only the choice among equivalent triples differs
     finite = np.isfinite(result.euler_output).all(axis=2)
@@ -63,6 +72,72 @@ def test_a_jump_back_in_time_or_a_gap_restarts_the_readout():
     np.testing.assert_allclose(np.degrees(shown[:, 0, 2]), np.degrees(turn), atol=1e-9)
     again = readout.feed(euler[-1:], np.array([5]))  # a seek back: standard range again
     assert np.degrees(again[0, 0, 2]) == pytest.approx(-170.0)
+
+
+def _standard(euler: np.ndarray) -> np.ndarray:
+    """The triple with pitch in [-90, 90] and roll, yaw in (-180, 180] (rad), by hand."""
+    roll, pitch, yaw = np.moveaxis(np.asarray(euler, np.float64), -1, 0)
+    flip = np.cos(pitch) < 0
+    roll = np.where(flip, roll + np.pi, roll)
+    yaw = np.where(flip, yaw + np.pi, yaw)
+    pitch = np.where(flip, np.pi - pitch, pitch)
+    pitch = np.angle(np.exp(1j * pitch))
+    pitch = np.where(pitch > np.pi / 2, np.pi - pitch, np.where(pitch < -np.pi / 2,
+                                                                  -np.pi - pitch, pitch))
+    return np.stack([np.angle(np.exp(1j * roll)), pitch, np.angle(np.exp(1j * yaw))], -1)
+
+
+def test_many_whole_turns_never_pile_up():
+    """Roll and yaw turning 100° a frame for 2,000 frames (555 turns, more than an hour of
+    any segment's turning), pitch 20°: the readout stays within 20° of the standard range and
+    reads the standard angle whenever that is more than 20° from ±180°."""
+    n = 2000
+    roll = np.radians(100.0 * np.arange(n))
+    yaw = -np.radians(70.0 * np.arange(n))
+    euler = np.zeros((n, 18, 3))
+    euler[:, :, 0] = np.angle(np.exp(1j * roll))[:, None]
+    euler[:, :, 1] = np.radians(20.0)
+    euler[:, :, 2] = np.angle(np.exp(1j * yaw))[:, None]
+    shown = ContinuousAngles().feed(euler, np.arange(n))
+    assert np.abs(np.degrees(shown[..., [0, 2]])).max() <= 200.0 + 1e-9
+    clear = np.abs(np.degrees(euler[..., [0, 2]])) < 160.0
+    np.testing.assert_allclose(shown[..., [0, 2]][clear], euler[..., [0, 2]][clear],
+                               atol=1e-12)
+
+
+def test_a_slow_turn_through_south_is_carried_then_wrapped():
+    """Yaw 170° → 230° → 150°, 1° a frame: carried past 180° up to 199°, then the standard
+    −159°...; back through south carried down to −199° (161°), then the standard 159° (values
+    worked by hand)."""
+    path = np.concatenate([np.arange(170.0, 231.0), np.arange(229.0, 149.0, -1.0)])
+    euler = np.zeros((len(path), 18, 3))
+    euler[:, :, 2] = np.angle(np.exp(1j * np.radians(path)))[:, None]
+    shown = np.degrees(ContinuousAngles().feed(euler, np.arange(len(path)))[:, 0, 2])
+    assert shown[list(path).index(195.0)] == pytest.approx(195.0)
+    assert shown[list(path).index(199.0)] == pytest.approx(199.0)
+    assert shown[list(path).index(201.0)] == pytest.approx(-159.0)
+    assert shown[60] == pytest.approx(-130.0)  # 230°
+    back = 61  # the first frame of the way back (229°)
+    assert shown[back + 229 - 170] == pytest.approx(-190.0)  # 170° on the way back
+    assert shown[back + 229 - 161] == pytest.approx(-199.0)
+    assert shown[back + 229 - 159] == pytest.approx(159.0)
+    assert shown[-1] == pytest.approx(150.0)
+    assert np.abs(shown).max() <= 200.0 + 1e-9
+
+
+def test_the_elbow_flexion_returns_to_the_standard_range(trial):
+    """After the forearms pass the vertical, away from it (pitch more than 15° from ±90°)
+    every IMU reads its standard triple (up to the 20° band at ±180°)."""
+    result, window = trial
+    shown = ContinuousAngles().feed(result.euler_output, np.arange(len(result.euler_output)))
+    standard = _standard(result.euler_output)
+    finite = np.isfinite(standard).all(axis=2)
+    away = finite & ~poorly_defined(standard[..., 1])
+    clear = away & (np.abs(np.degrees(standard[..., [0, 2]])) < 160).all(axis=2)
+    np.testing.assert_allclose(shown[clear], standard[clear], atol=1e-9)
+    assert np.abs(np.degrees(shown[away][:, 1])).max() <= 90.0
+    assert np.abs(np.degrees(shown[away][:, [0, 2]])).max() <= 200.0 + 1e-9
+    assert clear[window][:, [5, 11]].sum() > 100  # the forearms come back from the vertical
 
 
 def test_the_table_greys_roll_and_yaw_near_pitch_90(qtbot):

@@ -178,3 +178,71 @@ def test_wizard_connects_in_the_background_and_reports_failure(qtbot, tmp_path):
     assert "connecting" in bad.setup.status.text()
     qtbot.waitUntil(lambda: "Cannot connect" in bad.setup.status.text(), timeout=10_000)
     assert bad.currentId() == 0 and len(bad.setup.status.text().splitlines()) == 1
+
+
+def test_every_page_can_be_entered_again_with_back_and_next(qtbot, tmp_path):
+    """Issue 44.8: on each step, its action started, then Back and Next: the action is ready
+    again (not grey) and the step can be completed; Back from the summary and Next again
+    shows it again."""
+    source = ScriptedCalibrationSource(CalibrationSuit(changed_table(), seed=3), speed=0,
+                                       burst=100)
+    wizard = CalibrationWizard(Options(), source=source, output=tmp_path / "Calib.cfg",
+                               poll_ms=5)
+    qtbot.addWidget(wizard)
+    for i, box in enumerate(wizard.setup.imu_boxes):
+        box.setChecked(i in IMUS)
+    wizard.setup.gyro_samples.setValue(100)
+    wizard.setup.accel_samples.setValue(50)
+    wizard.setup.sweep_s.setValue(20.0)
+    wizard.show()
+    wizard.next()
+    gyro, accel, mag = wizard.gyro_page, wizard.accel_page, wizard.mag_page
+
+    def back_and_next(page_id: int) -> None:
+        wizard.back()
+        assert wizard.currentId() != page_id
+        wizard.next()
+        assert wizard.currentId() == page_id
+
+    # gyro: Start pressed (collecting), Back, Next
+    assert wizard.currentId() == PAGE_GYRO
+    gyro.start.click()
+    assert not gyro.start.isEnabled()
+    back_and_next(PAGE_GYRO)
+    assert gyro.start.isEnabled() and gyro.start.text() == "Start" and not gyro.isComplete()
+    gyro.start.click()
+    qtbot.waitUntil(gyro.isComplete, timeout=10_000)
+    back_and_next(PAGE_GYRO)  # a done capture: entered again, it is measured again
+    assert gyro.start.isEnabled()
+    gyro.start.click()
+    qtbot.waitUntil(gyro.isComplete, timeout=10_000)
+    wizard.next()
+    # accel: one pose captured, Back, Next: from the first pose again, Capture ready
+    assert wizard.currentId() == PAGE_ACCEL
+    qtbot.waitUntil(lambda: accel.proc.at_extreme and accel.proc.still, timeout=10_000)
+    accel.capture.click()
+    qtbot.waitUntil(lambda: accel.proc.index == 1, timeout=10_000)
+    back_and_next(PAGE_ACCEL)
+    assert accel.proc.index == 0 and accel.capture.isEnabled() and accel.skip.isEnabled()
+    while not accel.proc.done:
+        accel.skip.click()
+    assert accel.isComplete()
+    wizard.next()
+    # mag: sweep under way, Back, Next: Start ready, Finish grey
+    assert wizard.currentId() == PAGE_MAG
+    mag.start.click()
+    assert not mag.start.isEnabled() and mag.stop.isEnabled()
+    back_and_next(PAGE_MAG)
+    assert mag.start.isEnabled() and not mag.stop.isEnabled() and not mag.isComplete()
+    mag.start.click()
+    mag.stop.click()  # finish now
+    qtbot.waitUntil(lambda: mag.proc.state == "done", timeout=10_000)
+    if mag.low_coverage():
+        mag.accept_low.setChecked(True)
+    assert mag.isComplete()
+    wizard.next()
+    assert wizard.currentId() == PAGE_SUMMARY
+    back_and_next(PAGE_SUMMARY)  # the mag page's result kept: Next is not blocked
+    assert wizard.summary_page.table.rowCount() > 0
+    assert wizard.button(QWizard.WizardButton.FinishButton).isEnabled()
+    wizard.reject()

@@ -147,7 +147,8 @@ def test_file_mode_session(qtbot, tmp_path, recording_path):
     assert window.model.latest.index >= 100
     window.status_panel.reset_button.click()
     plot = _plot_six(qtbot, window)
-    assert plot.buffer.view()[0, 0] >= 2.0  # time axis: frame index × 20 ms
+    data = plot.buffer.view()  # time axis: frame index × 20 ms; the paused seek to 2 s drew
+    assert data[0, 0] == 0.0 and data[-1, 0] >= 2.0  # the plots' window from the file start
     qtbot.wait(600)  # (a second click within 0.5 s is ignored)
     window.status_panel.data_button.click()  # pause
     assert not window.runner.replay.playing
@@ -254,9 +255,10 @@ def test_each_filter_is_selectable_in_the_gui(qtbot, tmp_path, recording_path):
     startup.file_edit.setText(str(recording_path))
     window = open_main_window(qtbot, startup)
     processor = window.runner.session.processor
-    assert processor.options.filter.algorithm == "observer"
+    # playback: the recording's own filter, not the app's options' (issue 44.2)
+    assert processor.options.filter.algorithm == "mahony"
     combo = window.gains_panel.filter_combo
-    assert combo.currentText() == "observer"
+    assert combo.currentText() == "mahony"
     window.status_panel.data_button.click()  # play
     for algorithm in ("mahony", "vqf", "observer"):
         combo.setCurrentText(algorithm)

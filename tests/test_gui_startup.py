@@ -237,6 +237,10 @@ def test_when_go_finds_no_suit_the_same_dialog_offers_the_simulated_suit(qtbot, 
     qtbot.waitUntil(lambda: not startup.busy and startup.last_dialog is not None, timeout=10000)
     box = startup.last_dialog
     assert "paired" in box.text() and startup.main_window is None
+    # the port that failed is not offered again at the next launch (issue 44.9)
+    from bpms.gui.settings_store import SettingsStore
+
+    assert SettingsStore().get("port") is None
     # each piece of advice once: what went wrong, then what to check
     for word in ("paired", "battery", "baud", "no suit"):
         assert (box.text() + box.informativeText()).lower().count(word) == 1, word

@@ -307,10 +307,9 @@ def test_filter_estimates_are_table_columns_and_plot_curves(qtbot, tmp_path, rec
     sample, show in their table columns and can be plotted like any cell."""
     from bpms.gui.columns import COLUMNS
 
-    options = Options()
-    options.filter.algorithm = "observer"
     runner = SessionRunner(ModeConfig(mode="file", path=str(recording_path),
-                                      recording_dir=str(tmp_path)), options)
+                                      recording_dir=str(tmp_path)), Options())
+    runner.playback_filter = "observer"  # chosen in the playback controls (issue 44.2)
     runner.prepare()
     window = MainWindow(runner, layout_store=LayoutStore(tmp_path / "layouts.json"),
                         restore_last=False)

@@ -42,6 +42,9 @@ def _window(qtbot, config: ModeConfig, tmp_path: Path, size=(1500, 860)) -> Main
     window = MainWindow(runner, layout_store=LayoutStore(tmp_path / "layouts.json"),
                         restore_last=False)
     qtbot.addWidget(window)
+    # the client area a window manager gives (the offscreen screen is 800 x 800: not its
+    # maximised size)
+    window.setWindowState(Qt.WindowState.WindowNoState)
     window.resize(*size)
     window.show()
     qtbot.waitExposed(window)

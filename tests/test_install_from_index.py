@@ -124,7 +124,6 @@ def test_installed_bpms_warmup_then_record_filter_export(installed, tmp_path):
 
 @pytest.mark.parametrize(("args", "extra"), [
     (("convert", "{raw}", "-f", "parquet"), "parquet"),
-    (("export", "c3d", "{raw}"), "c3d"),
     (("rom", "{raw}", "-o", "rom"), "figures"),
 ])
 def test_a_missing_extra_is_named_in_one_line(installed, tmp_path, args, extra):

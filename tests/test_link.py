@@ -10,10 +10,11 @@ import time
 import tty
 
 import pytest
+from pty_suit import suit_pty
 from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
-from bpms.firmware.sim.server import PtyServer, TcpServer
+from bpms.firmware.sim.server import TcpServer
 from bpms.io.frames import decode_frame
 from bpms.io.link import LinkError, SuitLink, discover_suit, list_candidate_ports
 
@@ -31,9 +32,9 @@ def check_sequence(frames: list[bytes], source: MotionSource, first: int = 0) ->
 
 
 def test_end_to_end_over_a_pty(source):
-    with PtyServer(Arbiter(source)) as server:
-        assert discover_suit([server.path], timeout_s=1.0) == server.path
-        with SuitLink(server.path, reply_timeout_s=1.0) as link:
+    with suit_pty(Arbiter(source)) as (server, pty_path):
+        assert discover_suit([pty_path], timeout_s=1.0) == pty_path
+        with SuitLink(pty_path, reply_timeout_s=1.0) as link:
             link.identify()
             volts = link.battery_volts()
             assert 2.6 <= volts <= 3.6
@@ -87,7 +88,7 @@ def test_tcp_transport_one_client_at_a_time(source):
 def test_fault_injection_is_counted_by_the_parser(source):
     faults = Faults(drop_rate=0.05, corrupt_rate=0.02, error_rate=0.001)
     arbiter = Arbiter(source, faults, realtime=False, seed=11)
-    with PtyServer(arbiter) as server, SuitLink(server.path) as link:
+    with suit_pty(arbiter) as (_server, pty_path), SuitLink(pty_path) as link:
         link.start()
         frames: list[bytes] = []
         t0 = time.monotonic()
@@ -105,14 +106,14 @@ def test_fault_injection_is_counted_by_the_parser(source):
 
 
 def test_pty_survives_clients_closing_and_reopening(source):
-    with PtyServer(Arbiter(source)) as server:
+    with suit_pty(Arbiter(source)) as (_server, pty_path):
         for _ in range(3):
-            with SuitLink(server.path) as link:
+            with SuitLink(pty_path) as link:
                 link.identify()
 
 
 def test_a_host_that_does_not_read_does_not_block_the_suit(source):
-    with PtyServer(Arbiter(source)) as server, SuitLink(server.path) as link:
+    with suit_pty(Arbiter(source)) as (server, pty_path), SuitLink(pty_path) as link:
         link.start()
         t0 = time.monotonic()  # the pty holds ≈ 50 frames, the server's backlog 16 more
         while server.frames_unread == 0 and time.monotonic() - t0 < 6.0:
@@ -173,9 +174,9 @@ def test_bad_ports_raise_one_line_errors():
 
 
 def test_discovery_skips_ports_that_are_not_the_suit(source):
-    with GarbagePty() as garbage, PtyServer(Arbiter(source)) as server:
-        candidates = ["/dev/nonexistent-bpms", garbage.path, server.path]
-        assert discover_suit(candidates, timeout_s=0.3) == server.path
+    with GarbagePty() as garbage, suit_pty(Arbiter(source)) as (_server, pty_path):
+        candidates = ["/dev/nonexistent-bpms", garbage.path, pty_path]
+        assert discover_suit(candidates, timeout_s=0.3) == pty_path
         assert discover_suit(candidates[:2], timeout_s=0.3) is None
 
 
@@ -198,14 +199,14 @@ def test_a_vanishing_tcp_suit_raises_link_error(source):
 
 
 def test_start_after_a_host_left_the_suit_streaming(source):
-    with PtyServer(Arbiter(source)) as server:
-        with SuitLink(server.path) as first:
+    with suit_pty(Arbiter(source)) as (server, pty_path):
+        with SuitLink(pty_path) as first:
             first.start()
             first.read_frames(0.3)
         sent = server.arbiter.stats.frames_sent
         # still streaming, nobody reading
         assert wait_until(lambda: server.arbiter.stats.frames_sent >= sent + 10, 10)
-        with SuitLink(server.path) as second:
+        with SuitLink(pty_path) as second:
             # old-stream frames arrive after the open's input flush
             sent = server.arbiter.stats.frames_sent
             assert wait_until(lambda: server.arbiter.stats.frames_sent >= sent + 3, 10)
@@ -221,7 +222,7 @@ def test_start_after_a_host_left_the_suit_streaming(source):
 
 
 def test_silence_while_streaming_over_a_pty(source):
-    with PtyServer(Arbiter(source)) as server, SuitLink(server.path) as link:
+    with suit_pty(Arbiter(source)) as (server, pty_path), SuitLink(pty_path) as link:
         link.start()
         arrivals: list[float] = []
         t0 = time.monotonic()

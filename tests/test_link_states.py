@@ -8,9 +8,9 @@ import time
 
 import pytest
 from fake_suit import STALE, FakeClock, ScriptedSuit, sample
+from pty_suit import suit_pty
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
-from bpms.firmware.sim.server import PtyServer
 from bpms.io.link_states import TRANSITIONS, LinkEvent, LinkState, TransitionError, next_state
 from bpms.io.options import SerialOptions
 from bpms.pipeline.sources import SuitFrameSource
@@ -180,8 +180,8 @@ def test_start_data_while_the_suit_is_away_goes_silent_then_recovers():
 
 def test_close_from_another_thread_wakes_a_blocking_read():
     motion = MotionSource.simulated(duration_s=5.0, seed=3)
-    with PtyServer(Arbiter(motion)) as server:
-        source = SuitFrameSource(server.path, SerialOptions())
+    with suit_pty(Arbiter(motion)) as (_server, pty_path):
+        source = SuitFrameSource(pty_path, SerialOptions())
         source.stop_stream()  # connected, nothing streaming: a read blocks for its timeout
         source.connect()
         assert source.state is S.STOPPED

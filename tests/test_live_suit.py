@@ -13,11 +13,11 @@ import threading
 
 import numpy as np
 import pytest
+from pty_suit import suit_pty
 from waiting import wait_until
 
 from bpms.filter.door import process_file
 from bpms.firmware.sim.arbiter import Arbiter, Faults, MotionSource
-from bpms.firmware.sim.server import PtyServer
 from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.options import Options, SerialOptions
 from bpms.io.rawfile import read_raw
@@ -35,10 +35,10 @@ def motion():
 def test_record_30_s_holds_every_frame_and_replays_to_the_live_outputs(motion, tmp_path):
     # 30 s of suit data (1,500 frames), streamed as fast as the host reads them.
     arbiter = Arbiter(motion, realtime=False)
-    with PtyServer(arbiter) as server:
+    with suit_pty(arbiter) as (_server, pty_path):
         # fast mode: thousands of frames per second, more than the default backlog bound lets
         # wait when the machine is busy (overload is tested in test_pipeline_health.py)
-        session = LiveSession(SuitFrameSource(server.path, SerialOptions()),
+        session = LiveSession(SuitFrameSource(pty_path, SerialOptions()),
                               recording_dir=tmp_path, max_backlog=200_000)
         sub = session.subscribe(maxlen=200_000)
         session.source.connect()
@@ -70,9 +70,9 @@ def test_record_30_s_holds_every_frame_and_replays_to_the_live_outputs(motion, t
 def test_link_loss_is_reported_and_the_stream_comes_back(motion, tmp_path):
     arbiter = Arbiter(motion, Faults(silence_at_s=2.0, silence_s=5.0))
     states = []
-    with PtyServer(arbiter) as server:
+    with suit_pty(arbiter) as (_server, pty_path):
         serial = SerialOptions(link_lost_after_s=1.0, discovery_timeout_s=0.5)
-        session = LiveSession(SuitFrameSource(server.path, serial), recording_dir=tmp_path)
+        session = LiveSession(SuitFrameSource(pty_path, serial), recording_dir=tmp_path)
         status = session.start_logging(raw=True, filtered=False, name="loss")
         session.start()
 
@@ -173,10 +173,10 @@ def test_full_disk_stops_recording_and_streaming_goes_on(motion, tmp_path):
     session = None
     try:
         arbiter = Arbiter(motion, realtime=False)
-        with PtyServer(arbiter) as server:
+        with suit_pty(arbiter) as (_server, pty_path):
             options = Options()
             options.logging.flush_interval_s = 0.05
-            session = LiveSession(SuitFrameSource(server.path), options, recording_dir=disk)
+            session = LiveSession(SuitFrameSource(pty_path), options, recording_dir=disk)
             status = session.start_logging(raw=True, filtered=False, name="full")
             session.start()
             assert wait_until(lambda: status.error is not None, 20)

@@ -25,8 +25,16 @@ def test_the_version_is_written_once():
     assert "version" not in project and project["dynamic"] == ["version"]
     assert PYPROJECT["tool"]["hatch"]["version"]["path"] == "bpms/__init__.py"
     assert re.fullmatch(r"\d+\.\d+\.\d+", bpms.__version__)
+
+
+
+def test_the_citation_states_the_latest_release_and_its_date():
+    """GitHub's generated BibTeX takes its version and year from these two keys."""
     citation = (ROOT / "CITATION.cff").read_text(encoding="utf-8")
-    assert not re.search(r"^version:", citation, re.M)  # cited by bpms --version and tag
+    changelog = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    dates = dict(re.findall(r"^## \[(\d+\.\d+\.\d+)\] - (\d{4}-\d\d-\d\d)$", changelog, re.M))
+    assert re.search(rf'^version: "{re.escape(bpms.__version__)}"$', citation, re.M)
+    assert re.search(rf'^date-released: "{dates[bpms.__version__]}"$', citation, re.M)
 
 
 def test_the_changelog_starts_with_this_version():
@@ -80,7 +88,7 @@ def _closure(extras: set[str]) -> set[str]:
 
 def test_all_pulls_in_no_jupyter_package_and_vpython_does():
     every = _closure({"all"})
-    assert "ezc3d" in every and "distributed" in every and "pyarrow" in every
+    assert "distributed" in every and "pyarrow" in every and "matplotlib" in every
     assert "vpython" not in every
     assert sorted(n for n in every if JUPYTER.match(n)) == []
     assert any(JUPYTER.match(n) for n in _closure({"vpython"}))  # why it stands alone

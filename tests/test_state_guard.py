@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pty_suit import suit_pty
 from waiting import wait_until
 
 from bpms.filter.guard import SO3_TOLERANCE, so3_error
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
-from bpms.firmware.sim.server import PtyServer
 from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.options import SerialOptions
 from bpms.pipeline.session import LiveSession
@@ -81,8 +81,8 @@ def test_fast_real_turns_are_no_event(dps):
 
 def test_live_session_recovers_within_one_second_and_counts(absurd, clean, tmp_path):
     arbiter = Arbiter(absurd, realtime=False)
-    with PtyServer(arbiter) as server:
-        session = LiveSession(SuitFrameSource(server.path, SerialOptions()),
+    with suit_pty(arbiter) as (_server, pty_path):
+        session = LiveSession(SuitFrameSource(pty_path, SerialOptions()),
                               recording_dir=tmp_path)
         sub = session.subscribe(maxlen=100_000)
         session.source.connect()

@@ -96,3 +96,41 @@ def test_a_receiver_started_late_follows_the_first_sender_it_hears():
     assert gate.admit(earlier, 500, 0.0) == A.FIRST  # a replay reached it first
     assert gate.admit(REAL, 0, 0.5) == A.TAKEOVER  # the real, newer run takes over at once
     assert gate.admit(earlier, 501, 0.52) == A.REPLAYED
+
+
+def test_the_replaced_sender_comes_back_at_once_when_the_newcomer_is_quiet():
+    """Issue 45.2: a takeover never locks the real sender out."""
+    gate = SessionGate()
+    stream(gate, REAL, 0.0, 100)  # last datagram 1.98 s
+    assert stream(gate, OTHER, 7.58, 70)[24] == A.TAKEOVER  # 5.6 s of silence, then 25
+    # the stranger's last at 8.96 s; the real sender resumes at 9.48 s, its numbers go on
+    assert gate.admit(REAL, 100, 9.48) == A.RETURN
+    assert gate.active == REAL and gate.takeovers == 2 and gate.last_takeover.returned
+    assert stream(gate, REAL, 9.5, 10, seq0=101) == [A.ACTIVE] * 10
+    # the stranger now needs the takeover rule again: no quick return for it
+    assert stream(gate, OTHER, 9.51, 30, seq0=70) == [A.STALE] * 30
+
+
+def test_a_return_needs_the_real_senders_own_numbers():
+    gate = SessionGate()
+    stream(gate, REAL, 0.0, 100)
+    stream(gate, OTHER, 7.58, 30)
+    # numbers the real session already sent (a replay of it, or late datagrams): stale
+    assert stream(gate, REAL, 10.0, 20, seq0=50) == [A.STALE] * 20
+    assert gate.active == OTHER
+    # with the newcomer still streaming, the real sender's 10th datagram in a row returns
+    got = []
+    for k in range(10):
+        assert gate.admit(OTHER, 30 + k, 10.49 + k * 0.02) == A.ACTIVE
+        got.append(gate.admit(REAL, 100 + k, 10.5 + k * 0.02))
+    assert got == [A.STALE] * 9 + [A.RETURN]
+
+
+def test_with_a_key_a_known_session_never_has_a_number_accepted_twice():
+    gate = SessionGate(keyed=True)
+    stream(gate, REAL, 0.0, 100)
+    stream(gate, OTHER, 7.58, 30)  # another computer with the key
+    assert gate.active == OTHER
+    # the real session's old numbers, replayed: refused as replayed, not merely stale
+    assert stream(gate, REAL, 10.0, 40, seq0=0) == [A.REPLAYED] * 40
+    assert gate.admit(REAL, 100, 10.9) == A.RETURN  # its own next number: back

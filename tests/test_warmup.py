@@ -21,6 +21,7 @@ class Terminal(io.StringIO):
 def _show(stream, steps: int = 3) -> str:
     progress = Progress(steps, stream, notice_after_s=0.0)
     progress._timer.join(5)  # the notice is due at once
+    progress.compile_started()  # and something compiles
     for k in range(steps):
         progress.step(f"step {k}")
         progress.advance()
@@ -49,6 +50,40 @@ def test_nothing_is_said_when_it_is_quick():
     progress.advance()
     progress.close()
     assert stream.getvalue() == ""
+
+
+def test_nothing_is_said_when_nothing_compiles():
+    """Loading cached kernels on a busy machine may take longer than the notice's delay: it
+    is not compiling, and says nothing (issue 43.7)."""
+    stream = io.StringIO()
+    progress = Progress(2, stream, notice_after_s=0.0)
+    progress._timer.join(5)
+    progress.step("a")
+    progress.advance()
+    progress.close()
+    assert stream.getvalue() == ""
+
+
+FRESH_THEN_CACHED = """
+import io, sys
+from bpms.filter import warmup
+warmup.PARTS["vqf"] = ("hinge",)  # the quickest part alone (about 2 s to compile)
+stream = io.StringIO()
+warmup.ensure_kernels("vqf", stream=stream, notice_after_s=0.0)
+print(repr(stream.getvalue()))
+"""
+
+
+def test_the_notice_appears_when_compiling_and_not_when_loading_the_cache(tmp_path):
+    env = {**__import__("os").environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    said = []
+    for _ in range(2):  # a fresh numba cache: compiles; then the same cache: loads
+        done = subprocess.run([sys.executable, "-c", FRESH_THEN_CACHED], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr[-3000:]
+        said.append(done.stdout.strip().splitlines()[-1])
+    assert "compiling the filters for this machine" in said[0] and "1/1 done in" in said[0]
+    assert said[1] == "''"
 
 
 def test_kernels_are_ready_once_and_a_live_session_loads_them_before_any_frame(monkeypatch):

@@ -4,7 +4,7 @@
 #   bash tools/build_bundle.sh          → dist/bpms/bpms (Windows: dist\bpms\bpms.exe)
 #
 # A virtualenv of its own (build/bundle/venv) gets BPMS Suite from this checkout with the
-# figures, lsl and c3d extras, and PyInstaller; PyInstaller then freezes it with
+# figures and lsl extras, and PyInstaller; PyInstaller then freezes it with
 # tools/bundle/bpms.spec. Zip dist/bpms/ to hand it out. The bundle runs on the operating
 # system (and CPU architecture) it was built on: build it on each.
 set -euo pipefail
@@ -19,8 +19,8 @@ if [ ! -d "$BUILD/venv" ]; then
   "$PYTHON" -m venv "$BUILD/venv"
 fi
 if [ -x "$BUILD/venv/bin/python" ]; then VPY="$BUILD/venv/bin/python"; else VPY="$BUILD/venv/Scripts/python.exe"; fi
-log "installing bpms[figures,lsl,c3d] and PyInstaller"
-"$VPY" -m pip install -q --disable-pip-version-check ".[figures,lsl,c3d]" "pyinstaller>=6.0"
+log "installing bpms[figures,lsl] and PyInstaller"
+"$VPY" -m pip install -q --disable-pip-version-check ".[figures,lsl]" "pyinstaller>=6.0"
 log "freezing (pyinstaller tools/bundle/bpms.spec)"
 "$VPY" -m PyInstaller --noconfirm --clean --log-level WARN --distpath dist \
   --workpath "$BUILD/work" tools/bundle/bpms.spec

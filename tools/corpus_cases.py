@@ -23,8 +23,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+for _where in (REPO, Path(__file__).resolve().parent):
+    if str(_where) not in sys.path:
+        sys.path.insert(0, str(_where))
+
+from corpus_events import N_SLOTS, record_with_events, walk  # noqa: E402  (tools/)
 
 N_FRAMES = 300  # the intact recording: 6 s at 50 Hz
 RECORD = 348  # bytes per raw record: float64 time + 340-byte frame (docs/raw-format.md)
@@ -46,6 +49,9 @@ class Case:
     kind: str = "recording"
     warns: tuple[str, ...] = ()
     suffix: str = ".bpmsraw"
+    #: event records damaged (format version 2): what the door does without them is the
+    #: events' owners' (issue 43.1); the corpus checks exits, frames and outputs
+    events_damaged: bool = False
 
 
 R = "recording"
@@ -74,6 +80,19 @@ CASES: tuple[Case, ...] = (
     Case("header_absurd_values", "absurd header", N_FRAMES,
          warns=("IMU 4", "kp_rollpitch")),
     Case("header_wrong_types", "absurd header", N_FRAMES, warns=("calibration",)),
+    # format version 2: the events a live session writes (tools/corpus_events.py), damaged
+    Case("v2_intact", "control", N_SLOTS),
+    Case("v2_reset_zero_bits", "damaged events", N_SLOTS, events_damaged=True),
+    Case("v2_every_event_bits", "damaged events", N_SLOTS, events_damaged=True),
+    Case("v2_event_length", "damaged events", N_SLOTS, events_damaged=True),
+    Case("v2_event_cut", "damaged events", N_SLOTS, events_damaged=True),
+    Case("v2_event_marker_lost", "damaged events", N_SLOTS, events_damaged=True),
+    Case("v2_torn_event", "damaged events", N_SLOTS, events_damaged=True),
+    Case("v2_frames_and_events", "v2 random bytes", N_SLOTS, events_damaged=True),
+    Case("v2_random_bits", "v2 random bytes", N_SLOTS, events_damaged=True),
+    Case("v2_event_time_absurd", "absurd event time", N_SLOTS),
+    Case("header_escaped_quotes", "hostile header text", None),
+    Case("named_pipe", "not a file", None),
     Case("legacy_intact", "control", 40, suffix=".txt"),
     Case("legacy_reduce_exec", "pickle __reduce__", None, suffix=".txt"),
     Case("legacy_reduce_system", "pickle __reduce__", None, suffix=".txt"),
@@ -82,6 +101,7 @@ CASES: tuple[Case, ...] = (
     Case("legacy_reduce_protocol_2", "pickle __reduce__", None, suffix=".txt"),
     Case("legacy_random", "random bytes", None, suffix=".txt"),
     Case("legacy_empty", "empty file", None, suffix=".txt"),
+    Case("legacy_huge_int", "absurd legacy values", None, suffix=".txt"),
     # configurations, used with the intact recording
     Case("calib_gravity_tiny", "absurd calibration", N_FRAMES, "calibration", ("IMU 4",),
          ".cfg"),
@@ -96,6 +116,8 @@ CASES: tuple[Case, ...] = (
     Case("calib_directory", "directory", N_FRAMES, "calibration", ("cannot be read",), ".cfg"),
     Case("calib_huge", "200 MB header", N_FRAMES, "calibration", ("MiB",), ".cfg"),
     Case("calib_json_nested", "nested header", N_FRAMES, "calibration", ("nests",), ".cfg"),
+    Case("calib_json_quotes", "hostile header text", N_FRAMES, "calibration",
+         ("cannot be read",), ".cfg"),
     Case("options_gain_huge", "absurd options", N_FRAMES, "options", ("kp_rollpitch",),
          ".toml"),
     Case("options_gain_nan", "absurd options", N_FRAMES, "options", ("kp_yaw",), ".toml"),
@@ -157,6 +179,9 @@ class CorpusFiles:
         self.intact = self.folder / "intact" / "Raw_corpus_1.bpmsraw"
         write_raw(self.intact, self.times, rec.frames, self.header)
         self._paths: dict[str, Path] = {}
+        self._events: tuple[bytes, list] | None = None
+        #: per version-2 case: the frame slots whose records its damage touched
+        self.touched: dict[str, set[int]] = {}
         rng = np.random.default_rng(26)
         self._rng = rng
         for case in CASES:
@@ -297,6 +322,155 @@ class CorpusFiles:
     def _body(self) -> bytes:
         return self.intact.read_bytes()[self._intact_bytes()[1]:]
 
+    # -- format version 2: events and frames ---------------------------------------------
+    def _events_recording(self) -> tuple[bytearray, list]:
+        """The bytes of the live session's version-2 recording and its records (walked from
+        the documented layout)."""
+        if self._events is None:
+            path = record_with_events(self.folder / "events")
+            data = path.read_bytes()
+            self._events = (data, walk(data)[1])
+        data, pieces = self._events
+        return bytearray(data), pieces
+
+    def _v2(self, path: Path, damage: Callable[[bytearray, list], set[int]]) -> None:
+        """Write the version-2 recording damaged by ``damage`` (which returns the frame slots
+        whose records it touched)."""
+        data, pieces = self._events_recording()
+        self.touched[path.parent.name] = damage(data, pieces)
+        path.write_bytes(bytes(data))
+
+    @staticmethod
+    def _flip(data: bytearray, at: int, bit: int = 2) -> None:
+        data[at] ^= 1 << bit
+
+    def _make_v2_intact(self, path: Path) -> None:
+        self._v2(path, lambda d, p: set())
+
+    def _make_v2_reset_zero_bits(self, path: Path) -> None:
+        """One bit flipped in the middle of every Reset Zero record (its CRC then fails)."""
+        def flip(d: bytearray, pieces: list) -> set[int]:
+            for r in (r for r in pieces if r.kind == "reset_zero"):
+                self._flip(d, r.offset + r.size // 2)
+            return set()
+
+        self._v2(path, flip)
+
+    def _make_v2_every_event_bits(self, path: Path) -> None:
+        """One bit flipped in the payload of every event record."""
+        def flip(d: bytearray, pieces: list) -> set[int]:
+            for r in (r for r in pieces if r.kind != "frame"):
+                self._flip(d, r.offset + 14 + (r.size - 20) // 3)
+            return set()
+
+        self._v2(path, flip)
+
+    def _make_v2_event_length(self, path: Path) -> None:
+        """The manual Reset Zero's payload length 1,000 bytes too long (still plausible)."""
+        def lengthen(d: bytearray, pieces: list) -> set[int]:
+            r = [r for r in pieces if r.kind == "reset_zero"][2]
+            n = struct.unpack_from("<I", d, r.offset + 10)[0]
+            struct.pack_into("<I", d, r.offset + 10, n + 1000)
+            return set()
+
+        self._v2(path, lengthen)
+
+    def _make_v2_event_cut(self, path: Path) -> None:
+        """3 bytes deleted inside the automatic Reset Zero record."""
+        def cut(d: bytearray, pieces: list) -> set[int]:
+            r = [r for r in pieces if r.kind == "reset_zero"][1]
+            del d[r.offset + 500:r.offset + 503]
+            return set()
+
+        self._v2(path, cut)
+
+    def _make_v2_event_marker_lost(self, path: Path) -> None:
+        """The start marker ("$E") of the marker event and of the gain change zeroed."""
+        def lose(d: bytearray, pieces: list) -> set[int]:
+            for r in (r for r in pieces if r.kind in ("marker", "gains")):
+                d[r.offset + 8:r.offset + 10] = b"\0\0"
+            return set()
+
+        self._v2(path, lose)
+
+    def _make_v2_torn_event(self, path: Path) -> None:
+        """The file ends inside its last record (the logging-stop event): a crash."""
+        def tear(d: bytearray, pieces: list) -> set[int]:
+            del d[pieces[-1].offset + pieces[-1].size // 2:]
+            return set()
+
+        self._v2(path, tear)
+
+    def _make_v2_frames_and_events(self, path: Path) -> None:
+        """Three frame records' start markers lost, and a bit flipped in every event record
+        after the first of them."""
+        def damage(d: bytearray, pieces: list) -> set[int]:
+            frames = [r for r in pieces if r.kind == "frame"]
+            hit = {80, 81, 200}
+            for r in frames:
+                if r.slot in hit:
+                    d[r.offset + 8:r.offset + 10] = b"\0\0"
+            for r in pieces:
+                if r.kind != "frame" and r.offset > frames[80].offset:
+                    self._flip(d, r.offset + 14 + (r.size - 20) // 2)
+            return hit
+
+        self._v2(path, damage)
+
+    def _make_v2_random_bits(self, path: Path) -> None:
+        """40 bits flipped at random places among the records (seeded): the frame records
+        they hit are the damaged ones."""
+        def flips(d: bytearray, pieces: list) -> set[int]:
+            touched: set[int] = set()
+            for at in self._rng.integers(pieces[0].offset, len(d), 40):
+                self._flip(d, int(at), int(at) % 8)
+                touched |= {r.slot for r in pieces
+                            if r.kind == "frame" and r.offset <= at < r.offset + r.size}
+            return touched
+
+        self._v2(path, flips)
+
+    def _make_v2_event_time_absurd(self, path: Path) -> None:
+        """The marker's time made 1e308 s and its frame a 400-digit integer, the note's time
+        a 400-digit integer; each record rebuilt with a valid CRC (docs/raw-format.md)."""
+        import json
+        import zlib
+
+        def retime(d: bytearray, pieces: list) -> set[int]:
+            for r in sorted((r for r in pieces if r.kind in ("marker", "note")),
+                            key=lambda r: -r.offset):  # from the end: offsets stay valid
+                body = json.loads(bytes(d[r.offset + 14:r.offset + r.size - 6]))
+                body["time"] = 1e308 if r.kind == "marker" else 10 ** 400
+                if r.kind == "marker":
+                    body["frame"] = 10 ** 400
+                payload = json.dumps(body).encode()
+                head = bytes(d[r.offset:r.offset + 10]) + struct.pack("<I", len(payload))
+                head += payload
+                d[r.offset:r.offset + r.size] = head + struct.pack("<I", zlib.crc32(head)) \
+                    + b"E$"
+            return set()
+
+        self._v2(path, retime)
+
+    def _make_header_escaped_quotes(self, path: Path) -> None:
+        """A header of 1 MiB of escaped quotes in an unterminated string: the depth check was
+        quadratic on it (hours; issue 43)."""
+        _write_raw_file(path, b'{"notes": "' + b'\\"' * (512 * 1024), self._body())
+
+    def _make_named_pipe(self, path: Path) -> None:
+        """A named pipe where the recording should be (opening it would wait for a writer
+        for ever); where there are none, an empty file."""
+        if hasattr(os, "mkfifo"):
+            os.mkfifo(path)
+        else:
+            path.write_bytes(b"")
+
+    def _make_legacy_huge_int(self, path: Path) -> None:
+        """Records whose time is a 400-digit integer (an OverflowError traceback before)."""
+        path.write_bytes(b"".join(
+            pickle.dumps([10 ** 400, self.frames[k].decode("latin1")], protocol=0)
+            for k in range(10)))
+
     # -- legacy pickles ------------------------------------------------------------------
     def _legacy_records(self, n: int, protocol: int = 0) -> bytes:
         return b"".join(pickle.dumps([float(self.times[k]), self.frames[k].decode("latin1")],
@@ -375,6 +549,13 @@ class CorpusFiles:
         self._write_calib(path, self._calib_rows())
         with path.open("a") as f:
             f.write("#" * (2 * 1024 * 1024))
+
+    def _make_calib_json_quotes(self, path: Path) -> None:
+        """A good Calib.cfg whose Calib.json holds 600 kB of escaped quotes in a string that
+        never ends (a 60 kB one took 14 s to refuse)."""
+        self._write_calib(path, self._calib_rows())
+        path.with_suffix(".json").write_text('{"format": "bpms-calibration", "notes": "'
+                                             + '\\"' * 300_000)
 
     def _make_calib_json_nested(self, path: Path) -> None:
         """A good Calib.cfg whose modern companion Calib.json nests 200,000 levels."""

@@ -7,9 +7,11 @@ that reads one (issue 26.7), run in one interpreter.
 
 The corpus (tools/corpus_cases.py builds it) holds, beside an intact 6 s recording of the
 simulated suit (the control): truncations, random bytes, inserted and deleted bytes, lost
-record markers, a header nested 200,000 levels deep, a 200 MB header, empty files,
-directories, absurd headers, legacy pickles whose ``__reduce__`` would run code, and absurd
-calibration and options files.
+record markers, a header nested 200,000 levels deep, a 200 MB header, a header of escaped
+quotes, empty files, directories, a named pipe, absurd headers, legacy pickles whose
+``__reduce__`` would run code or whose times are 400-digit integers, absurd calibration and
+options files, and format-version-2 recordings with every event kind a live session writes
+(tools/corpus_events.py), damaged in their events and frames (issue 43.6).
 
 Every case knows what a correct command does with it, from how it was built (not from the
 code under test): a *refused* input gives exit 2 with a one-line ``bpms CMD: ...`` message;
@@ -18,7 +20,10 @@ frame and keep its slot, docs/raw-format.md), each at its time index × 0.02 s; 
 configuration gives a warning naming the bad value and the factory fallback. Commands that
 print no frame count (rom, track, drift) must give the same output as for the recording
 ``bpms.io.rawfile.read_raw`` reads from the damaged file, written back intact. A traceback
-is always a failure; so is exit 0 with wrong output, and a pickle that ran code.
+is always a failure; so is a command still running after :data:`HANG_S` (an alarm ends it),
+exit 0 with wrong output or without an output it was asked for, and a pickle that ran code.
+The closing table (tools/corpus_table.py) counts the runs by damage class and what went
+wrong; :data:`ISSUE_43_1_PAIRS` are the pairs known to fail until issue 43.1 is done.
 
 Commands run in this process through :func:`bpms.cli.main` (stdout and stderr captured), so
 the whole corpus costs seconds, not a process start per case. tests/test_hostile_corpus.py
@@ -50,10 +55,12 @@ from corpus_cases import (  # noqa: E402  (tools/ is not a package)
     CASES,
     CONFIG_CASES,
     MARKER,
+    N_SLOTS,  # noqa: F401  (tests/test_hostile_corpus.py reads it here)
     RECORDING_CASES,
     Case,
     CorpusFiles,
 )
+from corpus_table import table  # noqa: E402
 
 R = "recording"
 
@@ -73,7 +80,8 @@ RECORD_CASES = ("calib_gravity_tiny", "calib_random", "calib_empty", "calib_dire
                 "options_gain_huge", "options_nested", "options_huge")
 #: (command, case) pairs with nothing to check: ``bpms config`` shows the Calib.cfg in force and
 #: does not read the ellipsoid companion (Calib.json), which the filter reads.
-PAIRS_NOT_APPLICABLE: frozenset[tuple[str, str]] = frozenset({("config", "calib_json_nested")})
+PAIRS_NOT_APPLICABLE: frozenset[tuple[str, str]] = frozenset(
+    {("config", "calib_json_nested"), ("config", "calib_json_quotes")})
 
 
 #: Pairs that failed while the analysis commands read ``.bpmsraw`` through a second reader
@@ -88,6 +96,21 @@ ONE_READER_PAIRS: frozenset[tuple[str, str]] = frozenset(
     {(cmd, "deleted_3_bytes") for cmd in (*_DOOR, "convert")}
     | {(cmd, case) for case in ("inserted_5_bytes", "markers_lost_5") for cmd in _DOOR}
     | {(cmd, case) for case in ("markers_lost_all", "random_body") for cmd in _NO_FRAME})
+
+
+#: Pairs that fail because of issue 43.1 (the events' owners): a damaged event record whose
+#: header is damaged too, or two damaged in a row, becomes placeholder frame slots (the
+#: later frames' times shift), and with every Reset Zero lost no frame has segment
+#: orientations (rom and batch refuse the recording). tests/test_hostile_corpus.py marks
+#: them xfail (not strict); the table counts them like any other.
+_SLOTS_ADDED = ("v2_reset_zero_bits", "v2_every_event_bits", "v2_event_length",
+                "v2_event_marker_lost")
+_COUNTED = ("filter", "export-matlab", "export-bvh", "export-opensim", "convert", "extract",
+            "replay", "batch")
+ISSUE_43_1_PAIRS: frozenset[tuple[str, str]] = frozenset(
+    {(cmd, case) for case in _SLOTS_ADDED for cmd in _COUNTED}
+    | {(cmd, case) for case in ("v2_reset_zero_bits", "v2_every_event_bits")
+       for cmd in ("rom", "batch")})
 
 
 #: Commands that cost a second or more per run (batch draws its summary figure): given one
@@ -143,7 +166,8 @@ class Corpus(CorpusFiles):
             where = self.folder / "repaired" / case.name
             where.mkdir(parents=True, exist_ok=True)
             path = where / (self.path(case).stem + ".bpmsraw")
-            write_raw(path, rec.times, rec.frames.tobytes(), rec.header)
+            write_raw(path, rec.times, rec.frames.tobytes(), rec.header,
+                      [event.at(slot) for slot, event in rec.events])  # the events it read
             self._repaired[case.name] = path
         return self._repaired[case.name]
 
@@ -164,7 +188,7 @@ class Corpus(CorpusFiles):
             sock.bind(("127.0.0.1", 0))
         try:
             argv = _argv(command, rec, out, calib, opts, sock)
-            outcome = run_cli(argv)
+            outcome = run_cli(argv, HANG_S)
             outcome.out_dir = out
             if sock is not None:
                 outcome.datagrams = _drain(sock)
@@ -174,16 +198,23 @@ class Corpus(CorpusFiles):
         outcome.code_ran = (self.path(case).parent / MARKER).exists()
         return outcome
 
-    def baseline(self, command: str) -> Outcome:
-        """``command`` on the intact recording, with no configuration given."""
-        if command not in self._baseline:
-            self._baseline[command] = self.run(command, BY_NAME["intact"], tag="-baseline")
-        return self._baseline[command]
+    def baseline(self, command: str, case: Case | None = None) -> Outcome:
+        """``command`` on the intact recording ``case`` was made from (the version-2 one for
+        a version-2 case), with no configuration given."""
+        control = BY_NAME["v2_intact" if case is not None and case.name.startswith("v2_")
+                          else "intact"]
+        key = f"{command} {control.name}"
+        if key not in self._baseline:
+            self._baseline[key] = self.run(command, control, tag="-baseline")
+        return self._baseline[key]
 
     def check(self, command: str, case: Case) -> Verdict:
         """Run ``command`` on ``case`` and judge the outcome."""
         outcome = self.run(command, case)
         verdict = Verdict(command, case, outcome)
+        if outcome.hang:
+            verdict.problems.append(f"still running after {HANG_S:g} s (a hang)")
+            return verdict
         if outcome.traceback:
             verdict.traceback = outcome.traceback.strip().splitlines()[-1]
             return verdict
@@ -192,7 +223,11 @@ class Corpus(CorpusFiles):
             problems.append("the pickle ran code (its marker file exists)")
         expected_code = 0 if case.frames is not None else 2
         if case.frames is not None and command in ("drift", "config", "record"):
-            expected_code = self.baseline(command).code
+            expected_code = self.baseline(command, case).code
+        if command == "drift" and case.name.startswith("v2_") and case.name != "v2_intact":
+            # damaged sensor data may leave no still end pose: as for what read_raw reads
+            expected_code = self.run(command, case, recording=self.repaired(case),
+                                     tag="-repaired").code
         if command == "calibrate" and case.name == "calib_directory":
             expected_code = 2  # --existing must name a file: refused in one line
         if command == "batch" and case.frames is None:
@@ -214,9 +249,14 @@ class Corpus(CorpusFiles):
             if not any(text in line and "warning" in line.lower()
                        for line in (outcome.stderr + outcome.stdout).splitlines()):
                 problems.append(f"no warning mentioning {text!r}")
+        if outcome.code == 0:
+            problems += _missing_outputs(command, outcome)
         if command not in ("config", "record", "calibrate") and case.frames is not None:
             problems += _frames_problems(command, outcome, case.frames, self)
-            if command in ("rom", "track", "drift") and case.kind == R:
+            # Without damaged events, damage costs the same as what read_raw reads written
+            # back intact; what a door does in place of a lost event is issue 43.1's.
+            if command in ("rom", "track", "drift") and case.kind == R \
+                    and not case.events_damaged:
                 problems += self._same_as_repaired(command, case, outcome)
         return verdict
 
@@ -241,6 +281,7 @@ class Outcome:
     out_dir: Path | None = None
     datagrams: list[bytes] = field(default_factory=list)
     code_ran: bool = False
+    hang: bool = False
 
 
 @dataclass
@@ -260,16 +301,55 @@ class Verdict:
         return f"{self.command} {self.case.name}: {what or 'ok'}"
 
 
-def run_cli(argv: list[str]) -> Outcome:
-    """``bpms ARGV`` in this process: exit code, output, and any uncaught exception."""
+#: A command still running after this long is a hang (ended by an alarm where there is one).
+HANG_S = 60.0
+
+
+class _Hang(BaseException):
+    """Raised by the alarm in a command that runs too long (not an Exception: the command's
+    own handlers do not catch it)."""
+
+
+@contextlib.contextmanager
+def _deadline(seconds: float | None):
+    """Interrupt the main thread after ``seconds`` with :class:`_Hang` (Unix main thread;
+    elsewhere, no deadline: pytest's timeout is the last guard)."""
+    import signal
+    import threading
+
+    usable = (seconds and hasattr(signal, "setitimer")
+              and threading.current_thread() is threading.main_thread())
+    if not usable:
+        yield
+        return
+
+    def alarm(signum, frame):
+        raise _Hang
+
+    before = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, before)
+
+
+def run_cli(argv: list[str], deadline_s: float | None = None) -> Outcome:
+    """``bpms ARGV`` in this process: exit code, output, any uncaught exception, and whether
+    it was still running after ``deadline_s``."""
     from bpms.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     t0 = time.perf_counter()
     tb = ""
+    hang = False
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         try:
-            code = main(argv)
+            with _deadline(deadline_s):
+                code = main(argv)
+        except _Hang:
+            code, hang = -1, True
         except SystemExit as exc:  # argparse
             code = exc.code if isinstance(exc.code, int) else 2
         except Exception:  # a traceback: what the user would have seen
@@ -278,7 +358,7 @@ def run_cli(argv: list[str]) -> Outcome:
     stderr = err.getvalue()
     if not tb and "Traceback (most recent call last)" in stderr:
         tb = stderr[stderr.index("Traceback (most recent call last)"):]
-    return Outcome(code, out.getvalue(), stderr, tb, time.perf_counter() - t0)
+    return Outcome(code, out.getvalue(), stderr, tb, time.perf_counter() - t0, hang=hang)
 
 
 def _argv(command: str, rec: Path, out: Path, calib: str | None, opts: str | None,
@@ -328,6 +408,27 @@ def _drain(sock: socket.socket) -> list[bytes]:
             out.append(sock.recv(65535))
         except (BlockingIOError, TimeoutError):
             return out
+
+
+#: What each command writes (under its output folder): a command that exits 0 without it
+#: has handed back less than was asked.
+_OUTPUTS = {
+    "filter": ("f.csv",), "export-matlab": ("m.csv",), "export-bvh": ("m.bvh",),
+    "export-opensim": ("os*.sto",), "track": ("t.csv",), "drift": ("d.csv",),
+    "convert": ("cv.*",), "extract": ("x.csv",), "rom": ("rom*.csv",), "batch": ("b/*",),
+}
+
+
+def _missing_outputs(command: str, outcome: Outcome) -> list[str]:
+    """Exit 0: every output the command was asked for exists and holds something."""
+    if outcome.out_dir is None:
+        return []
+    missing = []
+    for pattern in _OUTPUTS.get(command, ()):
+        found = [p for p in outcome.out_dir.glob(pattern) if p.is_file() or p.is_dir()]
+        if not found or all(p.is_file() and p.stat().st_size == 0 for p in found):
+            missing.append(pattern)
+    return [f"exit 0 without its output {', '.join(missing)}"] if missing else []
 
 
 def _last(text: str) -> str:
@@ -387,6 +488,8 @@ def _outputs_text(outcome: Outcome) -> str:
             parts.append(f"{path.relative_to(outcome.out_dir)}\n{path.read_text()}")
     text = "\n".join(parts) + "\n" + outcome.stdout
     text = re.sub(r"/\S+", "PATH", text)
+    # the provenance names the recording: a legacy .txt is repaired into a .bpmsraw
+    text = re.sub(r"(recording[=: ]+[^;\n]+?)\.(txt|bpmsraw)\b", r"\1.RAW", text)
     return re.sub(r"\d+\.\d+ s\b", "T s", text)
 
 
@@ -399,6 +502,7 @@ class Totals:
     tracebacks: int = 0
     wrong: int = 0
     failures: list[str] = field(default_factory=list)
+    verdicts: list[Verdict] = field(default_factory=list)
 
 
 def run_all(corpus: Corpus, commands: tuple[str, ...] | None = None) -> Totals:
@@ -408,6 +512,7 @@ def run_all(corpus: Corpus, commands: tuple[str, ...] | None = None) -> Totals:
         if commands and command.split("-")[0] not in commands and command not in commands:
             continue
         verdict = corpus.check(command, case)
+        totals.verdicts.append(verdict)
         totals.tried += 1
         if verdict.ok:
             continue
@@ -437,7 +542,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"bad inputs tried {totals.tried}, tracebacks {totals.tracebacks}, wrong outputs "
               f"{totals.wrong} ({time.perf_counter() - t0:.1f} s)")
         for line in totals.failures:
-            print("  " + line)
+            known = " (issue 43.1)" if tuple(line.split(":")[0].split()) in ISSUE_43_1_PAIRS \
+                else ""
+            print("  " + line + known)
+        print()
+        print(table(totals.verdicts))
     return 1 if totals.tracebacks or totals.wrong else 0
 
 

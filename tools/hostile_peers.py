@@ -249,11 +249,11 @@ def udp_attacks(key: bytes = b"lab key") -> list[AttackResult]:
     default takeover rule) over 127.0.0.1, each beside a real sender. Takes ~15 s (the
     pauses are real)."""
     from bpms.io.udp.codec import MessageType, encode_raw_frame
-    from bpms.io.udp.receiver import UdpSource
     from bpms.io.udp.sender import UdpForwarder
 
-    frames = _motion_frames(1200)
-    real_frames, fake_frames = frames[:300], frames[300:]
+    frames = _motion_frames(1600)
+    real_frames, fake_frames = frames[:300], frames[300:1200]
+    resumed = frames[1200:1591]  # the real sender's frames after its power-cycle
     fake_set = set(fake_frames)
     results = []
     # recorded before any real sender of the runs below starts: an earlier run
@@ -261,20 +261,28 @@ def udp_attacks(key: bytes = b"lab key") -> list[AttackResult]:
     recorded_run = _signed_earlier_run(fake_frames[:200], key)
 
     def run(name: str, keyed: bool, attack) -> None:
+        from bpms.commands.monitor import udp_status_line
+        from bpms.pipeline.sources import UdpFrameSource
+
         k = key if keyed else None
-        with UdpSource("127.0.0.1:0", key=k) as src, \
-                UdpForwarder([f"127.0.0.1:{src.address[1]}"], key=k) as real, \
+        source = UdpFrameSource("127.0.0.1:0", key=k or b"")  # b"": none, not the environment's
+        src = source.udp
+        with source.udp, UdpForwarder([f"127.0.0.1:{src.address[1]}"], key=k) as real, \
                 socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as attacker:
             got: list[bytes] = []
             forged, real_sent = attack(src, real, attacker, got)
             _receive(src, src.stats.datagrams, got, 1.0)
             s = src.stats
+            source._state = "streaming"
+            shown = udp_status_line(0.0, 0.0, len(got), source.status())
         accepted = sum(f in fake_set for f in got)
         detected = (f"foreign {s.foreign}, replayed {s.replayed}, unauthenticated "
                     f"{s.unauthenticated}, malformed {s.malformed}, conflicts {s.conflicts}, "
-                    f"implausible {s.implausible}, lost {s.lost}")
+                    f"implausible {s.implausible}, stale {s.stale}, lost {s.lost}, "
+                    f"switches {s.takeovers}; monitor: "
+                    + (shown.split("  streaming")[-1].strip() or "no warning"))
         results.append(AttackResult(name, forged, accepted, real_sent,
-                                    sum(f in set(real_frames) for f in got), detected))
+                                    sum(f in real_set for f in got), detected))
 
     def pause_and_one(keyed: bool):
         def attack(src, real, attacker, got):
@@ -357,6 +365,72 @@ def udp_attacks(key: bytes = b"lab key") -> list[AttackResult]:
         _receive(src, 1500, got)
         return sent, 300
 
+    def signed(frames_, first: int, k, session=0x4545, sender=77, epoch=None):
+        """One run's datagrams numbered from ``first``, as its sender made them."""
+        from bpms.io.udp.auth import sign_datagram
+
+        epoch = epoch or time.time_ns() // 1000
+        out = []
+        for j, f in enumerate(frames_):
+            d = encode_raw_frame(f, session=session, seq=first + j, suit_time=(first + j) * 0.02,
+                                 send_time=time.time(), sender=sender, epoch=epoch)
+            out.append(sign_datagram(d, k) if k else d)
+        return out
+
+    def late_join_replay(src, real, attacker, got):
+        """Issue 45.1: the receiver joins the run at 1,000; its numbers 200-999 replayed."""
+        epoch = time.time_ns() // 1000
+        live = signed(real_frames[:100], 1000, key, epoch=epoch)
+        old = signed(fake_frames[:800], 200, key, epoch=epoch)
+        for data in live[:50]:
+            attacker.sendto(data, src.address)
+        _receive(src, 50, got)
+        for data in old:
+            attacker.sendto(data, src.address)
+        _receive(src, 850, got)
+        for data in live[50:]:
+            attacker.sendto(data, src.address)
+        _receive(src, 900, got)
+        return 800, 100
+
+    def old_bursts(src, real, attacker, got):
+        """Issue 45.1: numbers more than 32,768 old, in bursts of 40 beside the live sender."""
+        epoch = time.time_ns() // 1000
+        live = signed(real_frames[:200], 40_000, key, epoch=epoch)
+        old = signed(fake_frames[:400], 0, key, epoch=epoch)
+        n = 0
+        for j, data in enumerate(live):
+            attacker.sendto(data, src.address)
+            n += 1
+            if j % 20 == 19:
+                b = (j // 20) * 40
+                for old_data in old[b:b + 40]:
+                    attacker.sendto(old_data, src.address)
+                n += 40
+                _receive(src, n, got)
+        _receive(src, n, got)
+        return 400, 200
+
+    def takeover_return(stranger_key):
+        """Issue 45.2: the suit power-cycles 7.5 s; after 5.6 s a stranger sends 70
+        datagrams; then the real sender resumes its session with 391 frames."""
+        def attack(src, real, attacker, got):
+            _paced(real, real_frames[:100])
+            _receive(src, 100, got)
+            time.sleep(5.6)
+            other = signed(fake_frames[:70], 0, stranger_key, session=0x5A5A, sender=99)
+            t0 = time.monotonic()
+            for j, data in enumerate(other):
+                time.sleep(max(0.0, t0 + j * 0.02 - time.monotonic()))
+                attacker.sendto(data, src.address)
+            _receive(src, 170, got, 2.0)
+            time.sleep(max(0.0, 7.5 - 5.6 - 70 * 0.02))
+            _paced(real, resumed, 100)
+            _receive(src, 561, got)
+            return 70, 100 + 391
+        return attack
+
+    real_set = set(real_frames) | set(resumed)
     run("one datagram during a 3 s pause (no key)", False, pause_and_one(False))
     run("one replayed signed datagram during a 3 s pause (key)", True, pause_and_one(True))
     run("a recorded signed run replayed after 6 s of silence (key)", True, replayed_run)
@@ -364,4 +438,12 @@ def udp_attacks(key: bytes = b"lab key") -> list[AttackResult]:
     run("the same spoofer, unsigned (key)", True, same_session)
     run("5 other sessions flooding while the real one streams (no key)", False, foreign_flood)
     run("random, cut and bit-flipped datagrams (key)", True, fuzz)
+    run("the run's own numbers 200-999 replayed to a receiver that joined at 1,000 (key)",
+        True, late_join_replay)
+    run("numbers > 32,768 old in bursts of 40 beside the live sender (key)", True, old_bursts)
+    run("a takeover during a 7.5 s power-cycle, the real sender resumes (no key)", False,
+        takeover_return(None))
+    run("the same with a stranger that holds the key too (second keyholder)", True,
+        takeover_return(key))
+    run("the same with an unsigned stranger (key)", True, takeover_return(None))
     return results

@@ -75,15 +75,19 @@ def free_port() -> int:
 
 
 def main_window(config, size: tuple[int, int]):
+    from PyQt6.QtCore import QRect
+
     from bpms.gui.main_window import MainWindow
     from bpms.gui.modes import SessionRunner
     from bpms.io.options import Options
 
     runner = SessionRunner(config, Options())
     runner.prepare()
-    window = MainWindow(runner, restore_last=False)
-    window.move(0, 0)
-    window.resize(*size)
+    # the screen's available area (less the task bar) as the window sees it: maximised at
+    # 1366 x 768 (bpms.gui.screen_fit); on the large screen the user maximises it
+    window = MainWindow(runner, restore_last=False, available=QRect(0, 0, *size))
+    if not window.placement.maximised:
+        window.setGeometry(0, 0, *size)
     window.show()
     return window
 

@@ -37,3 +37,17 @@ def add_reset_zero_option(parser: argparse.ArgumentParser) -> None:
                         help="which Reset Zero: 'events' (default: the ones recorded live), "
                              "'auto' (made again, once still), 'at SECONDS' (e.g. 'at 12.5' "
                              "or 'at 12.5,30'), 'none' (docs/opening-recordings.md)")
+
+
+def add_pose_calibration_option(parser: argparse.ArgumentParser) -> None:
+    """``--pose-calibration reset-zero|posture|functional`` and ``--posture``
+    (docs/pose-calibration.md)."""
+    from bpms.filter.pose_methods import METHODS
+
+    parser.add_argument("--pose-calibration", choices=METHODS, default=None,
+                        help="sensor-to-segment calibration: reset-zero (default: the neutral "
+                             "pose), posture (the still window in the --posture declared), "
+                             "functional (from the movements after the still window)")
+    parser.add_argument("--posture", default=None, metavar="POSTURE",
+                        help="with --pose-calibration posture: neutral, suit or measured joint "
+                             "angles in degrees, e.g. 'elbow_r.flexion=15,knee_r.flexion=12'")

@@ -87,11 +87,26 @@ def file_header(text: str = "MATLAB 5.0 MAT-file, written by BPMS Suite") -> byt
             + struct.pack(f"{E}H", 0x0100) + b"IM")
 
 
+#: A v5 element states its byte count in 32 bits: one variable holds less than 4 GiB.
+MAX_ELEMENT_BYTES = 2**32 - 1
+
+
+class ExportLimitError(ValueError):
+    """The output would pass its format's limit (one line: what, and what to use instead)."""
+
+
 class _Var:
     def __init__(self, name: str, shape: tuple[int, ...], dtype: np.dtype, offset: int) -> None:
         self.name, self.shape, self.dtype = name, shape, np.dtype(dtype)
         mi_type, mx_class = _TYPES[self.dtype]
         self.nbytes = math.prod(shape) * self.dtype.itemsize
+        if self.nbytes + 256 > MAX_ELEMENT_BYTES:
+            per_row = self.nbytes // max(shape[0], 1)
+            raise ExportLimitError(
+                f"a MATLAB v5 .mat variable holds less than 4 GiB: {name} of {shape[0]} frames "
+                f"needs {self.nbytes / 2**30:.1f} GiB (at most "
+                f"{(MAX_ELEMENT_BYTES - 256) // max(per_row, 1):,} frames); export Parquet, "
+                "or cut the recording")
         body = (_element(MI_UINT32, struct.pack(f"{E}II", mx_class, 0))
                 + _element(MI_INT32, struct.pack(f"{E}{len(shape)}i", *shape))
                 + _element(MI_INT8, name.encode("ascii"))
@@ -110,18 +125,18 @@ class Mat5Stream:
     def __init__(self, path: str | Path, small: Mapping[str, object],
                  arrays: Mapping[str, tuple]) -> None:
         self.path = Path(path)
-        self._f: BinaryIO = open(self.path, "wb")  # noqa: SIM115 (closed in close())
-        self._f.write(file_header())
-        for name, value in small.items():
-            self._f.write(encode_variable(name, value))
-        pos = self._f.tell()
+        head = file_header() + b"".join(encode_variable(n, v) for n, v in small.items())
+        pos = len(head)
         self.vars: dict[str, _Var] = {}
-        for name, (shape, dtype) in arrays.items():
+        for name, (shape, dtype) in arrays.items():  # past a limit: refused before writing
             var = _Var(name, tuple(int(s) for s in shape), dtype, pos)
-            self._f.seek(var.offset)
-            self._f.write(var.header)
             self.vars[name] = var
             pos = var.end
+        self._f: BinaryIO = open(self.path, "wb")  # noqa: SIM115 (closed in close())
+        self._f.write(head)
+        for var in self.vars.values():
+            self._f.seek(var.offset)
+            self._f.write(var.header)
         self._f.truncate(pos)  # reserved (zero) space for every array
 
     def write_rows(self, name: str, lo: int, rows: np.ndarray) -> None:

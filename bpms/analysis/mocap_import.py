@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from bpms.filter.rotations import dcm_to_quaternion
+from bpms.io.paths import require_regular_input
 
 
 class MocapFormatError(Exception):
@@ -100,8 +101,11 @@ def helical_to_quaternion(v_deg: np.ndarray) -> np.ndarray:
 
 def _read_lines(path: Path) -> list[str]:
     try:
+        require_regular_input(path)  # a named pipe would block, a device never end
         return path.read_text(encoding="utf-8-sig").splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
+        raise MocapFormatError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
         raise MocapFormatError(f"{path}: cannot be read ({exc})") from None
 
 

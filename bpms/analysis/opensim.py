@@ -89,3 +89,51 @@ def calibration_window(settle_frames: int, window_frames: int, n: int) -> tuple[
     Reset Zero (``settle`` frames after the start, ``window`` frames long; docs/body-model.md)."""
     lo = min(n, max(0, settle_frames))
     return lo, min(n, lo + max(1, window_frames))
+
+
+#: The OpenSim model whose coordinate names the .mot uses (its knee flexion is positive).
+MOT_MODEL = "Rajagopal et al. 2016 full-body model (Rajagopal2015.osim)"
+_ROWS_FIELD = 12  # digits reserved for nRows, patched when the file is closed
+
+
+class JointAnglesMotWriter(TextWriter):
+    """The joint angles as an OpenSim motion file (``.mot``, degrees), written block by block:
+    one column per coordinate of :data:`bpms.filter.joints.OPENSIM_COORDINATES` (the names
+    of :data:`MOT_MODEL`, OpenSim's signs: adduction and internal rotation positive), every
+    frame a row, ``nan`` where a segment has no orientation (before the first Reset Zero, a
+    failed IMU). ``nRows`` is patched in at :meth:`close`. meta: extra ``key=value`` header
+    lines (:meth:`bpms.analysis.stamp.Stamp.items`)."""
+
+    def __init__(self, path: str | Path, convention: str = "isb",
+                 meta: Sequence[tuple[str, str]] = ()) -> None:
+        from bpms.filter.joints import OPENSIM_COORDINATES
+
+        super().__init__(path)
+        self.convention = convention
+        self.columns = list(OPENSIM_COORDINATES)
+        self.rows = 0
+        self._file.write("joint_angles\nversion=1\n")
+        self._rows_at = self._file.tell()
+        self._file.write(f"nRows={0:<{_ROWS_FIELD}d}\nnColumns={len(self.columns) + 1}\n"
+                         f"inDegrees=yes\nmodel={MOT_MODEL}\n")
+        for key, value in meta:
+            self._file.write(f"{key}={str(value).replace(chr(10), ' ')}\n")
+        self._file.write("endheader\n" + "\t".join(["time", *self.columns]) + "\n")
+
+    def write(self, t: np.ndarray, joint_angles: np.ndarray) -> None:
+        """``t[N]`` s, ``joint_angles[N, 28]`` rad in :attr:`convention`."""
+        from bpms.filter.joints import opensim_coordinates
+
+        coords = opensim_coordinates(joint_angles, self.convention)
+        data = np.column_stack([np.asarray(t, np.float64),
+                                *(np.degrees(coords[c]) for c in self.columns)])
+        if len(data):
+            write_rows(self._file, data, "%.6f", "\t", "")
+        self.rows += len(data)
+
+    def close(self) -> None:
+        if self._file.closed:
+            return
+        self._file.seek(self._rows_at)
+        self._file.write(f"nRows={self.rows:<{_ROWS_FIELD}d}")
+        super().close()

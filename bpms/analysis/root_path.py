@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bpms.analysis.track import FOOT_IMUS, TrackAccumulator
+from bpms.analysis.track import FOOT_IMUS, GyroTrackAccumulator, Track, TrackAccumulator
 
 
 def root_trajectory(t: np.ndarray, pelvis: np.ndarray, step_times: np.ndarray,
@@ -24,22 +24,71 @@ def root_trajectory(t: np.ndarray, pelvis: np.ndarray, step_times: np.ndarray,
     return out
 
 
+class StrikeFinder:
+    """The heel strikes of ``bpms track`` (its default detector: the foot accelerometers, or
+    the shank gyroscopes when the recording's accelerometer range clips the threshold,
+    :func:`bpms.analysis.gait_events.accel_detector_usable`), found chunk by chunk in constant
+    memory: :meth:`add` each :class:`bpms.filter.door.Chunk` of a raw recording, then
+    :meth:`track`. ``detector``: ``auto``, ``accel`` or ``gyro``."""
+
+    def __init__(self, processor, header: dict | None, detector: str = "auto") -> None:
+        from bpms.analysis.gait_events import accel_detector_usable, accel_range_g
+
+        self.proc = processor
+        opts = processor.options.track
+        if detector == "auto":
+            usable = accel_detector_usable(accel_range_g(header), opts.heel_strike_g)
+            detector = "accel" if usable else "gyro"
+        self.detector = detector
+        self.gravity = processor.sensor_calibration.gravity
+        self._acc: TrackAccumulator | GyroTrackAccumulator = (
+            GyroTrackAccumulator(opts.min_step_interval_s, opts.declination_deg)
+            if detector == "gyro" else
+            TrackAccumulator(opts.heel_strike_g, opts.min_step_interval_s,
+                             opts.declination_deg))
+
+    def add(self, chunk) -> None:
+        """The next chunk (``chunk.raw`` counts and ``chunk.result``)."""
+        from bpms.analysis.gait_events import SHANK_IMUS, lateral_gyro_rate
+
+        res = chunk.result
+        acc, _, gyr = self.proc.calibrate(chunk.raw)
+        if self.detector == "gyro":
+            per_side = {side: lateral_gyro_rate(res.C[:, i], res.R[:, i], gyr[:, i])
+                        for side, i in SHANK_IMUS.items()}
+        else:
+            per_side = {side: np.linalg.norm(acc[:, i], axis=-1) / self.gravity[i]
+                        for side, i in FOOT_IMUS.items()}
+        self._acc.add(res.t, per_side, res.joint_positions)
+
+    def track(self) -> Track:
+        return self._acc.track()
+
+
+def walked_track(opened, zero_at_s=(), detector: str = "auto") -> Track:
+    """The :class:`~bpms.analysis.track.Track` (heel strikes with their sides, the walked
+    path) of a recording opened through the one door, streamed chunk by chunk in constant
+    memory; no strike for a filtered file (no raw sensors)."""
+    if not opened.has_raw:
+        return Track(np.zeros(0), [], np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
+    finder = StrikeFinder(opened.processor, opened.header, detector)
+    for chunk in opened.chunks(zero_at_s):
+        finder.add(chunk)
+    return finder.track()
+
+
 def walked_steps(opened, zero_at_s=()) -> tuple[np.ndarray, np.ndarray]:
     """Heel-strike times ``[K]`` s and running positions ``[K, 3]`` m of a recording opened
     through the one door (:func:`bpms.filter.door.open_for_processing`), streamed chunk by
-    chunk in constant memory; empty for a filtered file (no accelerometers)."""
-    if not opened.has_raw:
-        return np.zeros(0), np.zeros((0, 3))
-    proc = opened.processor
-    opts = proc.options.track
-    gravity = proc.sensor_calibration.gravity
-    acc_track = TrackAccumulator(opts.heel_strike_g, opts.min_step_interval_s,
-                                 opts.declination_deg)
-    for chunk in opened.chunks(zero_at_s):
-        acc, _, _ = proc.calibrate(chunk.raw)
-        accel_g = {side: np.linalg.norm(acc[:, i], axis=-1) / gravity[i]
-                   for side, i in FOOT_IMUS.items()}
-        acc_track.add(chunk.result.t, accel_g, chunk.result.joint_positions)
-    track = acc_track.track()
+    chunk in constant memory (the accelerometer detector); empty for a filtered file (no
+    accelerometers)."""
+    track = walked_track(opened, zero_at_s, "accel")
     return np.asarray(track.times, dtype=np.float64), np.asarray(track.positions,
                                                                  dtype=np.float64).reshape(-1, 3)
+
+
+def walked_offset(t: np.ndarray, track: Track) -> np.ndarray:
+    """``[N, 3]`` m NED: the horizontal walked position at times ``t`` (s), moved linearly
+    from one heel strike to the next (:func:`root_trajectory` without the pelvis)."""
+    return root_trajectory(t, np.zeros((len(t), 3)), np.asarray(track.times, np.float64),
+                           np.asarray(track.positions, np.float64).reshape(-1, 3))

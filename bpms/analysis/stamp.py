@@ -1,5 +1,14 @@
-"""What every export states about its recording (issue 16.5): the UTC start time and the
-joint-angle convention of the angles written.
+"""What every export states about its recording (issue 16.5) and where it came from (issue
+43.5): the UTC start time, the joint-angle convention of the angles written, the heading
+reference, and the provenance computed here once for every format (:func:`provenance`):
+
+- ``bpms_version``: the version, with the commit (and ``+dirty`` for uncommitted changes)
+  when bpms runs from a git checkout;
+- ``filter``: the attitude filter and its settings in force (``FilterOptions``: the
+  algorithm's own gains, the time step, the heading reference);
+- ``reset_zero``: which Reset Zero the angles rest on (``--reset-zero``, extra ``--reset-at``
+  captures);
+- ``recording``: the input recording's file name.
 
 - UTC start: the host receive time of the recording's first frame (s since 1970-01-01 UTC), else
   the raw header's ``start_time``; for a filtered file its first row's ``host_time_s``;
@@ -10,8 +19,11 @@ joint-angle convention of the angles written.
 
 from __future__ import annotations
 
+import functools
 import math
+import subprocess
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -28,6 +40,8 @@ class Stamp:
     convention: str
     #: the heading reference's header text (``FilterOptions.heading``; 6D: ``relative``)
     heading: str = ""
+    #: :func:`provenance` pairs
+    origin: tuple[tuple[str, str], ...] = ()
 
     @property
     def utc_text(self) -> str:
@@ -39,10 +53,10 @@ class Stamp:
         return CONVENTION_TEXT.get(self.convention, self.convention)
 
     def items(self) -> list[tuple[str, str]]:
-        """``[("utc_start", ...), ("joint_angle_convention", ...), ("heading", ...)]`` for
-        header lines."""
+        """``[("utc_start", ...), ("joint_angle_convention", ...), ("heading", ...)]`` and the
+        :func:`provenance` pairs, for header lines."""
         items = [("utc_start", self.utc_text), ("joint_angle_convention", self.convention_text)]
-        return items + ([("heading", self.heading)] if self.heading else [])
+        return items + ([("heading", self.heading)] if self.heading else []) + list(self.origin)
 
     def line(self) -> str:
         """One sentence for stderr."""
@@ -72,11 +86,73 @@ def recording_utc_start(recording) -> float:
     return float(recording.header.get("start_time", math.nan))
 
 
-def recording_stamp(opened) -> Stamp:
+def recording_stamp(opened, zero_at_s=()) -> Stamp:
     """The :class:`Stamp` of a recording opened by :func:`bpms.filter.door.
-    open_for_processing`."""
+    open_for_processing`; ``zero_at_s``: extra Reset Zero captures (s) of the command."""
     from bpms.filter.door import heading_header
 
     options = opened.processor.options
     return Stamp(recording_utc_start(opened), options.joints.convention,
-                 heading_header(options)["heading"])
+                 heading_header(options)["heading"],
+                 tuple(provenance(opened, zero_at_s).items()))
+
+
+@functools.lru_cache(maxsize=1)
+def bpms_version() -> str:
+    """``0.1.0``, or ``0.1.0 (commit 1a2b3c4d5e6f)`` (``+dirty`` with uncommitted changes)
+    when bpms runs from a git checkout and git answers within 5 s."""
+    import bpms
+
+    version = bpms.__version__
+    root = Path(bpms.__file__).resolve().parent.parent
+    if not (root / ".git").exists():
+        return version
+    try:
+        def git(*words: str) -> str:
+            return subprocess.run(["git", "-C", str(root), *words], capture_output=True,
+                                  text=True, timeout=5, check=True).stdout.strip()
+
+        commit = git("rev-parse", "--short=12", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no")
+    except (OSError, subprocess.SubprocessError):
+        return version
+    return f"{version} (commit {commit}{'+dirty' if dirty else ''})" if commit else version
+
+
+#: FilterOptions prefixes of one algorithm's own settings.
+_ALGORITHM_PREFIXES = ("observer_", "vqf_", "adaptive_")
+
+
+def filter_text(options) -> str:
+    """``mahony (kp_rollpitch 0.02, ki_rollpitch 2e-05, ..., dt 0.02, heading magnetic)``:
+    the algorithm of ``options`` (an :class:`bpms.io.options.Options`) and the settings it
+    uses."""
+    from dataclasses import fields
+
+    f = options.filter
+    own = {"observer": ("observer_",), "vqf": ("vqf_",),
+           "adaptive": ("adaptive_", "observer_k_bias", "observer_tau_acc_s",
+                        "observer_mag_new_time_s")}.get(f.algorithm, ("kp_", "ki_"))
+    parts = []
+    for field in fields(f):
+        name = field.name
+        if name == "algorithm":
+            continue
+        shared = not name.startswith((*_ALGORITHM_PREFIXES, "kp_", "ki_"))
+        if shared or name.startswith(own):
+            value = getattr(f, name)
+            parts.append(f"{name} {value:g}" if isinstance(value, float) else f"{name} {value}")
+    return f"{f.algorithm} ({', '.join(parts)})"
+
+
+def provenance(opened, zero_at_s=()) -> dict[str, str]:
+    """Where an output of ``opened`` (:func:`bpms.filter.door.open_for_processing`) comes
+    from: ``bpms_version``, ``filter``, ``reset_zero``, ``recording`` (see the module)."""
+    choice = opened.reset_zero
+    reset = choice.describe()
+    if choice.mode == "events" and not opened.has_events:
+        reset = "automatic Reset Zero (the recording holds no Reset Zero events)"
+    if len(zero_at_s):
+        reset += "; extra captures at " + ", ".join(f"{float(t):g} s" for t in zero_at_s)
+    return {"bpms_version": bpms_version(), "filter": filter_text(opened.processor.options),
+            "reset_zero": reset, "recording": Path(opened.path).name}

@@ -8,10 +8,17 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from bpms.analysis.binary_out import ExportMeta, open_writer
-from bpms.analysis.stamp import recording_utc_start
+from bpms.analysis.stamp import provenance, recording_utc_start
 from bpms.filter.door import CHUNK_FRAMES
 from bpms.io.options import Options
+
+
+class NoUsableFramesError(Exception):
+    """The recording has no frame with joint angles (no Reset Zero, every IMU failed): the
+    outputs are removed; the message says why in one line."""
 
 
 @dataclass
@@ -62,7 +69,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | None = None,
     proc = door.processor
     start = recording_utc_start(door)
     meta = ExportMeta(start if math.isfinite(start) else 0.0, proc.options.joints.convention,
-                      1.0 / proc.options.filter.dt, str(path), extra=heading_header(proc.options),
+                      1.0 / proc.options.filter.dt, str(path),
+                      extra={**heading_header(proc.options), **provenance(door)},
                       n_frames=door.n_frames)
     return Opened(door, meta)
 
@@ -79,17 +87,24 @@ def export_recording(path: str | Path, outputs: dict[str, str | Path],
     meta = opened.meta
     writers = {kind: open_writer(kind, target, meta) for kind, target in outputs.items()}
     n = len(opened)
-    done = 0
+    done = usable = 0
     try:
         for result in opened.chunks():
             for writer in writers.values():
                 writer.write(result)
             done += len(result)
+            usable += int(np.isfinite(result.joint_angles).any(axis=1).sum())
             if progress:
                 progress(f"exporting {Path(path).name}", done, n)
     finally:
         for writer in writers.values():
             writer.close()
+    if done and not usable:
+        for target in outputs.values():
+            Path(target).unlink(missing_ok=True)
+        raise NoUsableFramesError(f"{path}: no frame with joint angles to export ({done} frames, "
+                             "none after a Reset Zero with its IMUs working: try --reset-zero "
+                             "auto); nothing written")
     return ExportSummary(n, meta.utc_iso, meta.convention,
                          {k: Path(v) for k, v in outputs.items()},
                          list(opened.problems))

@@ -27,7 +27,8 @@ def _read_errors(path: str, *kinds: type[Exception]) -> Iterator[None]:
 
 def open_recording_for(command: str, path: str, calibration: str | None = None,
                        options: str | None = None, algorithm: str | None = None,
-                       heading: str | None = None, reset_zero=None):
+                       heading: str | None = None, reset_zero=None,
+                       pose_calibration: str | None = None, posture: str | None = None):
     """The door, with one-line errors; prints ``calibration: …; options: …`` and the
     warnings so far on stderr. Returns the :class:`bpms.filter.door.OpenedRecording`."""
     from bpms.filter.door import open_for_processing
@@ -42,8 +43,14 @@ def open_recording_for(command: str, path: str, calibration: str | None = None,
     warn(command, opened.problems)
     if opened.n_frames == 0:
         raise CliError(f"{path}: the recording holds no frames")
-    opened.problems.clear()
-    return opened
+    if pose_calibration not in (None, "reset-zero") or posture is not None:
+        with _read_errors(path, ValueError):
+            what = opened.use_pose_calibration(pose_calibration, posture)
+        print(f"bpms {command}: pose calibration: {what}", file=sys.stderr)
+        report = opened.pose_report
+        for line in report.lines() if report is not None else []:
+            print(f"bpms {command}:   {line}", file=sys.stderr)
+    return opened  # its problems stay: the door adds only new ones as it reads
 
 
 def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
@@ -52,6 +59,7 @@ def stream(command: str, opened, zero_at_s: Sequence[float] = ()) -> Iterator:
     from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.progress import stderr_progress
 
+    shown = set(opened.problems)  # printed already (each warning once)
     with _read_errors(opened.path, FilteredFileError):
         yield from opened.chunks(zero_at_s, stderr_progress)
-    warn(command, opened.problems)
+    warn(command, [p for p in opened.problems if p not in shown])

@@ -26,6 +26,7 @@ from bpms.calibration.procedures import (
 )
 from bpms.calibration.result import collect, format_summary, summary
 from bpms.commands import CliError
+from bpms.commands._shared import refuse_special_output
 from bpms.io.events import FrameSource
 from bpms.io.frames import N_IMUS
 from bpms.progress import is_terminal
@@ -160,8 +161,8 @@ def _open_source(args: argparse.Namespace):
             changed_table,
         )
 
-        if args.sim_speed < 0:
-            raise CliError("--sim-speed must be ≥ 0")
+        if 0 < args.sim_speed < 0.01:  # nan, inf and < 0: refused by the option's type
+            raise CliError("--sim-speed must be 0 (as fast as possible) or 0.01 to 1000")
         return ScriptedCalibrationSource(CalibrationSuit(changed_table()), speed=args.sim_speed)
     from bpms.io.link import LinkError
     from bpms.io.options import SerialOptions
@@ -281,6 +282,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.exists() and out.is_dir():
         raise CliError(f"{out} is a folder; give a file name such as Calib.cfg")
+    for path in (out, out.with_suffix(".json")):  # the result replaces files, never devices
+        refuse_special_output(path)
     existing_path = args.existing or (out if out.exists() else _user_default())
     if args.existing and not Path(args.existing).is_file():
         raise CliError(f"--existing {args.existing}: no such file")

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import argparse
 
+from bpms.commands._shared import LONGEST_S, number
+
 
 def run(args: argparse.Namespace) -> int:
     from bpms.commands._calibrate_run import run as run_tool  # numpy etc. only when it runs
@@ -43,11 +45,12 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("--make-default", action="store_true",
                    help="also make the result your default calibration (bpms config); "
                         "without it you are asked")
-    p.add_argument("--gyro-samples", type=int, default=500, metavar="N",
+    p.add_argument("--gyro-samples", type=number(int, 1, 10_000_000), default=500, metavar="N",
                    help="gyro readings averaged per axis (default 500 = 10 s)")
-    p.add_argument("--accel-samples", type=int, default=200, metavar="N",
+    p.add_argument("--accel-samples", type=number(int, 1, 10_000_000), default=200, metavar="N",
                    help="accel readings averaged per pose (default 200)")
-    p.add_argument("--sweep-s", type=float, default=120.0, metavar="S",
+    p.add_argument("--sweep-s", type=number(float, 0, LONGEST_S, above=True),
+                   default=120.0, metavar="S",
                    help="magnetometer sweep duration, s (default 120)")
     p.add_argument("--ellipsoid", action="store_true",
                    help="also fit a magnetometer ellipsoid (hard + soft iron)")
@@ -55,7 +58,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="answer every prompt (capture poses when held still, save)")
     p.add_argument("--sim", action="store_true",
                    help="calibrate the simulated suit in-process (it holds the poses asked)")
-    p.add_argument("--sim-speed", type=float, default=1.0, metavar="X",
+    p.add_argument("--sim-speed", type=number(float, 0, 1000), default=1.0, metavar="X",
                    help="simulated frames at X times real time; 0 = as fast as possible")
     p.add_argument("--sim-move-gyro", action="store_true",
                    help="the simulated suit moves during the first gyro capture")

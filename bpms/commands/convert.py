@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from bpms.analysis.binary_out import SUFFIX
-    from bpms.analysis.stream_export import export_recording
+    from bpms.analysis.mat5_stream import ExportLimitError
+    from bpms.analysis.stream_export import NoUsableFramesError, export_recording
     from bpms.io.filtered_file.reader import FilteredFileError
     from bpms.io.rawfile import RawFileError
     from bpms.progress import stderr_progress
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         summary = export_recording(raw, outputs, args.calibration, args.options,
                                    stderr_progress, args.reset_zero)
-    except (RawFileError, FilteredFileError) as exc:
+    except (RawFileError, FilteredFileError, ExportLimitError, NoUsableFramesError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
         raise CliError(f"cannot write: {exc.strerror or exc}") from None

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources
+from bpms.commands._shared import add_sources, refuse_special_output
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{i:>3}  {name:<16} {report.total_deg[i]:8.2f} {report.heading_deg[i]:10.2f} "
               f"{report.inclination_deg[i]:10.2f}")
     if args.output:
-        out = Path(args.output)
+        out = refuse_special_output(Path(args.output))
         try:
             out.write_text("\n".join(lines) + "\n", encoding="utf-8")
         except OSError as exc:

@@ -68,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         read_vicon,
     )
     from bpms.io.filtered_file.reader import FilteredFileError
+    from bpms.io.paths import remove_regular_file
     from bpms.io.rawfile import RawFileError
 
     _ask(args, "kind", "kind of input (raw, filtered, vicon, qualisys)")
@@ -102,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             rows = write_csv(out, columns, data)
         except OSError as exc:
-            out.unlink(missing_ok=True)
+            remove_regular_file(out)
             if exc.filename and str(exc.filename) == str(out):
                 raise CliError(f"cannot write {out}: {exc.strerror or exc}") from exc
             raise
@@ -113,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{args.input}: {exc.strerror or exc}") from exc
     warn("extract", problems)
     if rows == 0 and args.kind == "filtered":
-        out.unlink(missing_ok=True)
+        remove_regular_file(out)
         raise CliError(f"{args.input}: the file holds no rows of data")
     print(f"{out}: {rows} rows × {len(columns)} columns", file=sys.stderr)
     return 0

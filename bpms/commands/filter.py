@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from bpms.analysis.cli_support import add_reset_zero_option
+from bpms.analysis.cli_support import add_pose_calibration_option, add_reset_zero_option
 from bpms.commands import CliError
 from bpms.commands._shared import add_sources, refuse_existing
 from bpms.io.options import ALGORITHMS
@@ -47,6 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                              + " (default: the options' [filter] algorithm, normally mahony; "
                              "docs/filters.md)")
     add_reset_zero_option(parser)
+    add_pose_calibration_option(parser)
     return parser
 
 
@@ -60,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from bpms.io.background import InBackground
     from bpms.io.filtered_file.writer import FilteredWriter, default_output_path
+    from bpms.io.paths import remove_regular_file
 
     t_start = time.perf_counter()
     if args.filter is not None and args.filter not in ALGORITHMS:
@@ -67,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
     out_path = refuse_existing(Path(args.output) if args.output
                                else default_output_path(args.raw_file), args.force)
     opened = open_recording_for("filter", args.raw_file, args.calibration, args.options,
-                                args.filter, reset_zero=args.reset_zero)
+                                args.filter, reset_zero=args.reset_zero,
+                                pose_calibration=args.pose_calibration, posture=args.posture)
     if opened.kind == "filtered":
         raise CliError(f"{args.raw_file}: is a filtered file already; give a raw recording")
     n = 0
@@ -80,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         if args.force:
-            out_path.unlink(missing_ok=True)
+            remove_regular_file(out_path)  # a file only (refuse_existing checked, and again)
         with InBackground(name="bpms-filtered-rows") as later:
             for chunk in stream("filter", opened):
                 res = chunk.result

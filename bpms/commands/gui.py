@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from bpms.commands import CliError
+from bpms.commands._shared import number
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -15,7 +16,8 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                        description=__doc__)
     p.add_argument("--sim", action="store_true",
                    help="skip the start-up window: straight to the simulated suit")
-    p.add_argument("--seed", type=int, default=0, help="simulated suit's seed (default 0)")
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0,
+                   help="simulated suit's seed (default 0)")
     p.add_argument("--options", metavar="options.toml", help="options file to load")
     p.add_argument("--calibration", metavar="Calib.cfg", help="calibration file to load")
     p.add_argument("--recording-dir", metavar="DIR",

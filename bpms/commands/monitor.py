@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpms.commands import CliError
-from bpms.commands._shared import stop_on_signals
+from bpms.commands._shared import LONGEST_S, number, stop_on_signals
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.events import SourceStatus
@@ -41,11 +41,14 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = sub.add_parser("monitor", help="connect to the suit and print its status every second")
     p.add_argument("port", nargs="?", metavar="PORT_OR_URL",
                    help="serial port or pyserial URL (default: discover the suit)")
-    p.add_argument("--seconds", type=float, default=None, metavar="N",
+    p.add_argument("--seconds", type=number(float, 0, LONGEST_S, above=True),
+                   default=None, metavar="N",
                    help="stop after N seconds (default: until Ctrl-C)")
-    p.add_argument("--baud", type=int, default=defaults.baud or DEFAULT_BAUD,
+    p.add_argument("--baud", type=number(int, 1, 10_000_000),
+                   default=defaults.baud or DEFAULT_BAUD,
                    help=f"baud rate (nominal over Bluetooth; default {defaults.baud})")
-    p.add_argument("--timeout", type=float, default=defaults.discovery_timeout_s,
+    p.add_argument("--timeout", type=number(float, 0, LONGEST_S, above=True),
+                   default=defaults.discovery_timeout_s,
                    metavar="S", help="wait for a reply this long, s "
                                      f"(default {defaults.discovery_timeout_s:g})")
     p.add_argument("--listen", metavar="HOST:PORT", nargs="?", const=UdpOptions().listen,
@@ -190,7 +193,8 @@ def udp_status_line(elapsed: float, rate: float, frames: int, status: SourceStat
             f"duplicated {c['duplicated']}  reordered {c['reordered']}  "
             f"malformed {c['malformed']}  foreign {c['foreign']}  "
             f"unauthenticated {c['unauthenticated']}  replayed {c['replayed']}  "
-            f"implausible {c['implausible']}  conflicts {c['conflicts']}  {status.state}")
+            f"implausible {c['implausible']}  conflicts {c['conflicts']}  stale {c['stale']}  "
+            f"switches {c['takeovers']}  {status.state}")
     if status.warning:
         line += f"  WARNING: {status.warning}"
     return line

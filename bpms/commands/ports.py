@@ -8,11 +8,14 @@ from __future__ import annotations
 
 import argparse
 
+from bpms.commands._shared import LONGEST_S, number
+
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = sub.add_parser("ports", help="list the serial ports (and find the suit with --probe)")
     p.add_argument("--probe", action="store_true", help="ask every port whether it is the suit")
-    p.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    p.add_argument("--timeout", type=number(float, 0, LONGEST_S, above=True),
+                   default=1.0, metavar="S",
                    help="wait for the answer per port, s (default 1)")
     return p
 

@@ -14,6 +14,10 @@ Field commands, typed on standard input (for use over SSH), each followed by Ent
   z        Reset Zero (the subject stands in the calibration pose)
   v        alignment off/on: the output angles corrected by Reset Zero or the sensor angles
   m TEXT   a marker note, stored in the recording at this frame
+  p [POSTURE]  pose calibration in a declared posture (--posture, or the one given here:
+           suit, neutral or 'elbow_r.flexion=15,...'; docs/pose-calibration.md)
+  f [SECONDS]  functional pose calibration: stand still 0.5 s, then knee and elbow flexions,
+           an arm swing, a few steps for SECONDS (default 30)
 
 Each goes into the raw recording at the frame it applies at, the event lines and the LSL event
 stream; ``bpms filter`` and ``bpms replay`` of the recording apply them where they happened.
@@ -29,7 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
-from bpms.commands._shared import stop_on_signals
+from bpms.commands._shared import LONGEST_S, number, stop_on_signals
 from bpms.commands.sim import add_sim_options, build_arbiter
 from bpms.firmware.sim.server import local_server
 from bpms.io.link import LinkError
@@ -53,14 +57,22 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "else the per-user recordings folder)")
     p.add_argument("--name", default=None, help="file name stem (default: a time stamp)")
     p.add_argument("--notes", default="", help="free text stored in the raw file's header")
+    p.add_argument("--posture", default=None, metavar="POSTURE",
+                   help="the declared posture of the field command p (default neutral): "
+                        "suit or 'elbow_r.flexion=15,...' (docs/pose-calibration.md)")
+    p.add_argument("--subject", default=None, metavar="PROFILE",
+                   help="the subject's profile, stored in the header and used for the body "
+                        "model: 'id=S01,height=1.80,mass=75,thigh=0.46' or a TOML file "
+                        "(docs/subject.md)")
     p.add_argument("--udp", action="append", default=[], metavar="HOST:PORT",
                    help="also forward the live stream over UDP (repeatable)")
     p.add_argument("--filtered", action="store_true", help="also record the filtered file")
     add_stream_arguments(p)  # --lsl, --mvn (i16)
-    p.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+    p.add_argument("--lsl-wait", type=number(float, 0, LONGEST_S), default=0.0, metavar="SECONDS",
                    help="with --lsl: wait up to this long for a consumer (e.g. LabRecorder) on "
                         "every LSL stream before recording (the suit streams meanwhile)")
-    p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--seconds", type=number(float, 0, LONGEST_S, above=True), default=None,
+                   help="stop after this many seconds")
     p.add_argument("--options", default=None, metavar="FILE", help="options file (TOML)")
     p.add_argument("--sim", action="store_true", help="record the simulated suit")
     add_sim_options(p)
@@ -104,10 +116,12 @@ def summary(status: RecordingStatus) -> tuple[str, int]:
     return f"recorded {status.raw_on_disk} frames to {status.raw_path}{lost}", (1 if lost else 0)
 
 
-FIELD_HELP = "field commands: z + Enter = Reset Zero, v = alignment off/on, m TEXT = marker"
+FIELD_HELP = ("field commands: z + Enter = Reset Zero, v = alignment off/on, m TEXT = marker, "
+              "p [POSTURE] = pose calibration in a declared posture, f [SECONDS] = "
+              "functional pose calibration")
 
 
-def field_command(session, line: str) -> str | None:
+def field_command(session, line: str, posture: str | None = None) -> str | None:
     """Run one line typed on standard input; the reply to print (None: nothing to say)."""
     text = line.strip()
     if not text:
@@ -116,6 +130,26 @@ def field_command(session, line: str) -> str | None:
     if word == "z":
         session.reset_zero("manual")
         return "Reset Zero at the next frame"
+    if word == "p":
+        from bpms.filter.posture_calibration import parse_posture
+
+        text = rest.strip() or posture or "neutral"
+        try:
+            declared = parse_posture(text)
+        except ValueError as exc:
+            return str(exc)
+        session.calibrate_posture(declared)
+        return f"pose calibration in the declared posture ({text}) at the next frame"
+    if word == "f":
+        try:
+            seconds = float(rest) if rest.strip() else 30.0
+        except ValueError:
+            seconds = -1.0
+        if not 5.0 <= seconds <= 600.0:
+            return "f wants the movements' length in seconds, 5 to 600: f 30"
+        session.calibrate_functional(seconds)
+        return (f"functional calibration: stand still 0.5 s, then {seconds:g} s of knee and "
+                "elbow flexions, an arm swing, a few steps")
     if word == "v":
         session.set_corrected_output(None)
         return "alignment switched at the next frame"
@@ -127,12 +161,12 @@ def field_command(session, line: str) -> str | None:
     return f"unknown command {word!r}; {FIELD_HELP}"
 
 
-def _read_commands(session, stream) -> None:
+def _read_commands(session, stream, posture: str | None = None) -> None:
     """Standard input, line by line, until it ends (a recorder started without one, or with
     /dev/null, simply has no field commands)."""
     try:
         for line in stream:
-            reply = field_command(session, line)
+            reply = field_command(session, line, posture)
             if reply:
                 print(reply, flush=True)
     except (OSError, ValueError):  # closed under the thread at exit
@@ -147,6 +181,22 @@ def run(args: argparse.Namespace) -> int:
 
     # explicit file > the user's default > factory (a one-line notice when factory)
     options = options_or_default(args.options, announce=False)
+    if args.posture:
+        from bpms.filter.posture_calibration import parse_posture
+
+        try:
+            parse_posture(args.posture)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+    profile = None
+    if args.subject:
+        from bpms.io.subject import SubjectProfile
+
+        try:
+            profile = SubjectProfile.parse(args.subject)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+        options.body = profile.body_options()
     table = calibration_or_default(args.calibration, announce=False)
     for problem in (*options.problems, *table.problems):
         print(f"warning: {problem}", file=sys.stderr)
@@ -160,6 +210,11 @@ def run(args: argparse.Namespace) -> int:
         port = server.address
         print(f"recording the SIMULATED suit on {port}", flush=True)
     source = SuitFrameSource(port, options.serial, simulated=args.sim)
+    # the kernels loaded before the suit streams: on a busy computer loading them takes
+    # longer than the suit holds frames for a host that does not read (docs/pipeline.md)
+    from bpms.pipeline.steady import warm_up
+
+    warm_up(processor)  # (the session freezes the heap when it starts, as always)
     try:
         source.connect()
     except LinkError as exc:
@@ -170,6 +225,8 @@ def run(args: argparse.Namespace) -> int:
     announce_factory(options=not args.options, calibration=not args.calibration)
     folder = Path(args.output) if args.output else None  # None: options, else per-user folder
     session = LiveSession(source, options, processor, recording_dir=folder, notes=args.notes)
+    if profile is not None:
+        session.header_extra["subject"] = profile.to_header()
     stop_on_signals()
     recording = None
     bridges: list = []
@@ -203,7 +260,7 @@ def run(args: argparse.Namespace) -> int:
               flush=True)
         if sys.stdin is not None and not sys.stdin.closed:
             print(FIELD_HELP, flush=True)
-            threading.Thread(target=_read_commands, args=(session, sys.stdin),
+            threading.Thread(target=_read_commands, args=(session, sys.stdin, args.posture),
                              name="bpms-field-commands", daemon=True).start()
         t0 = time.monotonic()
         shown_events = 0

@@ -20,10 +20,14 @@ import time
 
 from bpms.analysis.cli_support import add_reset_zero_option
 from bpms.commands import CliError
-from bpms.commands._shared import warn
+from bpms.commands._shared import LONGEST_S, number, warn
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.rawfile import RawFileError
 from bpms.io.recordings import open_replay
+
+#: Seconds without a frame processed, after the last was read and none waits, before replay
+#: ends saying which frames were lost (a processing error; it never ends otherwise).
+STALL_S = 5.0
 
 
 def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -35,12 +39,13 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="UDP destination of raw frames and poses (repeatable; multicast "
                         "groups allowed)")
     add_stream_arguments(p)
-    p.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+    p.add_argument("--lsl-wait", type=number(float, 0, LONGEST_S), default=0.0, metavar="SECONDS",
                    help="with --lsl: wait up to this long for a consumer (e.g. LabRecorder) "
                         "on every LSL stream before playing")
-    p.add_argument("--speed", type=float, default=1.0,
+    p.add_argument("--speed", type=number(float, 0, 1000), default=1.0,
                    help="playback speed, × real time (0 = as fast as possible; default 1)")
-    p.add_argument("--from", dest="start_s", type=float, default=0.0, metavar="SECONDS",
+    p.add_argument("--from", dest="start_s", type=number(float, 0, LONGEST_S),
+                   default=0.0, metavar="SECONDS",
                    help="start this many seconds into the recording")
     p.add_argument("--loop", action="store_true", help="start again at the end")
     p.add_argument("--options", default=None, metavar="FILE",
@@ -72,8 +77,8 @@ def run(args: argparse.Namespace) -> int:
     from bpms.pipeline.session import LiveSession
     from bpms.pipeline.streams import start_streams, stop_streams
 
-    if args.speed < 0:
-        raise CliError("--speed must be ≥ 0 (0 = as fast as possible)")
+    if 0 < args.speed < 0.01:  # nan, inf and < 0 are refused by the option's type
+        raise CliError("--speed must be 0 (as fast as possible) or 0.01 to 1000")
     if not (args.udp or args.lsl or args.mvn):
         raise CliError("nothing to send: give --udp HOST:PORT, --lsl and/or --mvn HOST:PORT")
     try:  # native (read from disk as it plays) or legacy; no valid frame is an error too
@@ -84,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {problem}", file=sys.stderr)
     if len(recording) == 0:
         raise CliError(f"{args.raw_file}: the recording holds no frames")
+    if args.start_s >= recording.duration_s:  # nothing would play
+        raise CliError(f"--from {args.start_s:g} s: the recording lasts "
+                       f"{recording.duration_s:.1f} s")
     opened = _opened(args.raw_file, args.options, args.reset_zero)
     processor = opened.processor
     shown = len(opened.problems)
@@ -114,12 +122,21 @@ def run(args: argparse.Namespace) -> int:
     session.start()
     source.play()
     last = time.monotonic()
+    stalled = (0, time.monotonic())  # (frames processed, since when)
+    unprocessed = 0
     try:
         while True:
             time.sleep(0.05)
             status = session.status()
             done = source.ended and status.processed >= status.frames
             now = time.monotonic()
+            if status.processed != stalled[0] or status.processing_backlog:
+                stalled = (status.processed, now)
+            elif source.ended and not done and now - stalled[1] > STALL_S:
+                # every frame was read, none is waiting, and the rest were never processed
+                # (an error in the pipeline): end, saying so, rather than wait for ever
+                unprocessed = status.frames - status.processed
+                done = True
             if now - last >= 1.0 or done:
                 print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
                       f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
@@ -135,4 +152,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         session.stop()  # every processed frame is published before the bridges drain
         stop_streams(bridges)
+    if unprocessed:
+        why = "; ".join(e for e in status.events if "error" in e)[-300:]
+        print(f"bpms replay: {unprocessed} of {status.frames} frames were not processed"
+              + (f" ({why})" if why else ""), file=sys.stderr)
+        return 1
     return 0

@@ -8,9 +8,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from bpms.analysis.cli_support import add_filter_option
+from bpms.analysis.cli_support import add_filter_option, add_pose_calibration_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources
+from bpms.commands._shared import LONGEST_S, add_sources, number
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -20,11 +20,12 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                     "time window; several recordings are compared side by side.")
     parser.add_argument("raw_files", nargs="+", metavar="RAW_FILE",
                         help="raw recording(s) or filtered .csv file(s)")
-    parser.add_argument("--from", dest="t0", type=float, metavar="T0",
+    parser.add_argument("--from", dest="t0", type=number(float, 0, LONGEST_S), metavar="T0",
                         help="window start, s since the recording started (default: start)")
-    parser.add_argument("--to", dest="t1", type=float, metavar="T1",
+    parser.add_argument("--to", dest="t1", type=number(float, 0, LONGEST_S), metavar="T1",
                         help="window end, s (default: end)")
-    parser.add_argument("--reset-at", type=float, action="append", default=[], metavar="T",
+    parser.add_argument("--reset-at", type=number(float, 0, LONGEST_S), action="append", default=[],
+                        metavar="T",
                         help="extra Reset Zero at T s (repeatable; same for every file)")
     parser.add_argument("--label", action="append", default=[],
                         help="label per file, in order (default: the file stems)")
@@ -34,6 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_sources(parser, "each recording's, else your default")
     parser.add_argument("--no-figures", action="store_true", help="tables only")
     add_filter_option(parser)
+    add_pose_calibration_option(parser)
     return parser
 
 
@@ -50,13 +52,14 @@ def run(args: argparse.Namespace) -> int:
     tables = []
     for path, label in zip(args.raw_files, labels, strict=True):
         opened = open_recording_for("rom", path, args.calibration, args.options,
-                                    args.filter_name, args.heading, args.reset_zero)
+                                    args.filter_name, args.heading, args.reset_zero,
+                                    args.pose_calibration, args.posture)
         acc = RomAccumulator(label, args.t0, args.t1)
         for chunk in stream("rom", opened, args.reset_at):
             acc.add(chunk.result.t, chunk.result.joint_angles)
         try:
             table = acc.table()
-            table.stamp = recording_stamp(opened)
+            table.stamp = recording_stamp(opened, args.reset_at)
             tables.append(table)
         except ValueError as exc:
             raise CliError(str(exc)) from exc

@@ -21,7 +21,13 @@ import time
 from typing import TYPE_CHECKING
 
 from bpms.commands import CliError
-from bpms.commands._shared import stop_on_signals, warn
+from bpms.commands._shared import (
+    LONGEST_S,
+    number,
+    refuse_special_output,
+    stop_on_signals,
+    warn,
+)
 
 if TYPE_CHECKING:  # numpy and the sensor model load when the suit is built, not for --help
     from bpms.firmware.sim.arbiter import Arbiter, MotionSource
@@ -34,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     where.add_argument("--pty", action="store_true",
                        help="serve on a new pseudo-terminal (its path is printed first; "
                             "Linux and macOS)")
-    where.add_argument("--tcp", type=int, metavar="PORT",
+    where.add_argument("--tcp", type=number(int, 0, 65535), metavar="PORT",
                        help="serve on 127.0.0.1:PORT (0 = any free port; the URL is printed)")
     add_sim_options(p)
     a = p.add_argument_group("the firmware in an AVR simulator")
@@ -57,7 +63,8 @@ def add_sim_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("simulated suit")
     g.add_argument("--fast", action="store_true",
                    help="stream as fast as the host reads (default: real time, 50 frames/s)")
-    g.add_argument("--seed", type=int, default=0, help="seed of noise, mounting errors, faults")
+    g.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0,
+                   help="seed of noise, mounting errors, faults")
     g.add_argument("--mag-disturbance", action="store_true",
                    help="a magnet beside the right forearm during the elbow moves")
     g.add_argument("--no-noise", action="store_true", help="noise-free sensors")
@@ -65,25 +72,40 @@ def add_sim_options(p: argparse.ArgumentParser) -> None:
                    help="IMUs mounted exactly along their segments")
     g.add_argument("--calibration", metavar="Calib.cfg",
                    help="the suit's true calibration (default: the factory table)")
-    g.add_argument("--start-at", type=float, default=0.0, metavar="SECONDS",
+    g.add_argument("--start-at", type=number(float, 0, LONGEST_S), default=0.0, metavar="SECONDS",
                    help="start the scripted motion this far in (docs/simulated-suit.md; e.g. "
                         "69.6: the subject is turning when the stream starts)")
-    g.add_argument("--battery", type=float, default=3.35, metavar="VOLTS",
+    g.add_argument("--battery", type=number(float, 0, 10, above=True), default=3.35,
+                   metavar="VOLTS",
                    help="battery voltage at start (default 3.35)")
-    g.add_argument("--drain", type=float, default=0.1, metavar="V_PER_H",
+    g.add_argument("--drain", type=number(float, 0, 100), default=0.1, metavar="V_PER_H",
                    help="battery drain, V per hour (default 0.1; floor 2.6 V)")
+    b = p.add_argument_group("the simulated subject (docs/simulated-suit.md)")
+    b.add_argument("--calibration-posture", default="neutral", metavar="POSTURE",
+                   help="posture held in the still windows: neutral (default), suit "
+                        "(pressure suit: shoulders abducted 20°, elbows 15°, hips 10°, knees 15° "
+                        "flexed) or custom degrees of freedom 'elbow_r=15,knee_r=10'")
+    b.add_argument("--mounting-error", type=number(float, 0, 45), default=None, metavar="DEG",
+                   help="rms per axis of the IMUs' mounting misalignment, degrees (default 3)")
+    b.add_argument("--height", type=number(float, 0.5, 2.5), default=None, metavar="M",
+                   help="the subject's height, m: segment lengths scale from 1.73 m")
+    b.add_argument("--segment", action="append", default=[], metavar="NAME=M",
+                   help="one measured segment length, m (e.g. thigh=0.45); repeatable")
+    b.add_argument("--functional", action="store_true",
+                   help="begin with the functional-calibration movements")
     f = p.add_argument_group("fault injection (all off by default)")
-    f.add_argument("--error-rate", type=float, default=0.0, metavar="P",
+    f.add_argument("--error-rate", type=number(float, 0, 1), default=0.0, metavar="P",
                    help="per frame, IMU and sensor: error bit set, values 0")
-    f.add_argument("--drop-rate", type=float, default=0.0, metavar="P",
+    f.add_argument("--drop-rate", type=number(float, 0, 1), default=0.0, metavar="P",
                    help="per frame: a run of 1-8 bytes is lost")
-    f.add_argument("--corrupt-rate", type=float, default=0.0, metavar="P",
+    f.add_argument("--corrupt-rate", type=number(float, 0, 1), default=0.0, metavar="P",
                    help="per frame: one byte is altered")
     f.add_argument("--bursty", action="store_true",
                    help="Bluetooth-like delivery: frames held back up to 300 ms, then a burst")
-    f.add_argument("--silent-after", type=float, default=None, metavar="SECONDS",
+    f.add_argument("--silent-after", type=number(float, 0, LONGEST_S),
+                   default=None, metavar="SECONDS",
                    help="go silent (a lost link) this long after start ...")
-    f.add_argument("--silent-for", type=float, default=5.0, metavar="SECONDS",
+    f.add_argument("--silent-for", type=number(float, 0, LONGEST_S), default=5.0, metavar="SECONDS",
                    help="... for this long (default 5)")
 
 
@@ -105,8 +127,33 @@ def build_source(args: argparse.Namespace) -> MotionSource:
     source = MotionSource.simulated(
         seed=args.seed, mag_disturbance=args.mag_disturbance,
         mounting_errors=not args.no_mounting_errors, noise=not args.no_noise,
-        calibration=table)
+        calibration=table, **subject_kwargs(args))
     return source.starting_at(round(getattr(args, "start_at", 0.0) / 0.02))
+
+
+def subject_kwargs(args: argparse.Namespace) -> dict:
+    """``simulate()`` arguments of the simulated subject's options (CliError when bad)."""
+    from bpms.firmware.sim.body import SubjectDimensions
+    from bpms.firmware.sim.subject import parse_posture
+
+    try:
+        posture = parse_posture(getattr(args, "calibration_posture", None))
+        lengths = {}
+        for item in getattr(args, "segment", []) or []:
+            name, sep, value = item.partition("=")
+            if not sep:
+                raise ValueError(f"--segment wants NAME=M, not {item!r}")
+            lengths[name.strip()] = float(value)
+        height = getattr(args, "height", None)
+        subject = (SubjectDimensions.of_height(height or 1.73, **lengths)
+                   if height is not None or lengths else None)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    error = getattr(args, "mounting_error", None)
+    if error is not None and not 0.0 <= error <= 45.0:
+        raise CliError(f"--mounting-error must be between 0 and 45 degrees, got {error:g}")
+    return {"posture": posture, "subject": subject, "mounting_error_deg": error,
+            "functional": bool(getattr(args, "functional", False))}
 
 
 def build_arbiter(args: argparse.Namespace) -> Arbiter:
@@ -173,6 +220,14 @@ _NOT_WITH_AVR = (("error_rate", "--error-rate"), ("drop_rate", "--drop-rate"),
                  ("silent_after", "--silent-after"))
 
 
+def _seconds(text: str) -> float:
+    """A time in seconds, finite and ≥ 0 (else ValueError)."""
+    value = float(text)
+    if not 0 <= value < float("inf"):
+        raise ValueError(f"{text} is not a time ≥ 0 s")
+    return value
+
+
 def parse_sensor_off(text: str):
     """``IMU:SENSOR:FROM:TO`` (SENSOR accel, mag or gyro; seconds) → :class:`SensorOff`."""
     from bpms.firmware.avr_suit import SENSORS, SensorOff
@@ -181,8 +236,8 @@ def parse_sensor_off(text: str):
     try:
         if len(parts) != 4 or parts[1] not in SENSORS:
             raise ValueError
-        return SensorOff(int(parts[0]), SENSORS.index(parts[1]), float(parts[2]),
-                         float(parts[3]))
+        return SensorOff(int(parts[0]), SENSORS.index(parts[1]), _seconds(parts[2]),
+                         _seconds(parts[3]))
     except ValueError as exc:
         why = f" ({exc})" if str(exc) else ""
         raise CliError(f"--sensor-off wants IMU:SENSOR:FROM:TO with IMU 0-17, SENSOR one of "
@@ -198,7 +253,7 @@ def parse_bus_stuck(text: str):
     try:
         if len(parts) != 3:
             raise ValueError
-        return BusStuck(int(parts[0]), float(parts[1]), float(parts[2]))
+        return BusStuck(int(parts[0]), _seconds(parts[1]), _seconds(parts[2]))
     except ValueError as exc:
         why = f" ({exc})" if str(exc) else ""
         raise CliError(f"--bus-stuck wants CLUSTER:FROM:TO with CLUSTER 0-5 and FROM < TO in "
@@ -259,7 +314,7 @@ def run_avr(args: argparse.Namespace) -> int:
                            "--avr (use --sensor-off to take a sensor chip off the bus)")
     sensor_off = [parse_sensor_off(text) for text in args.sensor_off]
     bus_stuck = [parse_bus_stuck(text) for text in args.bus_stuck]
-    report = Path(args.report) if args.report else None
+    report = refuse_special_output(Path(args.report)) if args.report else None
     if report is not None and not report.parent.is_dir():
         raise CliError(f"cannot write the report: no folder {report.parent}")
     source = build_source(args)

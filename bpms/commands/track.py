@@ -13,7 +13,7 @@ import numpy as np
 
 from bpms.analysis.cli_support import add_filter_option
 from bpms.commands import CliError
-from bpms.commands._shared import add_sources
+from bpms.commands._shared import LONGEST_S, add_sources, number, refuse_special_output
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -21,12 +21,12 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "track", help="walked path by dead reckoning (CSV + PNG)",
         description="Heel strikes, per-step vectors and the 3-D walked path of a recording.")
     parser.add_argument("raw_file", metavar="RAW_FILE", help="raw recording")
-    parser.add_argument("--declination", type=float, metavar="DEG",
+    parser.add_argument("--declination", type=number(float, -180, 180), metavar="DEG",
                         help="magnetic declination, deg east (default: options track."
                              "declination_deg)")
-    parser.add_argument("--threshold-g", type=float, metavar="G",
+    parser.add_argument("--threshold-g", type=number(float, 0, above=True), metavar="G",
                         help="heel-strike threshold, g (default: options track.heel_strike_g)")
-    parser.add_argument("--min-interval", type=float, metavar="S",
+    parser.add_argument("--min-interval", type=number(float, 0, LONGEST_S), metavar="S",
                         help="minimum time between heel strikes, s (default: options)")
     parser.add_argument("--detector", choices=("auto", "accel", "gyro"), default="auto",
                         help="heel strikes from the feet's accelerometers or the shanks' "
@@ -35,8 +35,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--include-hips", action="store_true",
                         help="feet measured from the pelvis centre (dissertation eq. 3.13): "
                              "the path zig-zags by the hip width")
-    parser.add_argument("--from", dest="t0", type=float, metavar="T0", help="start, s")
-    parser.add_argument("--to", dest="t1", type=float, metavar="T1", help="end, s")
+    parser.add_argument("--from", dest="t0", type=number(float, 0, LONGEST_S),
+                        metavar="T0", help="start, s")
+    parser.add_argument("--to", dest="t1", type=number(float, 0, LONGEST_S),
+                        metavar="T1", help="end, s")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="track CSV (default: <raw stem>_track.csv); the PNG beside it")
     add_sources(parser)
@@ -93,7 +95,8 @@ def run(args: argparse.Namespace) -> int:
     track = acc_track.track()
     peak_col = "swing_peak_rad_s" if detector == "gyro" else "peak_g"
     out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")
-    out = out if out.suffix == ".csv" else out.with_name(out.name + "_track.csv")
+    out = refuse_special_output(out if out.suffix == ".csv"
+                                else out.with_name(out.name + "_track.csv"))
     try:
         with open(out, "w", encoding="utf-8", newline="\n") as f:
             f.write(f"step,time_s,side,{peak_col},step_north_m,step_east_m,step_down_m,"

@@ -43,10 +43,11 @@ from bpms.filter.zero_choice import ResetZeroChoice, capture_at, fallback_zero, 
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
-from bpms.io.raw_reader import RawFile, no_frame_message
+from bpms.io.raw_reader import RawFile, RawFrames, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording
 from bpms.io.recordings import read_head
 from bpms.io.session_events import SessionEvent
+from bpms.io.subject import header_subject
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +84,8 @@ def resolve_calibration(explicit: str | Path | CalibrationTable | None, header: 
     from bpms.io.defaults import default_calibration
 
     if explicit is not None:
-        label = explicit.source if isinstance(explicit, CalibrationTable) else str(explicit)
+        label = (str(explicit) if isinstance(explicit, str | Path)
+                 else getattr(explicit, "source", "table"))
         return explicit, f"given ({label})"
     if header is not None and header.get("calibration") is not None:
         table = header_calibration(header, where)
@@ -160,6 +162,12 @@ class OpenedRecording:
     settings_given: bool = False
     #: host receive time of the first valid frame (s since the epoch; NaN unknown)
     first_host_time: float = math.nan
+    #: the recording's slots for replay (``for_replay``: a native one read from disk as it
+    #: plays, a legacy one in memory); None otherwise
+    slots: RawFrames | RawRecording | None = field(default=None, repr=False)
+    #: the pose calibration's event, ``(slot, reset_zero event)`` (:meth:`use_pose_calibration`)
+    pose_event: tuple[int, SessionEvent] | None = field(default=None, repr=False)
+    pose_report: object | None = field(default=None, repr=False)
 
     @property
     def has_raw(self) -> bool:
@@ -183,6 +191,22 @@ class OpenedRecording:
             self.reset_zero = choice
         self.processor.pose.auto = self.reset_zero.automatic(self.has_events)
         self.processor.pose.provisional = self.reset_zero.provisional(self.has_events)
+
+    def use_pose_calibration(self, choice: str | None, posture: str | dict | None = None
+                             ) -> str:
+        """``--pose-calibration`` (:mod:`bpms.filter.pose_methods`): ``reset-zero`` (None)
+        changes nothing; ``posture`` / ``functional`` make their event from a first pass now,
+        applied by every later :meth:`chunks`. Returns its description. Raises ValueError."""
+        from bpms.filter.pose_methods import PoseCalibrationChoice, calibration_event
+
+        method = PoseCalibrationChoice.parse(choice, posture)
+        self.pose_event = None
+        if not method.default:
+            if self.reset_zero.mode == "none":
+                raise ValueError(f"{method.describe()} needs a Reset Zero still window, not "
+                                 "--reset-zero none")
+            self.pose_event = calibration_event(self, method)
+        return method.describe()
 
     def chunks(self, zero_at_s: Sequence[float] = (), progress: Progress | None = None,
                chunk_frames: int = CHUNK_FRAMES,
@@ -237,7 +261,13 @@ class OpenedRecording:
             planned = planned_events(recorded, self.reset_zero, self.settings_given,
                                      [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
             skipped += planned.skipped
+<<<<<<< HEAD
             fallbacks += planned.fallbacks
+=======
+            if self.pose_event is not None and lo <= self.pose_event[0] < lo + len(host):
+                planned.append(self.pose_event)
+                planned.sort(key=lambda item: item[0])
+>>>>>>> main
             result = proc.process(decoded.raw, decoded.errors,
                                   [(slot - lo, event) for slot, event in planned])
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
@@ -377,18 +407,22 @@ def process_file(path: str | Path, calibration: str | Path | CalibrationTable | 
                  zero_at_s: Sequence[float] = (), zero_at_frames: Sequence[int] = (),
                  algorithm: str | None = None, heading: str | None = None,
                  reset_zero: str | ResetZeroChoice | None = None,
-                 progress: Progress | None = None) -> Result:
+                 progress: Progress | None = None, pose_calibration: str | None = None,
+                 posture: str | dict | None = None) -> Result:
     """Filter a whole recording (native raw, the original suite's pickled raw, or a filtered
     CSV) through :func:`open_for_processing`: calibration and options given here, else the
     recording's header, else the user's default, else factory (the result's
     ``calibration_source`` / ``options_source`` say which); the recorded events applied at
     their frames. ``reset_zero``: ``events`` (default), ``auto``, ``at SECONDS``, ``none``
     (:mod:`bpms.filter.zero_choice`); ``zero_at_s`` / ``zero_at_frames``: extra Reset Zero
-    captures. Raises :class:`bpms.io.rawfile.RawFileError` for an unreadable file or one with
-    no valid frame. For long recordings in constant memory iterate
-    ``open_for_processing(path).chunks()`` instead."""
+    captures; ``pose_calibration``: ``reset-zero`` (None, default), ``posture`` (with
+    ``posture``) or ``functional`` (:mod:`bpms.filter.pose_methods`). Raises
+    :class:`bpms.io.rawfile.RawFileError` for an unreadable file or one with no valid frame,
+    ValueError for a pose calibration that cannot be made. For long recordings in constant
+    memory iterate ``open_for_processing(path).chunks()`` instead."""
     opened = open_for_processing(path, calibration, options, algorithm=algorithm,
                                  heading=heading, reset_zero=reset_zero)
+    opened.use_pose_calibration(pose_calibration, posture)
     return opened.result(zero_at_s, progress, zero_at_frames=zero_at_frames)
 
 
@@ -405,7 +439,8 @@ def is_raw_recording(path: str | Path) -> bool:
 def open_for_processing(path: str | Path, calibration: str | Path | CalibrationTable | None = None,
                         options: str | Path | Options | None = None,
                         algorithm: str | None = None, heading: str | None = None,
-                        reset_zero: str | ResetZeroChoice | None = None) -> OpenedRecording:
+                        reset_zero: str | ResetZeroChoice | None = None,
+                        for_replay: bool = False) -> OpenedRecording:
     """Open a recording and build its processor (the module docstring has the precedence).
 
     path: a native raw recording, a legacy pickled raw file, or a filtered CSV file;
@@ -413,7 +448,9 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     precedence; algorithm: the attitude filter (``FilterOptions.algorithm``) and heading: the
     Reset Zero heading reference (``PoseOptions.heading_reference``), overriding the options;
     reset_zero: which Reset Zero (:class:`bpms.filter.zero_choice.ResetZeroChoice` or its
-    text). Raises :class:`bpms.io.rawfile.RawFileError` / :class:`bpms.io.filtered_file.
+    text); for_replay: also keep the recording's slots for a replay (:attr:`OpenedRecording.
+    slots`, a raw recording only: the one scan of the file serves both). Raises
+    :class:`bpms.io.rawfile.RawFileError` / :class:`bpms.io.filtered_file.
     FilteredFileError` for an unreadable file or one with no valid frame, ValueError for a bad
     ``reset_zero``, ``VqfMissingError`` for vqf without the package.
     """
@@ -423,7 +460,16 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     recording = None
     file = None
     first_time = math.nan
-    if read_head(path) == MAGIC:
+    slots: RawFrames | RawRecording | None = None
+    if read_head(path) == MAGIC and for_replay:
+        kind = "raw"
+        slots = RawFrames(path)
+        file, header, n = slots.file, slots.header, len(slots)
+        if not slots.valid_frames:
+            raise RawFileError(no_frame_message(path, n))
+        first = int(np.setdiff1d(np.arange(min(n, len(slots.damaged) + 1)), slots.damaged)[0])
+        first_time = float(slots.read(first, first + 1)[0][0])
+    elif read_head(path) == MAGIC:
         kind = "raw"
         file = RawFile(path)
         header = file.header
@@ -440,7 +486,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
         if not recording.valid_frames:
             raise RawFileError(no_frame_message(path, len(recording)))
         first_time = float(recording.times[0])
-    elif path.suffix.lower() in FILTERED_SUFFIXES:
+        slots = recording if for_replay else None
+    elif path.suffix.lower() in FILTERED_SUFFIXES and not for_replay:
         from bpms.io.filtered_file.reader import FilteredReader
 
         FilteredReader(path).close()  # a file that is not a filtered file fails here
@@ -450,6 +497,12 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
                            "original suite's raw file, nor a filtered .csv file)")
     opts, options_source = resolve_options(options, header if kind != "filtered" else None,
                                            str(path))
+    profile, trouble = header_subject(header) if options is None else (None, None)
+    if trouble:
+        problems.append(f"{path}: {trouble}")
+    if profile is not None:  # the subject's own lengths (docs/subject.md)
+        opts = dataclasses.replace(opts, body=profile.body_options())
+        options_source += f" with subject {profile.subject_id}"
     changes = []
     if algorithm is not None and algorithm != opts.filter.algorithm:
         changes.append(f"filter {algorithm}")
@@ -472,7 +525,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     problems.extend(processor.problems)
     opened = OpenedRecording(path, kind, header, int(n), processor, calibration_source,
                              options_source, problems, recording, file, choice, settings_given,
-                             first_time)
+                             first_time, slots)
     opened.use_reset_zero()
     return opened
 

@@ -70,6 +70,7 @@ from bpms.filter.hinge import HingeConstraint
 from bpms.filter.pose import PoseCalibrator
 from bpms.filter.result import Result
 from bpms.filter.warmup import ensure_kernels, kernels_ready
+<<<<<<< HEAD
 from bpms.io.calib_file import CalibrationTable, checked, load_calibration
 from bpms.io.event_types import (
     ADOPTED_SOURCES,
@@ -80,6 +81,9 @@ from bpms.io.event_types import (
     Gains,
     ResetZero,
 )
+=======
+from bpms.io.calib_file import CalibrationTable, as_table, checked, load_calibration
+>>>>>>> main
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
 from bpms.io.options import Options, load_options
 from bpms.io.session_events import SessionEvent
@@ -128,8 +132,8 @@ class BodyPoseProcessor:
             user_default = default_calibration_path().is_file()
             if user_default:
                 calibration = default_calibration_path()
-        if isinstance(calibration, CalibrationTable):  # checked at the door, whatever its origin
-            self.table = checked(calibration)
+        if not isinstance(calibration, str | Path | None):  # a table: checked at the door
+            self.table = checked(as_table(calibration))
         else:
             self.table = load_calibration(calibration)
         if user_default and not self.table.problems:

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from bpms.filter.centre_of_mass import centre_of_mass
 from bpms.filter.disturbance import Disturbance
 from bpms.filter.pose import Zero, body_outputs, segment_angles
 from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
@@ -25,6 +26,8 @@ from bpms.io.frames import N_IMUS
 from bpms.io.options import BodyOptions
 
 #: Result fields that are running totals (the last part's value stands for the whole stream).
+#: Per-frame estimates some filters make and others do not (NaN where not made).
+_ESTIMATE_FIELDS = ("gyro_bias", "body_acc")
 _RUNNING_FIELDS = frozenset({"held_count", "reinit_count"})
 
 
@@ -170,9 +173,16 @@ class Result:
             if f.name == "euler" and not all(_EULER.known(p) for p in parts):
                 continue  # computed from the joined R when read, in one call
             items = [getattr(p, f.name) for p in parts]
-            if f.name in _RUNNING_FIELDS or not isinstance(items[0], np.ndarray | list
-                                                             | Disturbance):
+            # (the first part may lack what a later one has: a filter switched between them)
+            known = next((v for v in items if v is not None), None)
+            if f.name in _RUNNING_FIELDS or not isinstance(known, np.ndarray | list
+                                                           | Disturbance):
                 values[f.name] = getattr(last, f.name)
+            elif any(v is None for v in items) and isinstance(known, np.ndarray) \
+                    and f.name in _ESTIMATE_FIELDS:  # NaN where a filter estimates none
+                values[f.name] = np.concatenate([
+                    np.full((len(p), *known.shape[1:]), np.nan) if v is None else v
+                    for p, v in zip(parts, items, strict=True)])
             elif any(v is None for v in items):
                 values[f.name] = None
             elif isinstance(items[0], list):
@@ -225,6 +235,12 @@ class Result:
     def joint_positions(self) -> np.ndarray:
         """``[N, 21, 3]`` m, order :data:`bpms.filter.body_model.POINT_NAMES`."""
         return self._body[1]
+
+    @cached_property
+    def centre_of_mass(self) -> np.ndarray:
+        """``[N, 3]`` m: the whole body's centre of mass, in the frame of
+        :attr:`joint_positions` (:mod:`bpms.filter.centre_of_mass`, docs/subject.md)."""
+        return centre_of_mass(self.joint_positions)
 
     @cached_property
     def quaternions(self) -> np.ndarray:

@@ -8,8 +8,11 @@ a few seconds; later runs load the compiled code from numba's on-disk cache in a
 second. :func:`ensure_kernels` runs the kernels one filter needs once on a few synthetic
 frames, so that this happens at a known moment (at the first frame a processor filters, or
 before a live session accepts any frame) and only for what is used. When that takes longer
-than :data:`NOTICE_AFTER_S`, a notice and the progress go to stderr: on a terminal one line
-updated in place (``\\r``), in a log file or pipe plain lines. ``bpms warmup`` does it ahead
+than :data:`NOTICE_AFTER_S` *and* something actually compiles (numba's ``numba:compile``
+events, which loading from the cache does not raise; a child process says so on its
+standard output), a notice and the progress go to stderr: on a terminal one line updated in
+place (``\\r``), in a log file or pipe plain lines. Loading cached kernels on a busy machine
+may take as long, and says nothing (issue 43.7). ``bpms warmup`` does it ahead
 of time for every filter, sharing the parts out over one process per core.
 
 numba keys each kernel's cache by its own source file (and numba's version): every kernel
@@ -57,9 +60,11 @@ class Progress:
         self.done = 0
         self.label = ""
         self.shown = False
+        self.due = False  # notice_after_s has passed
+        self.compiling = False  # something compiles (not only loads from the cache)
         self.t0 = time.monotonic()
         self._lock = threading.Lock()
-        self._timer = threading.Timer(notice_after_s, self._show)
+        self._timer = threading.Timer(notice_after_s, self._due)
         self._timer.daemon = True
         self._timer.start()
 
@@ -71,12 +76,22 @@ class Progress:
         with contextlib.suppress(OSError, ValueError):  # a closed stream
             write_progress(self._line(), self.stream, final)
 
+    def _due(self) -> None:
+        self.due = True
+        self._show()
+
     def _show(self) -> None:
         with self._lock:
-            if self.done >= self.total:
+            if self.done >= self.total or not (self.due and self.compiling):
                 return
             self.shown = True
             self._write()
+
+    def compile_started(self) -> None:
+        """Something compiles (a numba compile event here, or a child said so)."""
+        if not self.compiling:
+            self.compiling = True
+            self._show()
 
     def step(self, label: str) -> None:
         """The next step (``label``) starts."""
@@ -135,9 +150,12 @@ def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
         t0 = time.monotonic()
         progress = Progress(len(parts), stream, notice_after_s)
         children: list[tuple[subprocess.Popen, list[str]]] = []
+        listening = _CompileListener(progress.compile_started)
         try:
+            listening.__enter__()
             here, elsewhere = _share_out(parts, processes)
-            children = [(_start_child(group), group) for group in elsewhere]
+            children = [(_start_child(group, progress.compile_started), group)
+                        for group in elsewhere]
             for part in here:
                 progress.step(part)
                 _run_part(part)
@@ -150,6 +168,7 @@ def ensure_kernels(algorithms: str | tuple[str, ...] | list[str] | None = None,
                     progress.advance()
             _ready.update(todo)
         finally:
+            listening.__exit__(None, None, None)
             for child, _ in children:
                 if child.poll() is None:
                     child.kill()
@@ -171,12 +190,54 @@ def _share_out(parts: list[str], processes: int) -> tuple[list[str], list[list[s
     return groups[0], [g for g in groups[1:] if g]
 
 
-def _start_child(parts: list[str]) -> subprocess.Popen:
-    """A child Python compiling ``parts`` into numba's on-disk cache (its output discarded:
-    whatever it fails at is compiled by this process afterwards)."""
-    return subprocess.Popen([sys.executable, "-m", "bpms.filter.warmup", *parts],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+class _CompileListener:
+    """Calls ``on_compile`` when numba starts compiling (in this process), while entered."""
+
+    def __init__(self, on_compile) -> None:
+        self.on_compile = on_compile
+        self._listener = None
+
+    def __enter__(self) -> _CompileListener:
+        from numba.core import event
+
+        outer = self
+
+        class Listener(event.Listener):
+            def on_start(self, ev) -> None:
+                outer.on_compile()
+
+            def on_end(self, ev) -> None:
+                pass
+
+        self._listener = Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        from numba.core import event
+
+        if self._listener is not None:
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
+
+
+def _start_child(parts: list[str], on_compile=None) -> subprocess.Popen:
+    """A child Python compiling ``parts`` into numba's on-disk cache (whatever it fails at
+    is compiled by this process afterwards). It writes a line on its standard output when it
+    starts compiling (not when it only loads from the cache): ``on_compile`` is called then."""
+    child = subprocess.Popen([sys.executable, "-m", "bpms.filter.warmup", *parts],
+                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                             stderr=subprocess.DEVNULL)
+
+    def watch() -> None:
+        assert child.stdout is not None
+        with child.stdout:
+            for _ in child.stdout:
+                if on_compile is not None:
+                    on_compile()
+
+    threading.Thread(target=watch, name="bpms-warmup-child", daemon=True).start()
+    return child
 
 
 def _run_part(part: str) -> None:
@@ -220,6 +281,11 @@ def _run_part(part: str) -> None:
     _done_parts.add(part)
 
 
+def _say_compiling() -> None:
+    print("compiling", flush=True)
+
+
 if __name__ == "__main__":  # a child of ensure_kernels(processes > 1): compile these parts
-    for name in sys.argv[1:]:
-        _run_part(name)
+    with _CompileListener(_say_compiling):
+        for name in sys.argv[1:]:
+            _run_part(name)

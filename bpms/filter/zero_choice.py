@@ -26,6 +26,7 @@ import numpy as np
 from bpms.io.event_types import ResetZero
 from bpms.io.frames import N_IMUS
 from bpms.io.session_events import SessionEvent
+from bpms.io.timebase import LONGEST_S
 
 MODES = ("events", "auto", "at", "none")
 
@@ -54,7 +55,7 @@ class ResetZeroChoice:
                 times = tuple(float(t) for t in words[1].replace(",", " ").split())
             except ValueError:
                 times = ()
-            if times and all(np.isfinite(t) and t >= 0 for t in times):
+            if times and all(np.isfinite(t) and 0 <= t <= LONGEST_S for t in times):
                 return cls("at", times)
         raise ValueError(f"--reset-zero: '{text}' is not one of events, auto, none, "
                          "'at SECONDS' (e.g. 'at 12.5' or 'at 12.5,30')")

@@ -1,5 +1,5 @@
-"""Continuous Euler angles for the display: roll, pitch, yaw that never jump between frames
-because of how the three angles are chosen, only because the segment moved.
+"""Euler angles for the display as people read them: the standard ranges, without the jumps
+that only come from how the three angles are chosen where those would mislead.
 
 The filters give each IMU's attitude as ``R = Rz(yaw) Ry(pitch) Rx(roll)`` with roll and yaw
 in (−180°, 180°] and pitch in [−90°, 90°] (docs/units.md). Two things make those ranges jump
@@ -11,21 +11,34 @@ on a smooth motion:
   rotation, ``(roll + 180°, 180° − pitch, yaw + 180°)``: roll and yaw flip by 180° in one
   frame.
 
-:class:`ContinuousAngles` removes both. Frame by frame and per IMU it takes, of the two
-triples that describe the rotation, the one nearer the previous frame's angles, and unwraps
-roll and yaw to within 180° of the previous value. The readout is the same rotation (the same
-``R``); pitch may go beyond ±90° and roll and yaw beyond ±180°.
+:class:`ContinuousAngles` removes both where they would mislead, and never lets the readout
+pile up whole turns:
+
+- **away from the singularity** (pitch more than :data:`GIMBAL_MARGIN_DEG` from ±90°) the
+  readout is the standard triple: pitch in [−90°, 90°], roll and yaw in (−180°, 180°], except
+  that roll or yaw passing ±180° is carried on past it by at most :data:`WRAP_BAND_DEG`
+  (no 358° step for a segment turning a little either side of south): outside the standard
+  range only while the standard angle is within that band of ±180°, never further;
+- **near the singularity** (the forearm in elbow flexion near the vertical) it takes, of the
+  two triples that describe the rotation, the one nearer the previous frame's angles, unwrapped
+  to within 180° of it: roll and yaw sweep there, they do not jump, and pitch may pass ±90°.
+  Leaving that region on the far side (pitch past ±90°), the readout returns to the standard
+  triple in one frame: pitch ``180° − pitch``, roll and yaw turned by 180°. There too roll and
+  yaw never run more than :data:`WRAP_BAND_DEG` past ±180° (a whole turn is taken off).
+
+So the readout never drifts by whole turns, live, after a seek or after an hour; it is always
+the same rotation (the same ``R``) as the filters' angles.
 
 Near pitch ±90° roll and yaw are poorly defined: only their difference (pitch +90°) or sum
 (−90°) is, and a segment passing close to the vertical turns both by up to 180° within a few
 frames, whichever triple is chosen (the forearm in the simulated elbow flexion passes 3.5°
 from it: roll and yaw sweep by 160° in about 0.2 s, at most 26° from one frame to the next).
-They sweep, they never jump; :func:`poorly_defined` says where (within
-:data:`GIMBAL_MARGIN_DEG` of ±90°), and the table shows those roll and yaw cells greyed, with
-the reason in their tooltip. The joint angles (elbow flexion: the angle between the segments'
-long axes) read right there. Files, UDP and LSL keep the standard ranges; only the table and
-the plots show the continuous readout. It restarts (standard ranges) after a gap or a jump
-back in time, and for an IMU whose angles were not finite.
+:func:`poorly_defined` says where (within :data:`GIMBAL_MARGIN_DEG` of ±90°), and the table
+shows those roll and yaw cells greyed, with the reason in their tooltip. The joint angles
+(elbow flexion: the angle between the segments' long axes) read right there. Files, UDP and
+LSL keep the standard ranges; only the table and the plots show this readout. It restarts
+(standard ranges) after a gap or a jump back in time, and for an IMU whose angles were not
+finite.
 """
 
 from __future__ import annotations
@@ -36,6 +49,10 @@ import numpy as np
 RESTART_GAP_FRAMES = 50
 #: Roll and yaw are marked poorly defined within this of pitch ±90°, degrees.
 GIMBAL_MARGIN_DEG = 15.0
+#: Away from the singularity, roll and yaw may run past ±180° by this much (degrees) while a
+#: segment turns a little either side of it; further, they are wrapped back.
+WRAP_BAND_DEG = 20.0
+_BAND = float(np.radians(WRAP_BAND_DEG))
 _TWO_PI = 2.0 * np.pi
 _GIMBAL_COS = float(np.sin(np.radians(GIMBAL_MARGIN_DEG)))
 
@@ -94,6 +111,24 @@ class ContinuousAngles:
         cost = np.sum((candidates - prev[None]) ** 2, axis=2)  # [2, 18]
         pick = np.argmin(np.where(np.isfinite(cost), cost, np.inf), axis=0)
         chosen = candidates[pick, np.arange(len(e))]
+        # away from the singularity: the standard triple, roll and yaw carried past ±180° by
+        # at most the band (no whole turns pile up, pitch within ±90°)
+        away = ~poorly_defined(e[:, 1])
+        if away.any():
+            same = _near(e, prev)
+            same[:, 1] = e[:, 1]
+            # carried only while the standard angle is itself within the band of ±180°
+            near_south = np.abs(e[:, [0, 2]]) >= np.pi - _BAND
+            inside = np.all((np.abs(same[:, [0, 2]]) <= np.pi + _BAND) & near_south
+                            | (same[:, [0, 2]] == e[:, [0, 2]]), axis=1)
+            standard = np.where(inside[:, None], same, e)
+            chosen[away] = standard[away]
+        # near it too, roll and yaw never run more than the band past ±180° (whole turns
+        # taken off: a step in cells marked poorly defined, never a pile of turns)
+        ry = chosen[:, [0, 2]]
+        over = np.abs(ry) > np.pi + _BAND
+        if over.any():
+            chosen[:, [0, 2]] = np.where(over, (ry + np.pi) % _TWO_PI - np.pi, ry)
         # an IMU without finite angles (or before its first) starts again from its own
         fresh = ~np.isfinite(prev).all(axis=1) | ~np.isfinite(chosen).all(axis=1)
         chosen[fresh] = e[fresh]

@@ -190,12 +190,22 @@ class GyroPage(_Page):
         self.proc: GyroProcedure | None = None
 
     def initializePage(self) -> None:
+        """Entered (again, after Back): a new capture, Start ready."""
         w = self._wizard
         self.proc = GyroProcedure(w.imus, w.setup.gyro_samples.value())
         self.proc.state = "idle"  # until Start
         self.tries = 0
         self.message.setText("")
+        self.motion.setText("motion: –")
         self.progress.setValue(0)
+        self.start.setText("Start")
+        self.start.setEnabled(True)
+        self.completeChanged.emit()
+
+    def cleanupPage(self) -> None:
+        """Back: a capture under way stops (entering again starts a new one)."""
+        super().cleanupPage()
+        self.proc = None
 
     def begin(self) -> None:
         assert self.proc is not None
@@ -248,10 +258,16 @@ class AccelPage(_Page):
         self.proc: AccelProcedure | None = None
 
     def initializePage(self) -> None:
+        """Entered (again, after Back): the six poses from the first."""
         w = self._wizard
         self.proc = AccelProcedure(w.imus, w.setup.accel_samples.value())
+        self.message.setText("")
         self._refresh_steps()
         self._pose()
+
+    def cleanupPage(self) -> None:
+        super().cleanupPage()
+        self.proc = None
 
     def _pose(self) -> None:
         proc = self.proc
@@ -351,7 +367,13 @@ class MagPage(_Page):
         self._ticks = 0
 
     def initializePage(self) -> None:
+        """Entered (again, after Back): a new sweep, Start ready."""
         self._new_procedure()
+
+    def cleanupPage(self) -> None:
+        """Back: a sweep under way stops (entering again starts a new one)."""
+        super().cleanupPage()
+        self.proc = None
 
     def _new_procedure(self) -> None:
         w = self._wizard
@@ -367,6 +389,8 @@ class MagPage(_Page):
         self.accept_low.setChecked(False)
         self.accept_low.setVisible(False)
         self.start.setText("Start sweep")
+        self.start.setEnabled(True)
+        self.stop.setEnabled(False)
         self.warnings.setText("")
         self.progress.setValue(0)
         self.completeChanged.emit()

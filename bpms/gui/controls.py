@@ -1,8 +1,9 @@
 """Panels of the main window: data controls and status, filter gains, file operations
-(logging), playback (file mode) and the UDP server. Every panel reads the session's
-:class:`LiveStatus` snapshot that :class:`SessionModel` emits once per display tick; button
-presses call :class:`LiveSession` / :class:`SessionRunner` methods, which only queue work for
-the pipeline threads (the GUI thread never filters or writes files).
+(logging) and the UDP server (playback, file mode: :mod:`bpms.gui.playback_panel`). Every
+panel reads the session's :class:`LiveStatus` snapshot that :class:`SessionModel` emits once
+per display tick; button presses call :class:`LiveSession` / :class:`SessionRunner` methods,
+which only queue work for the pipeline threads (the GUI thread never filters or writes
+files).
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
-from PyQt6.QtCore import QSignalBlocker, Qt, pyqtSignal
+from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -19,40 +20,20 @@ from PyQt6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QLineEdit,
-    QSizePolicy,
-    QSlider,
-    QStyle,
-    QToolButton,
-    QVBoxLayout,
     QWidget,
 )
 
 from bpms.gui.modes import SessionRunner
+from bpms.gui.playback_panel import SPEEDS, ZERO_CHOICES, PlaybackPanel
 from bpms.gui.safety import BackgroundTask, debounce, guard_wheel, set_enabled_keeping_focus
 from bpms.gui.widgets import button, label, row
 from bpms.io.filtered_file.reader import is_number
 from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, check_option, option_range
 from bpms.io.rawfile import RecordingError
-from bpms.io.timebase import stream_time
 from bpms.io.udp.addresses import UdpConfigError
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not the window
     from bpms.pipeline.session import LiveStatus
-
-#: The playback window's Reset Zero choice (bpms.filter.zero_choice): label, mode.
-ZERO_CHOICES = (("as recorded", "events"), ("automatic", "auto"), ("none", "none"))
-SPEEDS: tuple[tuple[str, float | None], ...] = (
-    ("0.25×", 0.25), ("0.5×", 0.5), ("1×", 1.0), ("2×", 2.0), ("4×", 4.0), ("8×", 8.0),
-    ("max", None),
-)
-
-
-def _mmss(seconds: float, decimals: int = 0) -> str:
-    """Seconds → "m:ss" (or "m:ss.ss" with ``decimals``)."""
-    minutes, rest = divmod(max(0.0, seconds), 60.0)
-    width = 2 if decimals == 0 else 3 + decimals
-    return f"{int(minutes)}:{rest:0{width}.{decimals}f}"
-
 
 def _size(n: int) -> str:
     return f"{n / 1e6:.2f} MB" if n >= 1e6 else f"{n / 1e3:.1f} kB"
@@ -280,6 +261,7 @@ class FilePanel(QGroupBox):
         self.message = ""
         self.last_recording = None
         self.stopping: BackgroundTask | None = None
+        self._focus_back = False  # the button had the focus when Stop Logging was pressed
         self.on_stopped: list = []  # callables(RecordingStatus | None) after a stop completes
 
     @property
@@ -294,7 +276,10 @@ class FilePanel(QGroupBox):
         if session is None or (self.stopping is not None and self.stopping.running):
             return
         if self.logging:
-            self.log_button.setEnabled(False)
+            # the focus stays on this panel (Qt would hand it to the next field, the UDP
+            # targets, text selected: one keystroke replaced them)
+            self._focus_back = self.log_button.hasFocus()
+            set_enabled_keeping_focus(False, self, self.log_button)
             self.log_button.setText("Stopping…")
             self.stopping = BackgroundTask(self, session.stop_logging, self._stopped,
                                            name="bpms-stop-logging")
@@ -315,6 +300,8 @@ class FilePanel(QGroupBox):
 
     def _stopped(self, rec, error: BaseException | None) -> None:
         self.log_button.setEnabled(True)
+        if self._focus_back and self.hasFocus():
+            self.log_button.setFocus(Qt.FocusReason.OtherFocusReason)
         self.log_button.setText("Start Logging")
         self.last_recording = rec
         if error is not None:
@@ -353,127 +340,6 @@ class FilePanel(QGroupBox):
                 self.log_button.setText("Stop Logging")
         elif self.log_button.text() == "Stop Logging":
             self.log_button.setText("Start Logging")
-
-
-class PlaybackPanel(QGroupBox):
-    """File mode: seek slider, speed, position. Slider and speed disabled while playing."""
-
-    def __init__(self, runner: SessionRunner, parent: QWidget | None = None) -> None:
-        super().__init__("Playback", parent)
-        assert runner.replay is not None
-        self.runner = runner
-        self.replay = runner.replay
-        self.step_buttons: list[QToolButton] = []
-        self.shown = self.replay.position  # the frame at the slider
-        layout = QVBoxLayout(self)
-        self.slider = QSlider(Qt.Orientation.Horizontal)
-        self.slider.setRange(0, max(0, len(self.replay) - 1))
-        self.slider.setToolTip("Seek (only while stopped)")
-        self.slider.sliderReleased.connect(lambda: self.seek(self.slider.value()))
-        self.slider.valueChanged.connect(self._slider_moved)
-        guard_wheel(self.slider)
-        layout.addWidget(self.slider)
-        ticks = QHBoxLayout()
-        self.tick_labels: list[QLabel] = []
-        n_ticks = 5
-        for k in range(n_ticks):
-            tick = label(_mmss(stream_time(round(k / (n_ticks - 1) * len(self.replay)))),
-                         wrap=False, style="color: #666; font-size: 9pt")
-            self.tick_labels.append(tick)
-            ticks.addWidget(tick)
-            if k < n_ticks - 1:
-                ticks.addStretch(1)
-        layout.addLayout(ticks)
-        steps = QHBoxLayout()
-        icon = self.style().standardIcon
-        sp = QStyle.StandardPixmap
-        # icons from Qt's standard set (a font may lack the media glyphs)
-        for pixmap, text, n, tip in (
-                (sp.SP_MediaSkipBackward, "−1 s", -50, "Ctrl+Shift+Left"),
-                (sp.SP_MediaSeekBackward, "−1", -1, "Ctrl+Left"),
-                (sp.SP_MediaSeekForward, "+1", 1, "Ctrl+Right"),
-                (sp.SP_MediaSkipForward, "+1 s", 50, "Ctrl+Shift+Right")):
-            # tool buttons: as wide as icon and text (push buttons keep a style minimum that
-            # makes four of them scroll a narrow panel sideways)
-            tool = QToolButton()
-            tool.setIcon(icon(pixmap))
-            tool.setText(text)
-            tool.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
-            tool.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
-            if n > 0:
-                tool.setLayoutDirection(Qt.LayoutDirection.RightToLeft)  # text, then icon
-            word = "forward" if n > 0 else "back"
-            tool.setToolTip(f"Paused: {abs(n)} frame{'s' if abs(n) > 1 else ''} {word} "
-                            f"({'1 s' if abs(n) == 50 else 'one frame'}; {tip})")
-            tool.clicked.connect(lambda _=False, n=n: self.step(n))
-            steps.addWidget(tool)
-            self.step_buttons.append(tool)
-        layout.addLayout(steps)
-        self.position_label = label()  # a narrow panel: two lines, no sideways scroll
-        self.speed_combo = QComboBox()
-        self.speed_combo.addItems([text for text, _ in SPEEDS])
-        self.speed_combo.setCurrentIndex(2)
-        self.speed_combo.currentIndexChanged.connect(
-            lambda i: self.replay.set_speed(SPEEDS[i][1]))
-        guard_wheel(self.speed_combo)
-        layout.addLayout(row(self.position_label, QLabel("Speed"), self.speed_combo,
-                             grow=self.position_label))
-        self.zero_combo = QComboBox()
-        self.zero_combo.addItems([text for text, _ in ZERO_CHOICES])
-        self.zero_combo.setToolTip("as recorded: the Reset Zero captures made live, at their "
-                                   "frames; automatic: made again once the subject stands "
-                                   "still; none: the IMUs' own attitudes. Changing it plays "
-                                   "the recording again from its start "
-                                   "(docs/opening-recordings.md)")
-        self.zero_combo.currentIndexChanged.connect(
-            lambda i: self.runner.set_playback_reset_zero(ZERO_CHOICES[i][1]))
-        guard_wheel(self.zero_combo)
-        layout.addLayout(row(QLabel("Reset Zero"), self.zero_combo, grow=self.zero_combo))
-        self._update_label(self.replay.position)
-
-    def _slider_moved(self, value: int) -> None:
-        if not self.slider.isSliderDown() and self.slider.isEnabled() \
-                and value != self.replay.position:
-            self.seek(value)
-        self._update_label(value)
-
-    def seek(self, index: int) -> None:
-        """Jump to frame ``index`` (the filters are pre-rolled; Reset Zero is kept). While
-        paused the frame itself is delivered, so every view shows it."""
-        if self.replay.playing:
-            self.replay.seek(index)
-        else:
-            self.runner.show_frame(index)
-        self.shown = index
-        self._update_label(index)
-
-    def step(self, n: int) -> None:
-        """Paused: move ``n`` frames (clamped to the recording)."""
-        if self.replay.playing:
-            return
-        index = min(max(0, self.shown + n), max(0, len(self.replay) - 1))
-        with QSignalBlocker(self.slider):
-            self.slider.setValue(index)
-        self.seek(index)
-
-    def _update_label(self, index: int) -> None:
-        total = len(self.replay)
-        self.position_label.setText(f"{_mmss(stream_time(index), 2)} / "
-                                    f"{_mmss(stream_time(total), 2)} "
-                                    f"(frame {index} of {total})")
-
-    def show_status(self, st: LiveStatus | None = None) -> None:
-        playing = self.replay.playing
-        # disabled while playing; the focus stays on this panel (not the next field below)
-        set_enabled_keeping_focus(not playing, self, self.slider, self.speed_combo,
-                                  *self.step_buttons)
-        if playing and not self.slider.isSliderDown():
-            # the last delivered frame (position is the next one)
-            pos = min(max(0, self.replay.position - 1), self.slider.maximum())
-            with QSignalBlocker(self.slider):
-                self.slider.setValue(pos)
-            self.shown = pos
-            self._update_label(pos)
 
 
 class UdpServerPanel(QGroupBox):
@@ -525,3 +391,7 @@ class UdpServerPanel(QGroupBox):
             self.status_label.setText(f"sending to {', '.join(st.forwarding)}: "
                                       f"{st.forwarded} datagrams, {st.forward_errors} errors"
                                       f"{refused}")
+
+
+__all__ = ["SPEEDS", "ZERO_CHOICES", "FilePanel", "GainsPanel", "PlaybackPanel", "StatusPanel",
+           "UdpServerPanel"]

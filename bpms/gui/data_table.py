@@ -267,7 +267,13 @@ class DataTable(QTableView):
         header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
         self.fit_columns()
         header.moveSection(header.visualIndex(DISTURBANCE_COLUMN), _ERRORS_COLUMN + 1)
-        model.headerDataChanged.connect(lambda *_: self.fit_columns())
+        # a bound method (PyQt holds it weakly): no reference cycle through the model, so the
+        # table goes when its last reference does, never in a garbage collection that may run
+        # while Qt delivers an event to it (issue 46.6: a crash in StaleOverlay.eventFilter)
+        model.headerDataChanged.connect(self._headers_changed)
+
+    def _headers_changed(self, *_args) -> None:
+        self.fit_columns()
 
     def column_width(self, col: int) -> int:
         """Pixels for column ``col``: its header in bold (a selected cell's column header is

@@ -17,7 +17,8 @@ def make_dock(title: str, name: str, widget: QWidget, *, dynamic: bool = False,
               scroll: bool = False) -> QDockWidget:
     """A dock titled ``title`` holding ``widget``; ``name`` is its objectName (what saved
     layouts refer to). ``dynamic``: closing the dock deletes it (plots, 3D views).
-    ``scroll``: the widget sits in a scroll area (side panels)."""
+    ``scroll``: the widget sits in a scroll area (side panels) that scrolls up and down only;
+    the dock is never narrower than the widget's least width."""
     dock = QDockWidget(title)
     dock.setObjectName(name)
     dock.setFeatures(_FEATURES)
@@ -27,6 +28,11 @@ def make_dock(title: str, name: str, widget: QWidget, *, dynamic: bool = False,
         area.setWidget(widget)
         area.setWidgetResizable(True)
         area.setFrameShape(QScrollArea.Shape.NoFrame)
+        # never sideways: the dock keeps the panel's least width (a layout saved in another
+        # mode, whose panels are narrower, cannot squeeze it), and scrolls only up and down
+        area.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        area.setMinimumWidth(widget.minimumSizeHint().width()
+                             + area.verticalScrollBar().sizeHint().width() + 2)
         dock.setWidget(area)
     else:
         dock.setWidget(widget)

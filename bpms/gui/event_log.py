@@ -5,12 +5,19 @@ Entries come from two places: the GUI's own observations (link lost/recovered fr
 another UDP sender, file warnings) via :meth:`EventLog.add`, and the session's notable events
 (``LiveStatus.events``, already time-stamped) via :meth:`EventLog.merge_session_events`.
 Warnings are shown in red; every entry is also logged through :mod:`logging`.
+
+One clock: live, every entry has the wall-clock time (HH:MM:SS). In playback
+(:meth:`EventLog.use_recording_clock`) every entry has the recording's time instead (m:ss.ss
+into the file): a session event at the time it names ("… at 12.34 s"), anything else at the
+playback position; never the wall clock of the recording day or of today beside it.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 import time
+from collections.abc import Callable
 
 from PyQt6.QtCore import Qt
 from PyQt6.QtGui import QColor
@@ -20,6 +27,16 @@ log = logging.getLogger(__name__)
 
 #: At most this many entries are kept (the oldest go first).
 MAX_ENTRIES = 2000
+#: Session events not listed: what follows from the user's own seek or frame step in
+#: playback (the filters pre-rolled at the new position), which would fill the log.
+UNLISTED = ("filters re-initialised (seek)",)
+_AT = re.compile(r" at (-?\d+(?:\.\d+)?) s\b")
+
+
+def recording_clock(seconds: float) -> str:
+    """Seconds into a recording → ``m:ss.ss``."""
+    minutes, rest = divmod(max(0.0, seconds), 60.0)
+    return f"{int(minutes)}:{rest:05.2f}"
 
 
 class EventLog(QListWidget):
@@ -37,9 +54,20 @@ class EventLog(QListWidget):
                         "warnings, with times")
         self.entries: list[tuple[str, str, str]] = []  # (time, level, text)
         self._session_seen: list[str] = []
+        self._position: Callable[[], float] | None = None
+
+    def use_recording_clock(self, position_s: Callable[[], float]) -> None:
+        """Playback: entries are stamped with the recording's time (``position_s()``: s into
+        the file now) instead of the wall clock."""
+        self._position = position_s
+        self.setToolTip("Reset Zero, filter changes, markers, file warnings, with their time "
+                        "in the recording (m:ss.ss)")
 
     def add(self, text: str, level: str = "info", when: str | None = None) -> None:
         """Append an entry; ``level`` "info" or "warning"; ``when`` HH:MM:SS (default now)."""
+        if self._position is not None:  # playback: the recording's clock only
+            at = _AT.search(text)
+            when = recording_clock(float(at.group(1)) if at else self._position())
         when = when or time.strftime("%H:%M:%S")
         self.entries.append((when, level, text))
         item = QListWidgetItem(f"{when}  {text}")
@@ -68,6 +96,8 @@ class EventLog(QListWidget):
         warned = set(warnings)
         for entry in events[start:]:
             when, _, text = entry.partition(" ")
+            if text.startswith(UNLISTED):
+                continue
             self.add(text, "warning" if entry in warned else "info", when)
         self._session_seen = list(events)
 

@@ -215,6 +215,9 @@ class HealthPanel(QGroupBox):
         self.rec_badge = label(wrap=False, tip="Logging: elapsed time (the files are in the "
                                                "Status panel)")
         self.rec_badge.setVisible(False)
+        #: the link light again, for the status bar (in view whatever the docks)
+        self.link_badge = QLabel()
+        self.link_badge.setFixedSize(14, 14)
         self.colour = ""
         self.battery_low = False
         self._rec_started: float | None = None
@@ -225,12 +228,13 @@ class HealthPanel(QGroupBox):
         if colour == self.colour:
             return
         self.colour = colour
-        self.light.setStyleSheet(f"background: {COLOURS[colour]}; border-radius: 9px; "
-                                 "border: 1px solid #444")
-        self.light.setToolTip({"grey": "data off", "green": "streaming",
-                               "amber": "degraded: rate below 45 Hz or sensor errors in the "
-                                        "last second",
-                               "red": "no frame for 1 s"}[colour])
+        tip = {"grey": "data off", "green": "streaming",
+               "amber": "degraded: rate below 45 Hz or sensor errors in the last second",
+               "red": "no frame for 1 s"}[colour]
+        for light, radius in ((self.light, 9), (self.link_badge, 7)):
+            light.setStyleSheet(f"background: {COLOURS[colour]}; border-radius: {radius}px; "
+                                "border: 1px solid #444")
+            light.setToolTip("Link: " + tip)
 
     def _set(self, key: str, text: str, style: str = "") -> None:
         shown = self.labels[key]

@@ -17,7 +17,7 @@ the mode (``mode_wiring``), plots and 3D views (``dynamic_docks``), layouts
 from __future__ import annotations
 
 from PyQt6 import sip
-from PyQt6.QtCore import QTimer, pyqtSignal
+from PyQt6.QtCore import QByteArray, QRect, QTimer, pyqtSignal
 from PyQt6.QtWidgets import QDockWidget, QMainWindow, QMessageBox, QWidget
 
 from bpms.gui.angle_readout import ContinuousAngles
@@ -26,6 +26,7 @@ from bpms.gui.model import SessionModel
 from bpms.gui.modes import MODE_LABELS, SessionRunner
 from bpms.gui.plot_data import BlockHistory
 from bpms.gui.plots import PlotWindow
+from bpms.gui.screen_fit import place_window
 from bpms.gui.window.actions import WindowActions
 from bpms.gui.window.commands import SessionCommands
 from bpms.gui.window.dock_layout import DockLayouts
@@ -42,13 +43,18 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
     """One session's window. ``closed`` is emitted (after the session stopped) on close.
 
     ``layout_store``: where named layouts live (default: the user's config folder);
-    ``restore_last``: start with the layout in use when the last main window closed.
+    ``restore_last``: start with the layout in use when the last main window closed;
+    ``saved_geometry``: the bytes of a ``saveGeometry()``, used only when they fit the
+    screen; ``available``: the screen's available geometry (default: the screen's own; the
+    window fits it, :mod:`bpms.gui.screen_fit`).
     """
 
     closed = pyqtSignal()
 
     def __init__(self, runner: SessionRunner, parent: QWidget | None = None, *,
-                 layout_store: LayoutStore | None = None, restore_last: bool = True) -> None:
+                 layout_store: LayoutStore | None = None, restore_last: bool = True,
+                 saved_geometry: QByteArray | None = None,
+                 available: QRect | None = None) -> None:
         super().__init__(parent)
         assert runner.session is not None, "runner.prepare() first"
         self.runner = runner
@@ -61,9 +67,12 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         self.layout_store = layout_store if layout_store is not None else LayoutStore()
         self.current_layout = ""
         self._menus()
-        # REC in the status bar: in view whatever the docks (closed, tabbed, scrolled)
+        # REC and the link light in the status bar: in view whatever the docks (closed,
+        # tabbed, scrolled)
         self.statusBar().addPermanentWidget(self.health_panel.rec_badge)
-        self.resize(1500, 860)
+        self.statusBar().addPermanentWidget(self.health_panel.link_badge)
+        # the size of the screen before the layout is built (the docks are sized to it)
+        self.placement = place_window(self, saved_geometry, available)
         self._first_layout(restore_last)
         self._open_session()
 

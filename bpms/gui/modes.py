@@ -11,6 +11,7 @@ stays open); file → play/pause; UDP → a fresh session listening again / the 
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -19,7 +20,6 @@ from bpms.io.calib_file import CalibrationTable
 from bpms.io.link import LinkError
 from bpms.io.options import Options
 from bpms.io.rawfile import RawFileError
-from bpms.io.recordings import open_replay
 from bpms.io.replay import ReplaySource
 from bpms.pipeline.sources import SuitFrameSource, UdpFrameSource
 
@@ -107,7 +107,12 @@ class SessionRunner:
         self.playback_options: Options | str | None = None
         #: which Reset Zero playback applies (bpms.filter.zero_choice: events, auto, none)
         self.playback_reset_zero: str | None = None
+        #: the filter chosen in the playback controls (None: the recording's own, its
+        #: recorded filter and gain changes applied); recorded_filter: the recording's own
+        self.playback_filter: str | None = None
+        self.recorded_filter: str | None = None
         self._opened = None  # the door's OpenedRecording of the recording played
+        self._start_filter: dict = {}  # its filter settings at the start (FilterOptions)
         #: Where the calibration / options in force came from (for the data panel).
         self.calibration_source = getattr(calibration, "source", "factory")
         self.options_source = getattr(options, "source", "factory")
@@ -171,24 +176,27 @@ class SessionRunner:
         if cfg.mode == "file":
             if not cfg.path:
                 raise ModeError("choose a raw recording to play")
-            try:  # the one reader, from disk as it plays (docs/opening-recordings.md)
-                recording = open_replay(cfg.path)
-            except (RawFileError, OSError) as exc:
-                raise ModeError(f"cannot play {cfg.path}: {exc}") from None
-            self.problems = list(getattr(recording, "problems", []) or [])
             from bpms.filter.door import open_for_processing
 
             try:
-                # the filter chosen in the GUI is an explicit run-time choice (like --filter)
+                # once, through the one door (docs/opening-recordings.md): the recording's
+                # own calibration, options and events; the filter only when chosen in the
+                # playback controls (a filter picked earlier in the app never overrides it)
                 opened = open_for_processing(cfg.path, self.playback_calibration,
                                              self.playback_options,
-                                             algorithm=self.options.filter.algorithm,
-                                             reset_zero=self.playback_reset_zero)
+                                             algorithm=self.playback_filter,
+                                             reset_zero=self.playback_reset_zero,
+                                             for_replay=True)
             except (RawFileError, OSError, ValueError) as exc:
                 raise ModeError(f"cannot play {cfg.path}: {exc}") from None
+            recording = opened.slots
+            assert recording is not None
+            self.problems = list(getattr(recording, "problems", []) or [])
             self.calibration_source = opened.calibration_source
             self.options_source = opened.options_source
             self._opened = opened
+            self.recorded_filter = opened.processor.options.filter.algorithm
+            self._start_filter = dataclasses.asdict(opened.processor.options.filter)
             # the recorded events (Reset Zero, alignment, gains, markers) at their frames
             self.replay = ReplaySource(recording, speed=1.0, autoplay=False,
                                        events=opened.replay_events(recording.events))
@@ -242,6 +250,26 @@ class SessionRunner:
         replay.set_events(opened.replay_events(replay.recording.events))
         replay.seek(0)  # a new stream: the filters and Reset Zero start again
 
+    def set_playback_filter(self, algorithm: str | None) -> None:
+        """Playback: play with ``algorithm`` instead of the recording's filter (its recorded
+        filter and gain changes then left out), or None: as recorded. The recording plays
+        again from its start. Raises ValueError for an unknown filter."""
+        opened, replay, session = self._opened, self.replay, self.session
+        self.playback_filter = algorithm
+        if opened is None or replay is None or session is None:
+            return
+        opened.settings_given = algorithm is not None or self.playback_options is not None
+        self.options_source = opened.options_source + (
+            f" with filter {algorithm} (chosen in playback)" if algorithm else "")
+        # the recording's starting settings again, with the filter chosen (the session's one
+        # road, applied before the next frame); recorded changes then follow, or not
+        start = dict(self._start_filter)
+        recorded = start.pop("algorithm")
+        session.set_gains(**start)
+        session.select_filter(algorithm or recorded)
+        replay.set_events(opened.replay_events(replay.recording.events))
+        replay.seek(0)  # a new stream: the filters and Reset Zero start again
+
     def start_data(self) -> LiveSession:
         """Start Data. Returns the (possibly new) session. Raises ModeError (UDP rebind)."""
         assert self.session is not None, "prepare() first"
@@ -259,16 +287,31 @@ class SessionRunner:
         self._data_on = True
         return self.session
 
-    def show_frame(self, index: int) -> None:
-        """File mode, paused: jump to frame ``index`` and deliver exactly that frame (filters
-        pre-rolled), so every view shows the frame at the slider. Starts the session's threads
-        if needed (nothing plays: the replay stays paused)."""
+    def show_frame(self, index: int, before: int = 0) -> None:
+        """File mode, paused: jump to frame ``index`` and deliver it, with the ``before``
+        frames that precede it (the plots' window, redrawn from the file; filters pre-rolled
+        before the first), so every view shows the frame at the slider. Starts the session's
+        threads if needed (nothing plays: the replay stays paused)."""
         assert self.replay is not None and self.session is not None
-        self.replay.seek(index)
-        if index < len(self.replay):
-            self.replay.step(1)
+        last = min(index, len(self.replay) - 1)
+        first = max(0, last - max(0, before))
+        self.replay.seek(first)
+        if last >= first:
+            self.replay.step(last - first + 1)
         if not self.session.running:
             self.session.start()
+
+    def show_next(self, n: int) -> bool:
+        """File mode, paused, the last frame delivered being the one before the replay's
+        position: deliver the ``n`` next frames as playing would (the filters go on: no seek,
+        no re-initialisation). False (nothing done) when the replay is elsewhere."""
+        assert self.replay is not None and self.session is not None
+        if n < 1 or not self.session.running or self.replay.playing:
+            return False
+        n = min(n, len(self.replay) - self.replay.position)
+        if n > 0:
+            self.replay.step(n)
+        return True
 
     def stop_data(self) -> None:
         """Stop Data: suit stream stopped, playback paused, UDP session stopped."""

@@ -8,22 +8,23 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from PyQt6.QtCore import Qt
+from PyQt6.QtCore import QRect, Qt
 from PyQt6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QDialog,
     QDialogButtonBox,
     QFileDialog,
-    QFormLayout,
     QLineEdit,
     QScrollArea,
+    QSizePolicy,
     QTabWidget,
     QVBoxLayout,
     QWidget,
 )
 
 from bpms.gui.safety import guard_wheel
+from bpms.gui.screen_fit import fit_dialog
 from bpms.gui.widgets import label
 from bpms.io import defaults
 from bpms.io.options import Options, options_from_dict, save_options
@@ -74,7 +75,8 @@ class OptionsDialog(QDialog):
     rejected (factory values used instead).
     """
 
-    def __init__(self, options: Options, parent: QWidget | None = None) -> None:
+    def __init__(self, options: Options, parent: QWidget | None = None,
+                 available: QRect | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("BPMS options")
         self.base = options
@@ -85,10 +87,10 @@ class OptionsDialog(QDialog):
         self.scrolls: dict[str, QScrollArea] = {}
         for name, section in options.sections().items():
             page = QWidget()
-            form = QFormLayout(page)
-            # Name and help above the field: long help texts never push the field off-screen.
-            form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapAllRows)
-            form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+            # Name and help above the field, the form's whole width: a plain column lays the
+            # wrapped help out at its full height (a form layout's wrapped rows clipped
+            # two-line help texts)
+            form = QVBoxLayout(page)
             for f in dataclasses.fields(section):
                 value = getattr(section, f.name)
                 help_text = f.metadata.get("help", "")
@@ -108,10 +110,13 @@ class OptionsDialog(QDialog):
                 title = label(f"<b>{f.name}</b> <small>{help_text}</small>")
                 title.setBuddy(editor)
                 guard_wheel(editor)
-                # the name and help on a row of their own, the form's whole width (as a label
-                # column they wrap at about 200 px), the field under them
-                form.addRow(title)
-                form.addRow(editor)
+                policy = QSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
+                policy.setHeightForWidth(True)
+                title.setSizePolicy(policy)
+                form.addWidget(title)
+                form.addWidget(editor)
+                form.addSpacing(4)
+            form.addStretch(1)
             scroll = _FormScroll()
             scroll.setWidget(page)
             scroll.setWidgetResizable(True)
@@ -132,7 +137,7 @@ class OptionsDialog(QDialog):
         layout = QVBoxLayout(self)
         layout.addWidget(tabs)
         layout.addWidget(buttons)
-        self.resize(640, 560)
+        fit_dialog(self, 640, 560, available)  # never taller than the screen: the tabs scroll
         self.problems: list[FileProblem] = []
 
     def form_data(self) -> dict[str, dict[str, Any]]:

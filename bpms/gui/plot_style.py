@@ -1,8 +1,11 @@
 """How a plot reads: its curves' pens, its axes and its legend beside the data.
 
 - :data:`PALETTE`: Okabe & Ito's eight colour-blind-safe colours (2008), ordered so that the
-  first three — often roll, pitch, yaw — are the most distinct (blue, vermilion, black);
-  from the ninth curve on the colours repeat dashed, then dotted (:func:`curve_pen`).
+  first three — often roll, pitch, yaw — are the most distinct (blue, vermilion, black) and
+  no two neighbours are alike; from the ninth curve on the colours repeat dashed, then dotted
+  (:func:`curve_pen`). Lines are :data:`LINE_WIDTH` px. A plot of several limbs gives each
+  limb its own colour, its quantities solid, dashed, dotted (:func:`curve_pens`): the hand,
+  arm and forearm never share a hue.
 - :func:`style_axes`: black axes and ticks, and no SI prefix: an angle axis stays in degrees
   (pyqtgraph would relabel a small range "(x0.001)" or "m[deg]").
 - :class:`SideLegend`: the legend in its own column of the plot grid, beside the data, never
@@ -13,6 +16,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import pyqtgraph as pg
@@ -25,12 +29,35 @@ PALETTE = ("#0072B2", "#D55E00", "#000000", "#009E73", "#E69F00", "#CC79A7", "#5
 _STYLES = (Qt.PenStyle.SolidLine, Qt.PenStyle.DashLine, Qt.PenStyle.DotLine)
 
 
+#: Curve width, px (1 px reads poorly beside a grid; wider costs more to draw).
+LINE_WIDTH = 2
+
+
 def curve_pen(k: int) -> Any:
-    """The pen of the ``k``-th curve of one plot: the eight colours, then dashed, dotted.
-    1 px wide (wider pens cost much more to draw)."""
+    """The pen of the ``k``-th curve of one plot: the eight colours, then dashed, dotted."""
     colour = PALETTE[k % len(PALETTE)]
     style = _STYLES[(k // len(PALETTE)) % len(_STYLES)]
-    return pg.mkPen(colour, width=1, style=style)
+    return pg.mkPen(colour, width=LINE_WIDTH, style=style)
+
+
+def curve_pens(limbs: Sequence[int | None]) -> list[Any]:
+    """The pens of one plot's curves, given each curve's limb (IMU index, None for a curve
+    of no limb). One limb or none: :func:`curve_pen` in order. Several: a colour per limb
+    (in order of first appearance), its curves solid, dashed, dotted."""
+    distinct = list(dict.fromkeys(limb for limb in limbs if limb is not None))
+    if len(distinct) <= 1:
+        return [curve_pen(k) for k in range(len(limbs))]
+    pens: list[Any] = []
+    count: dict[int, int] = {}
+    for k, limb in enumerate(limbs):
+        if limb is None:
+            pens.append(curve_pen(len(distinct) + k))
+            continue
+        j = count.get(limb, 0)
+        count[limb] = j + 1
+        pens.append(pg.mkPen(PALETTE[distinct.index(limb) % len(PALETTE)], width=LINE_WIDTH,
+                             style=_STYLES[j % len(_STYLES)]))
+    return pens
 
 
 #: Tick labels and axis titles, points: small plots keep room for their numbers.

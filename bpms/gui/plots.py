@@ -40,6 +40,7 @@ from bpms.gui.plot_style import (
     RoomyAxis,
     SideLegend,
     curve_pen,
+    curve_pens,
     fit_axis_title,
     style_axes,
 )
@@ -88,8 +89,7 @@ class PlotWindow(QWidget):
         self.follow_button = button("Follow", tip="The time axis follows the newest data "
                                     "(double-click the plot or View All turns it back on)",
                                     checkable=True, checked=True)
-        self.follow_button.toggled.connect(lambda on: self.reset_view() if on
-                                           else self._manual_range())
+        self.follow_button.toggled.connect(self._follow_toggled)  # (bound: no cycle)
         self.lock_button = button("Lock y", tip="Keep each plot's y range as it is now (Follow "
                                   "and double-click no longer rescale it)", checkable=True)
         self.lock_button.toggled.connect(self.lock_y)
@@ -125,6 +125,7 @@ class PlotWindow(QWidget):
             plot = self._new_plot(group_title, specs[0].unit if specs else "")
             for spec in specs:
                 self._add_curve(plot, spec)
+        self._restyle()
         self.buffer = RingBuffer(self.capacity, 1 + len(self.specs))
         self._last_click = (0.0, QPointF())
         self.graphics.scene().sigMouseClicked.connect(self._clicked)
@@ -185,8 +186,7 @@ class PlotWindow(QWidget):
     def _add_curve(self, plot: pg.PlotItem, spec: CurveSpec) -> pg.PlotCurveItem:
         k = sum(1 for c in self.curves if c.getViewBox() is plot.getViewBox())
         # PlotCurveItem, not PlotDataItem: a history of ≤ 60 s × 50 Hz needs no
-        # downsampling, and its setData costs a third. Pens 1 px wide: wider ones are
-        # much slower to draw.
+        # downsampling, and its setData costs a third.
         curve = pg.PlotCurveItem(name=spec.label, connect="finite", pen=curve_pen(k))
         plot.addItem(curve)
         self.curves.append(curve)
@@ -212,6 +212,7 @@ class PlotWindow(QWidget):
         for spec in new:
             plot = self._plot_unit.get(spec.unit) or self._new_plot("", spec.unit)
             self._add_curve(plot, spec)
+        self._restyle()
         old = self.buffer.view().copy()
         self.buffer = RingBuffer(self.capacity, 1 + len(self.specs))
         if len(old):
@@ -220,6 +221,16 @@ class PlotWindow(QWidget):
             self.buffer.extend(rows)
         self.redraw()
         return len(new)
+
+    def _restyle(self) -> None:
+        """Each subplot's pens from its curves' limbs (:func:`curve_pens`)."""
+        for plot in self.plots:
+            box = plot.getViewBox()
+            mine = [(c, s) for c, s in zip(self.curves, self.specs, strict=True)
+                    if c.getViewBox() is box]
+            pens = curve_pens([s.cell[0] if s.cell else None for _, s in mine])
+            for (curve, _), pen in zip(mine, pens, strict=True):
+                curve.setPen(pen)
 
     def description(self) -> dict[str, Any]:
         """What a saved layout needs to re-create this plot: its curves, the locked y ranges
@@ -376,6 +387,12 @@ class PlotWindow(QWidget):
     def toggle_pause(self) -> None:
         """Space: pause or resume the drawing."""
         self.pause_button.toggle()
+
+    def _follow_toggled(self, on: bool) -> None:
+        if on:
+            self.reset_view()
+        else:
+            self._manual_range()
 
     def _manual_range(self, *_args) -> None:
         self.follow = False

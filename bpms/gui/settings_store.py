@@ -73,10 +73,13 @@ class SettingsStore:
 def restore_startup(window: Any, store: SettingsStore | None = None) -> None:
     """Put the remembered values into a StartupWindow (before the user changes anything)."""
     store = store or SettingsStore()
-    if (mode := store.get("mode")) in window.mode_buttons:
+    port = store.get("port")
+    mode = store.get("mode")
+    if mode in window.mode_buttons and not (mode == "suit" and port):
         window.select_mode(mode)
-    if port := store.get("port"):
-        window.port_combo.setCurrentText(port)
+    if port and port != window.options.serial.port:
+        # pre-selected (with the suit mode) only when a suit answers there now
+        window.probe_remembered_port(port)
     if targets := store.get("udp_targets"):
         window.options.udp.forward_to = [t.strip() for t in targets.split(",") if t.strip()]
     if folder := store.get("recording_dir"):
@@ -85,6 +88,14 @@ def restore_startup(window: Any, store: SettingsStore | None = None) -> None:
         window.options.logging.name = subject
     if (geometry := store.get("startup_geometry")) is not None:
         window.restoreGeometry(geometry)
+
+
+def forget_port(port: str, store: SettingsStore | None = None) -> None:
+    """A port where GO found no suit is not offered again at the next launch."""
+    store = store or SettingsStore()
+    if store.get("port") == port:
+        store.set("port", None)
+        store.sync()
 
 
 def remember_startup(window: Any, store: SettingsStore | None = None) -> None:
@@ -99,10 +110,10 @@ def remember_startup(window: Any, store: SettingsStore | None = None) -> None:
     store.sync()
 
 
-def restore_main(window: Any, store: SettingsStore | None = None) -> None:
-    store = store or SettingsStore()
-    if (geometry := store.get("main_geometry")) is not None:
-        window.restoreGeometry(geometry)
+def saved_main_geometry(store: SettingsStore | None = None) -> QByteArray | None:
+    """The main window's remembered geometry (``saveGeometry()`` bytes), or None; the
+    window uses it only when it fits its screen (:mod:`bpms.gui.screen_fit`)."""
+    return (store or SettingsStore()).get("main_geometry")
 
 
 def remember_main(window: Any, store: SettingsStore | None = None) -> None:
@@ -118,5 +129,5 @@ def remember_main(window: Any, store: SettingsStore | None = None) -> None:
     store.sync()
 
 
-__all__ = ["KEYS", "SettingsStore", "remember_main", "remember_startup", "restore_main",
-           "restore_startup", "settings_path"]
+__all__ = ["KEYS", "SettingsStore", "forget_port", "remember_main", "remember_startup",
+           "restore_startup", "saved_main_geometry", "settings_path"]

@@ -2,12 +2,14 @@
 on it — the state and the age of the last frame (:func:`bpms.gui.health.stale_text`).
 
 The same overlay marks the data table, the joint-angle list, every plot and every 3D view, so
-a frozen number never passes for a live one. It ignores the mouse (the view underneath stays
+a frozen number never passes for a live one. The line sits at the bottom, off the table's first
+row and the plots' titles. It ignores the mouse (the view underneath stays
 usable: select, zoom, rotate) and goes away by itself when frames flow again.
 """
 
 from __future__ import annotations
 
+from PyQt6 import sip
 from PyQt6.QtCore import QEvent, QObject, QRect, Qt
 from PyQt6.QtGui import QColor, QPainter
 from PyQt6.QtWidgets import QWidget
@@ -53,17 +55,24 @@ class StaleOverlay(QWidget):
             self.raise_()
 
     def eventFilter(self, watched: QObject | None, event: QEvent | None) -> bool:
-        if watched is self.parentWidget() and event is not None \
-                and event.type() == QEvent.Type.Resize:
-            self.setGeometry(self.parentWidget().rect())
+        # (the view and this veil may be on their way out: an event reaching the filter
+        # then is left alone)
+        if event is None or event.type() != QEvent.Type.Resize or sip.isdeleted(self) \
+                or watched is None or sip.isdeleted(watched):
+            return False
+        parent = self.parentWidget()
+        if watched is parent:
+            self.setGeometry(parent.rect())
         return False
 
     def box_rect(self) -> QRect:
-        """Where the line is drawn (top centre, clipped to the view's width)."""
+        """Where the line is drawn: bottom centre, clipped to the view's width (the top holds
+        what is read first: the table's row 0, a plot's title)."""
         metrics = self.fontMetrics()
         width = min(self.width() - 8, metrics.horizontalAdvance(self.text) + 16)
         height = metrics.height() + 8
-        return QRect((self.width() - width) // 2, 4, max(0, width), height)
+        return QRect((self.width() - width) // 2, max(0, self.height() - height - 4),
+                     max(0, width), height)
 
     def paintEvent(self, event) -> None:
         painter = QPainter(self)

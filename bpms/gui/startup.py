@@ -389,6 +389,8 @@ class StartupWindow(QWidget):
                     f"{type(error).__name__}: {error}"
                 self.status_label.setText(message)
                 if runner.mode == "suit":
+                    if runner.config.port:  # not offered again at the next launch
+                        settings_store.forget_port(runner.config.port)
                     self.last_dialog = self._offer_simulated_suit(error)
                 else:
                     self.last_dialog = show_error(self, "Cannot start", message)
@@ -426,8 +428,7 @@ class StartupWindow(QWidget):
         return box
 
     def open_main_window(self, runner: SessionRunner) -> MainWindow:
-        window = MainWindow(runner)
-        settings_store.restore_main(window)
+        window = MainWindow(runner, saved_geometry=settings_store.saved_main_geometry())
         window.closed.connect(lambda: settings_store.remember_main(window))
         window.closed.connect(self._main_closed)
         self.main_window = window

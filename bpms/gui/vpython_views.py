@@ -63,6 +63,22 @@ def vpython_problem() -> str | None:
     return None
 
 
+def browser_problem() -> str | None:
+    """Why no web browser can be opened for the browser view (one line), or None; None also
+    when vpython is told not to launch one (``VPYTHON_NO_LAUNCH_BROWSER``: the user opens
+    the page)."""
+    import webbrowser
+
+    if os.environ.get("VPYTHON_NO_LAUNCH_BROWSER"):
+        return None
+    try:
+        webbrowser.get()
+    except webbrowser.Error:
+        return ("no web browser could be opened for it (install one, or name it in the "
+                "BROWSER environment variable)")
+    return None
+
+
 def _vp() -> ModuleType:
     """Import vpython (starts its servers and waits for a browser: see the module doc)."""
     import vpython
@@ -298,9 +314,10 @@ class BrowserView:
 def open_browser_view(model: Any) -> BrowserView:
     """Start a browser 3D view following a :class:`bpms.gui.model.SessionModel`.
 
-    Raises RuntimeError (one line) when the vpython extra is missing; the GUI shows it.
+    Raises RuntimeError (one line) when the vpython extra is missing or no web browser can
+    be opened; the GUI shows it.
     The caller keeps the returned object and calls ``close()`` when done."""
-    problem = vpython_problem()
+    problem = vpython_problem() or browser_problem()
     if problem is not None:
         raise RuntimeError(problem)
     view = BrowserView()

@@ -16,6 +16,7 @@ import numpy as np
 
 from bpms.io.bounded import BoundError, read_config_bytes
 from bpms.io.frames import N_IMUS
+from bpms.io.mag_ellipsoid import MAG_FULL_SCALE
 from bpms.io.paths import factory_calibration_path
 from bpms.io.problems import FileProblem, report
 
@@ -106,6 +107,19 @@ def _record_problem(values: list[str]) -> tuple[int, str] | None:
     return check_record(np.array([float(v) for v in values]))
 
 
+def as_table(table: object) -> CalibrationTable:
+    """A ``CalibrationTable`` of ``table``: itself when it is one, else a new table of its
+    ``values [18, 16]`` (and ``source`` when it has one), e.g. the simulated suit's own copy of
+    its true table. Raises ValueError when it has no such values."""
+    if isinstance(table, CalibrationTable):
+        return table
+    values = getattr(table, "values", None)
+    if values is None:
+        raise ValueError(f"not a calibration table: {type(table).__name__}")
+    return CalibrationTable(np.asarray(values, dtype=np.float64),
+                            str(getattr(table, "source", "given")))
+
+
 def check_record(row: np.ndarray) -> tuple[int, str] | None:
     """(field index, message) of the first unusable value of one IMU record, or None. The
     index is -1 for a min/max pair (the message names both fields).
@@ -146,6 +160,43 @@ def check_record(row: np.ndarray) -> tuple[int, str] | None:
         if abs(row[k]) > GYRO_BIAS_MAX:
             return k, (f"{FIELDS[k]} {row[k]:g} is beyond the ITG-3200's zero-rate output "
                        f"±{GYRO_BIAS_MAX:g} counts (±40 °/s)")
+    return None
+
+
+def check_ellipsoid(center: np.ndarray, matrix: np.ndarray, row: np.ndarray | None = None
+                    ) -> str | None:
+    """Why a magnetometer ellipsoid (``m = matrix @ (raw - center)`` on the sphere of radius
+    100, :class:`bpms.io.mag_ellipsoid.MagEllipsoid`) cannot come from this sensor, or None:
+    every number finite; the centre (raw counts) inside the HMC5883L's readings and, given
+    the IMU's record ``row``, inside its magnetometer min … max on each axis (the sweep that
+    measured both went round it); the matrix not singular, its radii (100 / each singular
+    value, counts) between the weakest Earth field's :data:`MAG_HALF_RANGE_MIN` and the
+    readings' span. The same check for every door that
+    reads an ellipsoid (issue 43: a centre of 1e300 turned an IMU to NaN without a warning,
+    one of 5,000 counts moved its yaw by 1 rad)."""
+    center = np.asarray(center, dtype=np.float64)
+    matrix = np.asarray(matrix, dtype=np.float64)
+    if center.shape != (3,) or matrix.shape != (3, 3):
+        return "the ellipsoid needs a centre of 3 numbers and a 3×3 matrix"
+    if not (np.isfinite(center).all() and np.isfinite(matrix).all()):
+        return "the ellipsoid holds a number that is not finite"
+    lo, hi = MAG_COUNTS
+    for axis, c in enumerate(center):
+        if not lo <= c <= hi:
+            return (f"ellipsoid centre {'xyz'[axis]} {c:g} is outside the sensor's readings "
+                    f"{lo:g} … {hi:g} counts")
+        if row is not None and not row[7 + 2 * axis] <= c <= row[8 + 2 * axis]:
+            return (f"ellipsoid centre {'xyz'[axis]} {c:g} is outside the IMU's magnetometer "
+                    f"{FIELDS[7 + 2 * axis]} … {FIELDS[8 + 2 * axis]} "
+                    f"({row[7 + 2 * axis]:g} … {row[8 + 2 * axis]:g} counts)")
+    gains = np.linalg.svd(matrix, compute_uv=False)  # calibrated units per count, per axis
+    if gains.min() <= 1e-12 * max(float(gains.max()), 1e-300):
+        return "the ellipsoid matrix is singular"
+    radii = MAG_FULL_SCALE / gains
+    if radii.min() < MAG_HALF_RANGE_MIN or radii.max() > hi - lo:
+        return (f"ellipsoid radii {radii.min():.4g} … {radii.max():.4g} counts are outside "
+                f"{MAG_HALF_RANGE_MIN:g} … {hi - lo:g} (the weakest Earth field … the "
+                "sensor's span)")
     return None
 
 

@@ -19,7 +19,13 @@ from typing import Any
 import numpy as np
 
 from bpms.io.bounded import loads_json, read_config_bytes
-from bpms.io.calib_file import FIELDS, CalibrationTable, check_record, load_factory_calibration
+from bpms.io.calib_file import (
+    FIELDS,
+    CalibrationTable,
+    check_ellipsoid,
+    check_record,
+    load_factory_calibration,
+)
 from bpms.io.frames import N_IMUS
 from bpms.io.mag_ellipsoid import MagEllipsoid
 from bpms.io.problems import FileProblem, report
@@ -95,7 +101,9 @@ def _vector(value: Any, n: int = 3) -> np.ndarray:
     return arr
 
 
-def _parse_imu(rec: Any) -> tuple[int, np.ndarray, MagEllipsoid | None, dict]:
+def _parse_imu(rec: Any) -> tuple[int, np.ndarray, MagEllipsoid | str | None, dict]:
+    """(IMU id, its 16 values, its ellipsoid, or why the ellipsoid is unusable, provenance);
+    ValueError (and KeyError, TypeError) for a record whose 16 values are unusable."""
     if not isinstance(rec, dict):
         raise ValueError("an IMU record must be an object")
     imu = rec.get("id")
@@ -111,15 +119,17 @@ def _parse_imu(rec: Any) -> tuple[int, np.ndarray, MagEllipsoid | None, dict]:
     bad = check_record(row)  # the same door as Calib.cfg and recording headers
     if bad is not None:
         raise ValueError(bad[1] if bad[0] < 0 else f"{FIELDS[bad[0]]}: {bad[1]}")
-    ell = None
+    ell: MagEllipsoid | str | None = None
     if "ellipsoid" in rec["mag"]:
-        e = rec["mag"]["ellipsoid"]
-        matrix = np.asarray(e["matrix"], dtype=np.float64)
-        if matrix.shape != (3, 3) or not np.isfinite(matrix).all():
-            raise ValueError("ellipsoid matrix must be 3×3 finite numbers")
-        if abs(np.linalg.det(matrix)) < 1e-12:
-            raise ValueError("ellipsoid matrix is singular")
-        ell = MagEllipsoid(center=_vector(e["center"]), matrix=matrix)
+        try:
+            e = rec["mag"]["ellipsoid"]
+            center = np.asarray(e["center"], dtype=np.float64)
+            matrix = np.asarray(e["matrix"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError) as exc:
+            ell = f"the ellipsoid is malformed ({str(exc).strip(chr(39))})"
+        else:
+            why = check_ellipsoid(center, matrix, row)  # the one check (io/calib_file.py)
+            ell = why if why is not None else MagEllipsoid(center=center, matrix=matrix)
     prov = rec.get("provenance", {})
     return imu, row, ell, prov if isinstance(prov, dict) else {}
 
@@ -156,7 +166,10 @@ def load_modern(path: str | Path) -> ModernCalibration:
             continue
         values[imu] = row
         seen.add(imu)
-        if ell is not None:
+        if isinstance(ell, str):
+            report(problems, path, f"IMU {imu} ellipsoid", ell,
+                   f"min/max magnetometer calibration used for IMU {imu}")
+        elif ell is not None:
             out.ellipsoids[imu] = ell
         if prov:
             out.provenance[imu] = prov

@@ -16,7 +16,7 @@ import logging
 import shutil
 from pathlib import Path
 
-from bpms.io.calib_file import CalibrationTable, load_calibration
+from bpms.io.calib_file import CalibrationTable, as_table, load_calibration
 from bpms.io.options import Options, load_options
 from bpms.io.userdirs import config_dir, default_calibration_path, default_options_path
 
@@ -128,14 +128,14 @@ def save_default_calibration(calibration: CalibrationTable | str | Path) -> Path
 
     target = default_calibration_path()
     target.parent.mkdir(parents=True, exist_ok=True)
-    table = (calibration if isinstance(calibration, CalibrationTable)
-             else load_calibration(calibration))
+    table = (load_calibration(calibration) if isinstance(calibration, str | Path)
+             else as_table(calibration))
     if table.problems:
         raise ValueError("; ".join(str(p) for p in table.problems))
     save_legacy(table, target)
     # the modern companion (magnetometer ellipsoid fits) goes along when there is one
     companion = target.with_suffix(".json")
-    if not isinstance(calibration, CalibrationTable) and Path(calibration).with_suffix(
+    if isinstance(calibration, str | Path) and Path(calibration).with_suffix(
             ".json").is_file():
         _copy(Path(calibration).with_suffix(".json"), companion)
     elif companion.is_file():

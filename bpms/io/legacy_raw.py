@@ -12,7 +12,8 @@ restricted unpickler:
 - ``persistent_load`` refuses PERSID / BINPERSID.
 - REDUCE, OBJ, NEWOBJ and BUILD can only call what is on the stack; with no global available
   nothing callable but the latin-1 function ever gets there.
-- Each record must then be a list or tuple ``[time, frame]`` with a float (or int) time and a
+- Each record must then be a list or tuple ``[time, frame]`` with a finite float (or an int
+  that fits in 64 bits: a 400-digit int is a bad record, not an ``OverflowError``) time and a
   str (latin-1 code points) or bytes frame.
 
 Python 2 strings are loaded with ``encoding="latin1"`` (every byte ↦ one code point) and turned
@@ -42,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from bpms.io.frames import FRAME_DTYPE, FRAME_SIZE, is_frame
+from bpms.io.paths import require_regular_input
 from bpms.io.rawfile import RawFileError, RawRecording
 
 log = logging.getLogger(__name__)
@@ -94,6 +96,8 @@ def _record_fields(obj: Any) -> tuple[float, bytes] | str:
     t, frame = obj
     if isinstance(t, bool) or not isinstance(t, float | int):
         return f"the time is a {type(t).__name__}, not a number"
+    if isinstance(t, int) and not -(2 ** 63) <= t < 2 ** 63:  # no float holds a 400-digit int
+        return f"the time is an integer of {t.bit_length()} bits, not a time"
     t = float(t)
     if not math.isfinite(t):
         return "the time is not a finite number"
@@ -122,6 +126,7 @@ def is_legacy_raw(path: str | Path) -> bool:
     """True when ``path`` begins with a pickled ``[time, frame]`` list (protocol 0, 1 or 2),
     judged from its first opcodes alone (nothing is unpickled)."""
     try:
+        require_regular_input(path)
         with Path(path).open("rb") as f:
             head = f.read(SNIFF_BYTES)
     except OSError:
@@ -153,6 +158,7 @@ def read_legacy_raw(path: str | Path) -> RawRecording:
     """
     path = Path(path)
     try:
+        require_regular_input(path)
         data = path.read_bytes()
     except OSError as exc:
         raise RawFileError(f"{path}: cannot be read ({exc.strerror or exc})") from exc

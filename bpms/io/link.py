@@ -24,6 +24,7 @@ plug in a scripted transport.
 from __future__ import annotations
 
 import contextlib
+import errno
 import glob
 import logging
 import re
@@ -69,6 +70,10 @@ class DeviceGoneError(LinkError):
     """The port cannot be opened, read or written (device removed, connection dropped)."""
 
 
+class PortInUseError(DeviceGoneError):
+    """Another program holds the port (it is opened for exclusive access, docs/suit.md)."""
+
+
 class LinkClosedError(LinkError):
     """The link was closed (possibly by another thread) during or before the operation."""
 
@@ -101,10 +106,19 @@ class SerialTransport:
 
     The port is opened with ``timeout=0``: each pyserial ``read`` makes one system read, so a
     call that raises on a disconnect has read nothing (the bytes before the end came in an
-    earlier call, and :class:`SuitLink` keeps those)."""
+    earlier call, and :class:`SuitLink` keeps those). It is opened for exclusive access
+    (``exclusive=True``: an advisory ``flock`` on POSIX, which every bpms takes; Windows COM
+    ports are exclusive anyway): a second program that asks for it gets
+    :class:`PortInUseError`, and the one holding it loses nothing."""
 
     def __init__(self, port: str, baud: int = DEFAULT_BAUD) -> None:
-        self._ser = serial.serial_for_url(port, baudrate=baud, timeout=0, write_timeout=1.0)
+        try:
+            self._ser = serial.serial_for_url(port, baudrate=baud, timeout=0,
+                                              write_timeout=1.0, exclusive=True)
+        except (serial.SerialException, OSError) as exc:
+            if _in_use(exc):
+                raise PortInUseError(f"{port} is in use by another program") from None
+            raise
         self._io = threading.RLock()  # held by a read or write; close waits for it
         self._closing = False
         try:
@@ -236,6 +250,8 @@ class SuitLink(Closing):
         if transport is None:
             try:
                 transport = open_serial(port, baud)
+            except PortInUseError:
+                raise
             except (serial.SerialException, OSError, ValueError) as exc:
                 raise DeviceGoneError(f"cannot open {port}: {_reason(exc)}") from None
         self._t = transport
@@ -431,6 +447,16 @@ class SuitLink(Closing):
         self.streaming = False
         with contextlib.suppress(serial.SerialException, OSError):
             self._t.close(goodbye)
+
+
+def _in_use(exc: BaseException) -> bool:
+    """True when opening failed because another program holds the port: the exclusive lock
+    refused (POSIX: EWOULDBLOCK/EAGAIN from flock; EBUSY) or, on Windows, access denied to a
+    COM port another program opened."""
+    code = getattr(exc, "errno", None)
+    text = str(exc)
+    return (code in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EBUSY)
+            or "exclusively lock" in text or "Access is denied" in text)
 
 
 def _reason(exc: BaseException) -> str:

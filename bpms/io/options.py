@@ -497,7 +497,8 @@ def load_options(path: str | Path | None) -> Options:
         text = read_config_bytes(path).decode("utf-8")
     except (OSError, UnicodeDecodeError, BoundError) as exc:
         options = Options(source=f"factory ({path} unreadable)")
-        report(options.problems, path, "file", f"cannot be read ({exc})", "factory options used")
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        report(options.problems, path, "file", f"cannot be read ({why})", "factory options used")
         return options
     try:
         data = tomllib.loads(text)

@@ -35,7 +35,9 @@ import numpy as np
 
 from bpms.io.bounded import MAX_HEADER_BYTES, BoundError, check_size, loads_json
 from bpms.io.frames import FRAME_DTYPE, FRAME_SIZE
+from bpms.io.paths import require_regular_input
 from bpms.io.session_events import SessionEvent
+from bpms.io.timebase import plausible_host_time
 
 MAGIC = b"BPMSRAW\0"
 FORMAT_VERSION = 2
@@ -80,6 +82,7 @@ def read_preamble(path: str | Path) -> tuple[dict[str, Any], int, int]:
     """(header dict, offset of the first record, format version). Raises RawFileError."""
     path = Path(path)
     try:
+        require_regular_input(path)
         with path.open("rb") as f:
             preamble = f.read(PREAMBLE.size)
             if len(preamble) < PREAMBLE.size or not preamble.startswith(MAGIC):
@@ -143,9 +146,10 @@ def parse_event(data: bytes, q: int, size: int) -> SessionEvent | None:
         event = SessionEvent.from_json(data[q + EVENT_HEAD.size:end - EVENT_TAIL.size])
     except ValueError:
         return None
-    if event.time != event.time:  # not in the JSON: the record's time
-        event = SessionEvent(event.kind, event.frame, struct.unpack_from("<d", data, q)[0],
-                             event.data)
+    if not plausible_host_time(event.time):  # not in the JSON, or no clock's: the record's
+        record_time = struct.unpack_from("<d", data, q)[0]  # (checked as the frame index is)
+        event = SessionEvent(event.kind, event.frame, record_time
+                             if plausible_host_time(record_time) else float("nan"), event.data)
     return event
 
 

@@ -34,6 +34,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from bpms.io.frames import FRAME_DTYPE, N_IMUS, DecodedFrames, decode_frames, encode_frame
+<<<<<<< HEAD
 from bpms.io.raw_events import (
     LOOKAHEAD,
     Copies,
@@ -45,6 +46,9 @@ from bpms.io.raw_events import (
     kind_in,
     lost_event,
 )
+=======
+from bpms.io.paths import require_regular_input
+>>>>>>> main
 from bpms.io.raw_layout import (
     EVENT_END,
     EVENT_HEAD,
@@ -370,6 +374,7 @@ class RawFile:
         """The data part in file order (see :func:`_pieces`), from ``offset`` (a frame
         record's start met by an earlier pass, with its slot and the time before it)."""
         try:
+            require_regular_input(self.path)
             with self.path.open("rb") as f:
                 yield from _pieces(f, self.data_offset if offset is None else offset,
                                    self.version >= EVENTS_VERSION, counts or self.counts, slot,

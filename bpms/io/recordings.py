@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bpms.io.paths import require_regular_input
 from bpms.io.raw_reader import RawFrames, no_frame_message
 from bpms.io.rawfile import MAGIC, RawFileError, RawRecording, read_raw
 
@@ -12,6 +13,7 @@ def read_head(path: Path) -> bytes:
     """The first bytes of ``path``, as many as the native format's magic. Raises
     :class:`RawFileError` with a one-line reason when the file cannot be read."""
     try:
+        require_regular_input(path)  # a named pipe would block the open for ever
         with path.open("rb") as f:
             return f.read(len(MAGIC))
     except OSError as exc:

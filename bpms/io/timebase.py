@@ -11,6 +11,8 @@ Every frame of a stream has two times:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from bpms.io.frames import FRAME_PERIOD_S
@@ -36,3 +38,21 @@ def stream_time(index: int, dt: float = FRAME_PERIOD_S) -> float:
 def frame_at(seconds: float, dt: float = FRAME_PERIOD_S) -> int:
     """The frame index whose stream time is nearest ``seconds``."""
     return round(float(seconds) / float(dt))
+
+
+#: The longest time an option or a recording may name, s (116 days: 5 × 10^8 frames at
+#: 50 Hz). A time beyond it (``--from 1e308``) is refused, not turned into an infinite frame
+#: index.
+LONGEST_S = 1e7
+
+#: The host times a clock can give, s since the epoch: 1970 up to 2^37 s (the year 6325).
+#: Anything else in a file (1e308, a negative time) is damage or forgery, not a time.
+LATEST_HOST_TIME = float(2 ** 37)
+
+
+def plausible_host_time(seconds: float) -> bool:
+    """Whether ``seconds`` (s since the epoch) is a time a host clock can have given."""
+    try:
+        return math.isfinite(seconds) and 0.0 <= seconds <= LATEST_HOST_TIME
+    except TypeError:
+        return False

@@ -25,6 +25,7 @@ import time
 from bpms.io.event_types import Note
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.session_events import SessionEvent
+from bpms.io.timebase import plausible_host_time
 from bpms.pipeline.fanout import Fanout, Subscription
 
 log = logging.getLogger(__name__)
@@ -63,7 +64,8 @@ class SessionEvents:
         text = event.describe(self.dt)
         (log.warning if warning else log.info)("%s", text)
         with self._lock:
-            stamp = time.strftime("%H:%M:%S", time.localtime(event.time))
+            stamp = (time.strftime("%H:%M:%S", time.localtime(event.time))
+                     if plausible_host_time(event.time) else "--:--:--")
             line = f"{stamp} {text}"
             self._lines = [*self._lines[-(KEPT_LINES - 1):], line]
             if warning:

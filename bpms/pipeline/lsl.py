@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import itertools
 import logging
+import os
+import secrets
 import socket
 import threading
 import time
@@ -69,6 +71,15 @@ _QUAT = ("W", "X", "Y", "Z")
 #: (XDF channel type, the channel's letter as in bpms extract's ax … gz columns, unit)
 _SENSOR_AXES = (("Acceleration", "a", "m/s^2"), ("MagneticField", "m", "gauss"),
                 ("AngularVelocity", "g", "rad/s"))
+
+
+def unique_source_id() -> str:
+    """The base of the streams' ``source_id``: this host, this process and this session, so
+    that no two senders ever share one (an inlet that recovers a lost stream finds only its
+    own sender again, never another bpms; docs/lsl.md). The stream's key follows after a
+    colon: ``bpms@HOST/pid1234/20261207T051620-a3f9c1:joints``."""
+    started = time.strftime("%Y%m%dT%H%M%S")
+    return f"bpms@{socket.gethostname()}/pid{os.getpid()}/{started}-{secrets.token_hex(3)}"
 
 
 @dataclass(frozen=True)
@@ -138,13 +149,14 @@ class LslOutlets:
         self.link_delay = link_delay
         # perf_counter (frame arrival) → LSL's clock; both are monotonic seconds
         self._to_lsl = pylsl.local_clock() - time.perf_counter()
-        base = source_id or f"bpms@{socket.gethostname()}"
+        base = source_id or unique_source_id()
         rate = 1.0 / FRAME_PERIOD_S
         sync = {"reference_frame": "segment axes (x forward, y right, z down in the calibration "
                                    "pose) -> world north-east-down",
                 "time_stamps": "de-jittered 50 Hz frame clock anchored to receive times, "
                                f"link delay {link_delay:g} s subtracted",
-                "docs": "docs/lsl.md"}
+                "docs": "docs/lsl.md",
+                "sender": f"{base} (host/process/session: unique to this sender)"}
         self.outlets = {}
         for key, channels, stype, fmt, extra in (
                 ("segments", segment_channels(), "MoCap", pylsl.cf_float32,

@@ -105,6 +105,8 @@ def _joint_columns(joint: str | None) -> tuple[int, int, int] | None:
 def _slerp(qa: np.ndarray, qb: np.ndarray, f: float) -> np.ndarray:
     if f == 0.0:
         return qa
+    if not (np.isfinite(qa).all() and np.isfinite(qb).all()):
+        return np.full(4, np.nan)  # a segment without data: so is what it is made from
     dot = float(np.dot(qa, qb))
     if dot < 0:
         qb, dot = -qb, -dot
@@ -120,7 +122,8 @@ def mvn_pose(quaternions: np.ndarray, positions: np.ndarray,
              ) -> tuple[np.ndarray, np.ndarray]:
     """(positions ``[23, 3]`` m, quaternions ``[23, 4]`` w, x, y, z) in MVN's Z-up frame from
     BPMS segment quaternions ``[18, 4]`` (segment → NED) and joint positions ``[21, 3]`` m
-    (NED, order ``POINT_NAMES``)."""
+    (NED, order ``POINT_NAMES``). NaN in, NaN out: an MVN segment made from a BPMS segment
+    without data has NaN orientation (and position, when its points need it)."""
     pos = np.empty((len(SEGMENT_SOURCES), 3))
     quat = np.empty((len(SEGMENT_SOURCES), 4))
     for k, s in enumerate(SEGMENT_SOURCES):
@@ -173,10 +176,9 @@ class MvnSender:
     def send(self, sample: int, time_ms: int, quaternions: np.ndarray, positions: np.ndarray,
              isb_angles: np.ndarray) -> None:
         """One frame: segment quaternions ``[18, 4]``, joint positions ``[21, 3]`` m, joint
-        angles ``[28]`` rad (ISB). Frames with NaN (before Reset Zero) are not sent."""
-        if not (np.isfinite(quaternions).all() and np.isfinite(positions).all()):
-            return
-        angles = np.nan_to_num(np.asarray(isb_angles, dtype=np.float64))
+        angles ``[28]`` rad (ISB). Every frame is sent: what has no data (a failed IMU's
+        segment, everything before the first Reset Zero) is NaN (docs/mvn.md)."""
+        angles = np.asarray(isb_angles, dtype=np.float64)
         for data in (pose_datagram(sample, time_ms, quaternions, positions),
                      joint_datagram(sample, time_ms, angles)):
             for target in self.targets:

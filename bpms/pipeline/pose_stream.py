@@ -23,17 +23,18 @@ ZERO_RESEND_FRAMES = 50
 
 
 def forward_poses(forwarder: UdpForwarder, events: list[FrameEvent], result: Result) -> None:
-    """One pose datagram per frame whose pose is complete (docs/udp.md): the segment
-    orientations after Reset Zero, the joint angles and positions, the disturbance flags."""
+    """One pose datagram for every frame (docs/udp.md): the segment orientations after Reset
+    Zero, the joint angles and positions, the disturbance flags and which segments carry data.
+    A segment without data (its IMU failed, or no Reset Zero yet) goes as NaN and flagged in
+    the validity block, and so does every angle and position needing it: one dead IMU costs
+    its segments, never the frame."""
     quats = result.segment_quaternions.astype(np.float32)
     angles, positions, dist = result.joint_angles, result.joint_positions, result.disturbance
-    finite = (np.isfinite(quats).all(axis=(1, 2)) & np.isfinite(angles).all(axis=1)
-              & np.isfinite(positions).all(axis=(1, 2)))
+    valid = np.isfinite(quats).all(axis=2)
     for k, e in enumerate(events):
-        if finite[k]:
-            forwarder.send_pose(quats[k], angles[k].astype(np.float32),
-                                stream_time(e.index), positions[k], result.convention,
-                                None if dist is None else (dist.mag[k], dist.acc[k]))
+        forwarder.send_pose(quats[k], angles[k].astype(np.float32),
+                            stream_time(e.index), positions[k], result.convention,
+                            None if dist is None else (dist.mag[k], dist.acc[k]), valid[k])
 
 
 class ZeroForwarding:

@@ -97,6 +97,11 @@ class LiveSession:
         self._reinit_noted = -1e9
         self._reinit_imus: set[int] = set()
         self.notes = notes
+        #: more header fields of the next raw recordings (``subject``: docs/subject.md)
+        self.header_extra: dict = {}
+        self._posture: dict | None = None  # a declared posture waiting for its capture
+        self._adopting: tuple[str, dict] | None = None  # a zero adopted: (source, its data)
+        self._functional = None  # a live functional calibration collecting its frames
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
@@ -184,6 +189,47 @@ class LiveSession:
         self._own_zero = True
         self.settings.reset_zero(source)
 
+    def calibrate_posture(self, posture: dict[str, float]) -> None:
+        """Declared-posture pose calibration (docs/pose-calibration.md): Reset Zero at the next
+        frame (source ``posture``), then, from the next batch of frames (the next frame, live),
+        the zero that gives the declared ``posture`` (ISB joint angles, degrees) in that
+        window, adopted and recorded as a ``reset_zero`` event (``adopt``, its ``R0``), so
+        ``bpms filter`` of the recording repeats it."""
+        self._posture = dict(posture)
+        self.reset_zero("posture")
+
+    def _adopt_posture(self, zero) -> None:
+        """After the ``posture`` capture ``zero``: adopt its declared-posture zero."""
+        from bpms.filter.posture_calibration import posture_zero
+
+        posture, self._posture = self._posture, None
+        R0, yaw0 = posture_zero(zero.R0, posture)
+        self.processor.pose.adopt(R0, yaw0, "posture", zero.window)
+        # its event, when it takes effect, says it was adopted
+        self._adopting = ("posture", {"adopt": True, "heading": "mean", "posture": posture})
+
+    def calibrate_functional(self, seconds: float = 30.0, still_s: float = 0.5) -> None:
+        """Functional pose calibration (docs/pose-calibration.md): from the next frame,
+        ``still_s`` s still, then ``seconds`` s of movements; then its zero is adopted and
+        recorded (``reset_zero``, source ``functional``, ``adopt``, its quality)."""
+        from bpms.pipeline.functional_live import FunctionalCollector
+
+        dt = self.processor.options.filter.dt
+        collector = FunctionalCollector(round(still_s / dt), round(seconds / dt), dt)
+        self._commands.put(lambda: setattr(self, "_functional", collector))
+
+    def _collect_functional(self, result, raw, errors) -> None:
+        done = self._functional.add(result.R, raw, errors, self.processor.sensor_calibration)
+        if done is None:
+            return
+        R0, yaw0, report, data = done
+        self._functional = None
+        self.processor.pose.adopt(R0, yaw0, "functional", data["window"])
+        self._adopting = ("functional", {k: v for k, v in data.items()
+                                         if k not in ("R0", "yaw0", "source")})
+        if report.missing:
+            self.note("functional calibration: missing " + ", ".join(report.missing))
+
     def marker(self, text: str) -> None:
         """A marker note at the next processed frame: in the raw recording, the event log and
         the LSL event stream."""
@@ -222,7 +268,7 @@ class LiveSession:
             header = new_header(calibration=self.processor.table.values,
                                 options=_options_dict(self.processor.options), notes=self.notes,
                                 source=self.source.status().description,
-                                extra={"session_events": True})
+                                extra={"session_events": True, **self.header_extra})
             writer = RawWriter(raw_path, header, self.options.logging.flush_interval_s)
             logger = RawLogger(writer, status, self.note, self.options.logging.disk_reserve_s)
             logger.start()
@@ -470,8 +516,21 @@ class LiveSession:
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
         for z in result.zeros:
+<<<<<<< HEAD
             self.events.emit(SessionEvent.of(z.change(), head.index + z.frame - first),
                              warning=z.moved)
+=======
+            data = z.event_data()
+            if self._adopting is not None and z.source == self._adopting[0]:  # adopted
+                data |= self._adopting[1]
+                self._adopting = None
+            self.events.emit(SessionEvent("reset_zero", head.index + z.frame - first,
+                                          data=data), warning=z.moved)
+            if z.source == "posture" and self._posture is not None:  # the capture
+                self._adopt_posture(z)
+        if self._functional is not None:
+            self._collect_functional(result, raw, errors)
+>>>>>>> main
         for k, m in marks:
             if m.kind != "reset_zero":
                 self.events.emit(m.at(events[k].index))

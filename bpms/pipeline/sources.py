@@ -97,6 +97,12 @@ class UdpFrameSource:
                             f"{s.conflicts} conflicting datagrams): frames may be forged")
         if s.another_sender:
             warnings.append(f"another sender ({s.another_sender}) on this port: ignored")
+        if s.stale_sender:
+            warnings.append(f"datagrams of a replaced sender ({s.stale_sender}) dropped: "
+                            f"{s.stale} in all")
+        if s.refused_recently:
+            warnings.append(f"datagrams refused ({s.refused_recently}; replayed {s.replayed}, "
+                            f"unauthenticated {s.unauthenticated})")
         if s.takeover:
             warnings.append(s.takeover)
         return SourceStatus(
@@ -104,7 +110,8 @@ class UdpFrameSource:
             "closed" if self.udp.closed else self._state,
             counters={k: getattr(s, k) for k in (
                 "lost", "duplicated", "reordered", "malformed", "restarts", "foreign",
-                "unauthenticated", "replayed", "implausible", "conflicts")},
+                "unauthenticated", "replayed", "implausible", "conflicts", "stale",
+                "takeovers")},
             warning="; ".join(warnings))
 
     def close(self) -> None:

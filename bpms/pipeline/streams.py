@@ -51,11 +51,14 @@ class MvnBridge:
             first = self._sub.get(0.1)
             batch = ([first] if first is not None else []) + self._sub.drain()
             for s in batch:
-                if not np.isfinite(s.C).all():
-                    continue
+                # every frame: a segment without data (NaN) is sent as NaN (docs/mvn.md)
+                q = np.full((len(s.C), 4), np.nan)
+                ok = np.isfinite(s.C).all(axis=(-1, -2))
+                if ok.any():
+                    q[ok] = dcm_to_quaternion(s.C[ok])
                 try:
                     self.sender.send(max(s.index, 0), round(stream_time(s.index) * 1000),
-                                     dcm_to_quaternion(s.C), s.joint_positions,
+                                     q, s.joint_positions,
                                      convert(s.joint_angles, self.convention, "isb"))
                 except Exception as exc:  # never take the session down
                     log.warning("MVN send failed: %s", exc)

@@ -27,25 +27,30 @@ import numpy as np
 
 from bpms.firmware.sim.geometry import expm, random_rotations
 from bpms.firmware.sim.motion import DT
-from bpms.firmware.sim.sensors import BOARD_AXES, SensorModel, draw_noise, ideal_sensors, to_raw
-from bpms.io.calib_file import CalibrationTable, load_factory_calibration
+from bpms.firmware.sim.sensors import (
+    BOARD_AXES,
+    POLARITY,
+    SensorModel,
+    draw_noise,
+    ideal_sensors,
+    to_raw,
+)
+from bpms.firmware.sim.table import TrueTable, table_2_2
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.frames import N_IMUS, encode_frames
-from bpms.io.mag_ellipsoid import MagEllipsoid
-from bpms.io.options import SensorOptions
 
 #: IMUs whose truth :func:`changed_table` moves by default.
 CHANGED_IMUS = (2, 7, 11)
 
 
 def changed_table(imus: tuple[int, ...] = CHANGED_IMUS, seed: int = 1,
-                  base: CalibrationTable | None = None) -> CalibrationTable:
+                  base: TrueTable | None = None) -> TrueTable:
     """A true table with deliberately changed offsets and scales for ``imus``: accelerometer
     offsets moved by up to ±15 counts, ranges scaled by 0.93–1.07, magnetometer offsets moved
     by up to ±60 counts and ranges scaled by 0.85–1.15, gyro averages moved by up to ±40
     counts. Ranges are kept inside the magnetometer's ±512 so nothing saturates."""
     rng = np.random.default_rng(seed)
-    table = (base or load_factory_calibration()).copy()
+    table = (base or table_2_2()).copy()
     for imu in imus:
         v = table.values[imu]
         acc = v[1:7].reshape(3, 2)
@@ -85,21 +90,24 @@ class CalibrationSuit:
     soft-iron magnetometer distortions per IMU (the truth is then the ellipsoid, not min/max).
     Noise and the magnetic dip come from ``model``; ``seed`` makes every call reproducible in
     sequence. ``mag_clip``: the magnetometer saturates at ±mag_clip counts (None: never).
-    ``sensors``: the chips' true axis polarities (default: the specification's; the host's
-    sign vectors must undo them). Raw counts come from the simulated suit's own forward model
-    (:func:`bpms.firmware.sim.sensors.to_raw`), never from the filter's calibration code.
+    ``sensors``: the chips' true axis polarities, any object with ``accel_signs``, ``mag_signs``
+    and ``gyro_signs`` (default: the specification's, :data:`.sensors.POLARITY`; the host's
+    sign vectors must undo them). ``ellipsoids``: objects with ``center`` and ``matrix``.
+    Raw counts come from the simulated suit's own forward model
+    (:func:`bpms.firmware.sim.sensors.to_raw`), never from the product's calibration code.
     """
 
-    table: CalibrationTable = field(default_factory=load_factory_calibration)
-    ellipsoids: dict[int, MagEllipsoid] = field(default_factory=dict)
+    table: TrueTable = field(default_factory=table_2_2)
+    ellipsoids: dict = field(default_factory=dict)
     model: SensorModel = field(default_factory=SensorModel)
-    sensors: SensorOptions = field(default_factory=SensorOptions)
+    sensors: object | None = None
     seed: int = 0
     mag_clip: int | None = None
 
     def __post_init__(self) -> None:
-        self.polarity = {s: tuple(getattr(self.sensors, f"{s}_signs"))
-                         for s in ("accel", "mag", "gyro")}
+        self.polarity = (dict(POLARITY) if self.sensors is None else
+                         {s: tuple(getattr(self.sensors, f"{s}_signs"))
+                          for s in ("accel", "mag", "gyro")})
         self._rng = np.random.default_rng(self.seed)
         self._rest = np.stack([_basis_with_row(np.array([0.0, 0.0, 1.0]), 0.3 * k)
                                for k in range(N_IMUS)])  # lying flat, spread headings

@@ -24,10 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpms.firmware.sim.body import POINT, imu_positions, point_positions
+from bpms.firmware.sim.body import POINT, SubjectDimensions, imu_positions, point_positions
 from bpms.firmware.sim.geometry import zyx
 from bpms.io.frames import FRAME_PERIOD_S, N_IMUS
-from bpms.io.options import BodyOptions
 
 DT = FRAME_PERIOD_S  # s, sample k is at t = k * DT
 
@@ -167,7 +166,7 @@ def script_duration(script: list[Step]) -> float:
     return total
 
 
-def _dof_track(script: list[Step], t: np.ndarray, heading0: float, body: BodyOptions):
+def _dof_track(script: list[Step], t: np.ndarray, heading0: float, body: SubjectDimensions):
     """DOFs ``[N, D]`` rad, pelvis walk offset ``[N, 3]``, heel strikes, phases."""
     n = len(t)
     dofs = np.zeros((n, len(DOFS)))
@@ -274,9 +273,12 @@ def segment_orientations(dofs: np.ndarray, heading0: float) -> np.ndarray:
 
 
 def _still_windows(dofs: np.ndarray, pelvis: np.ndarray, t: np.ndarray,
-                   min_s: float = 1.0) -> list[tuple[float, float]]:
-    """Windows ≥ ``min_s`` where every DOF except the heading is 0 and nothing moves."""
-    posture = np.abs(np.delete(dofs, DOF_INDEX["pelvis_turn"], axis=1)).max(axis=1) < 1e-9
+                   min_s: float = 1.0, rest: np.ndarray | None = None,
+                   ) -> list[tuple[float, float]]:
+    """Windows ≥ ``min_s`` where every DOF except the heading is at the calibration posture
+    ``rest`` (default 0: the neutral pose) and nothing moves."""
+    off = dofs if rest is None else dofs - rest
+    posture = np.abs(np.delete(off, DOF_INDEX["pelvis_turn"], axis=1)).max(axis=1) < 1e-9
     moving = np.zeros(len(t), dtype=bool)
     moving[1:] |= np.abs(np.diff(dofs, axis=0)).max(axis=1) > 1e-12
     moving[1:] |= np.abs(np.diff(pelvis, axis=0)).max(axis=1) > 1e-12
@@ -288,16 +290,25 @@ def _still_windows(dofs: np.ndarray, pelvis: np.ndarray, t: np.ndarray,
 
 
 def generate_motion(n_samples: int | None = None, *, script: list[Step] | None = None,
-                    heading_deg: float = 30.0, body: BodyOptions | None = None) -> Motion:
+                    heading_deg: float = 30.0, body: SubjectDimensions | None = None,
+                    posture: dict[str, float] | None = None) -> Motion:
     """Sample the script at 50 Hz. ``n_samples`` None = the whole script; beyond its end the
-    final pose is held. ``heading_deg`` is the subject's initial magnetic heading (yaw)."""
+    final pose is held. ``heading_deg`` is the subject's initial magnetic heading (yaw).
+    ``posture``: the calibration posture (DOF → degrees, :mod:`.subject`), added to every
+    DOF of the script: the script's 0 (its still windows, "arms down") is this posture."""
     script = default_script() if script is None else script
-    body = body or BodyOptions()
+    body = body or SubjectDimensions()
     if n_samples is None:
         n_samples = round(script_duration(script) / DT)
     t = np.arange(n_samples) * DT
     heading0 = heading_deg * _D
     dofs, walk_xy, walk_z, walk_mask, strikes, phases = _dof_track(script, t, heading0, body)
+    rest = None
+    if posture:
+        rest = np.zeros(len(DOFS))
+        for name, deg in posture.items():
+            rest[DOF_INDEX[name]] = deg * _D
+        dofs = dofs + rest
     C = segment_orientations(dofs, heading0)
     pts = point_positions(C, body)  # [N, 21, 3], pelvis at the origin
     ankles = pts[:, [POINT["ankle_r"], POINT["ankle_l"]]]
@@ -307,7 +318,11 @@ def generate_motion(n_samples: int | None = None, *, script: list[Step] | None =
     pelvis = np.zeros((n_samples, 3))
     pelvis[:, :2] = walk_xy - ankles[:, :, :2].mean(axis=1) * ~walk_mask[:, None]
     leg = body.thigh + body.shank
-    pelvis[:, 2] = np.where(walk_mask, -leg + walk_z, -ankles[:, :, 2].mean(axis=1))
+    if rest is None:
+        pelvis[:, 2] = np.where(walk_mask, -leg + walk_z, -ankles[:, :, 2].mean(axis=1))
+    else:  # bent legs: the lower ankle on the ground in the walk (no jump where it starts)
+        pelvis[:, 2] = np.where(walk_mask, -ankles[:, :, 2].max(axis=1),
+                                -ankles[:, :, 2].mean(axis=1))
     imu_pos = pelvis[:, None, :] + imu_positions(pts)
     imu_acc = np.zeros_like(imu_pos)
     if n_samples >= 3:
@@ -317,7 +332,7 @@ def generate_motion(n_samples: int | None = None, *, script: list[Step] | None =
         t=t, C=C, dofs=dofs, pelvis=pelvis, imu_pos=imu_pos, imu_acc=imu_acc,
         heel_strikes=[s for s in strikes if s[0] < end],
         phases=[(a, min(b, end), name) for a, b, name in phases if a < end],
-        still_windows=_still_windows(dofs, pelvis, t),
+        still_windows=_still_windows(dofs, pelvis, t, rest=rest),
     )
 
 

@@ -259,8 +259,8 @@ def to_raw(values: SensorValues, table, model: SensorModel | None = None,
            | None = None, mag_ellipsoids: dict | None = None) -> np.ndarray:
     """Raw counts ``int16 [N, 18, 9]`` (rounded, saturated) of physical filter-frame values.
 
-    table: the suit's *true* calibration table (a ``CalibrationTable``): its min/max are the
-    readings at ∓1 g / ∓ the full field, its averages the gyro's zero-rate counts.
+    table: the suit's *true* calibration table (anything with ``values [18, 16]``): its
+    min/max are the readings at ∓1 g / ∓ the full field, its averages the gyro's zero-rate counts.
     polarity: the chip's axis polarities (default :data:`POLARITY`).
     mag_ellipsoids: optional true soft-iron distortions per IMU, objects with ``center [3]``
     counts and ``matrix [3, 3]`` (board-axis calibrated units per count): that IMU's

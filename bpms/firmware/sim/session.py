@@ -10,11 +10,12 @@ Sample k is at ``t = k * 0.02`` s. See docs/simulated-suit.md for the script and
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from bpms.firmware.sim.body import POINTS, SubjectDimensions, point_positions
 from bpms.firmware.sim.motion import (
     DT,
     TRUE_JOINT_NAMES,
@@ -35,7 +36,8 @@ from bpms.firmware.sim.sensors import (
     to_raw,
 )
 from bpms.firmware.sim.sensors import mounting_errors as make_mounting_errors
-from bpms.io.calib_file import CalibrationTable, load_factory_calibration
+from bpms.firmware.sim.subject import functional_script, parse_posture
+from bpms.firmware.sim.table import TrueTable, table_2_2
 from bpms.io.frames import encode_frames
 
 
@@ -63,6 +65,13 @@ class Truth:
     heel_strikes: list[tuple[float, str]]
     sensors: SensorValues
     joint_names: tuple[str, ...] = TRUE_JOINT_NAMES
+    #: ``[N, 21, 3]`` m, world NED: the skeleton's points (``point_names``, the pelvis first)
+    #: where the simulated subject's own lengths put them (``dimensions``).
+    joint_positions: np.ndarray | None = None
+    point_names: tuple[str, ...] = POINTS
+    dimensions: SubjectDimensions = field(default_factory=SubjectDimensions)
+    #: The calibration posture held in the still windows, DOF → degrees ({}: neutral).
+    posture: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -76,7 +85,7 @@ class Recording:
     truth: Truth
     still_windows: list[tuple[float, float]]
     phases: list[tuple[float, float, str]]
-    calibration: CalibrationTable  # the true table the counts were made with
+    calibration: TrueTable  # the true table the counts were made with
     disturbances: list[MagDisturbance] = field(default_factory=list)
     #: The sensor settings the counts were made with (noise, dip, accelerometer range, ...).
     model: SensorModel = field(default_factory=SensorModel)
@@ -85,15 +94,22 @@ class Recording:
         return len(self.t)
 
     def save_raw(self, path: str | Path, start_time: float = 1.7e9,
-                 notes: str = "simulated suit") -> Path:
+                 notes: str = "simulated suit", subject_id: str | None = None) -> Path:
         """Write the frames as a native raw recording (receive time ``start_time + t`` s, the
         true calibration table and the accelerometer range in the header), as a live recording
-        of this suit would be."""
+        of this suit would be. ``subject_id``: also store the simulated subject's measured
+        lengths as the header's subject profile (docs/subject.md's ``subject`` table)."""
+        # The product's file container (the one writer of the format); no number of the
+        # simulated suit goes through product code on the way (pyproject.toml's contract).
         from bpms.io.rawfile import new_header, write_raw
 
         path = Path(path)
         extra = ({"accel_range_g": float(self.model.accel_range_g)}
-                 if getattr(self, "model", None) is not None else None)
+                 if getattr(self, "model", None) is not None else {})
+        if subject_id is not None:
+            dims = self.truth.dimensions
+            extra["subject"] = {"id": subject_id, "height_m": float(dims.height),
+                                "mass_kg": None, "segments_m": dims.lengths()}
         write_raw(path, start_time + self.t, self.frames,
                   new_header(calibration=self.calibration.values, notes=notes, extra=extra))
         return path
@@ -125,25 +141,43 @@ def magnet_near(motion: Motion, imu: int, t0: float, t1: float,
 
 def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance: bool = False,
              mounting_errors: bool = True, noise: bool = True, error_rate: float = 0.0,
-             calibration: CalibrationTable | None = None,
+             calibration: TrueTable | None = None,
              model: SensorModel | None = None, heading_deg: float = 30.0,
              script: list[Step] | None = None,
-             disturbances: list[MagDisturbance] | None = None) -> Recording:
+             disturbances: list[MagDisturbance] | None = None,
+             posture: str | dict | None = None, subject: SubjectDimensions | None = None,
+             functional: bool = False, mounting_error_deg: float | None = None,
+             ) -> Recording:
     """Generate a recording of the scripted motion.
 
     duration_s: None = the whole script (≈ 75 s); longer holds the final (calibration) pose.
     seed: seeds mounting errors, noise, gyro biases and injected errors (independently).
     mag_disturbance: add :func:`default_disturbance` (or ``disturbances`` when given).
     error_rate: probability per frame, IMU and sensor of a failed reading (error bit set).
-    calibration: the suit's *true* calibration table (default: the factory table).
+    calibration: the suit's *true* calibration table, anything with ``values [18, 16]``
+    (default: Table 2.2, read by :func:`.table.table_2_2`).
     model: sensor settings (dip, noise levels, gyro bias, mounting error size, heel strikes,
     the accelerometer's configured range ``accel_range_g``: ±16 g by default, as the firmware).
     heading_deg: the subject's initial magnetic heading (yaw of the pelvis), degrees.
+    posture: the calibration posture (:func:`.subject.parse_posture`: ``neutral``, ``suit``,
+    ``"dof=deg,..."`` or a dict), held wherever the script is still or at rest.
+    subject: the subject's dimensions (default: Table 2.4's, 1.73 m).
+    functional: put the functional-calibration movements (:func:`.subject.functional_script`)
+    in front of the script.
+    mounting_error_deg: rms per axis of the IMUs' mounting misalignment, ° (default: the
+    model's, 3°).
     """
     model = model or SensorModel()
-    table = calibration if calibration is not None else load_factory_calibration()
+    if mounting_error_deg is not None:
+        model = replace(model, mounting_error_deg=float(mounting_error_deg))
+    rest = parse_posture(posture)
+    dims = subject or SubjectDimensions()
+    if functional:
+        script = functional_script(script)
+    table = calibration if calibration is not None else table_2_2()
     n = None if duration_s is None else max(round(duration_s / DT), 1)
-    motion = generate_motion(n, script=script, heading_deg=heading_deg)
+    motion = generate_motion(n, script=script, heading_deg=heading_deg, body=dims,
+                             posture=rest)
     base = np.random.SeedSequence(seed)
     rng_mount, rng_noise, rng_bias, rng_err = (np.random.default_rng(s) for s in base.spawn(4))
     E = (make_mounting_errors(rng_mount, model.mounting_error_deg) if mounting_errors
@@ -163,6 +197,8 @@ def simulate(duration_s: float | None = None, seed: int = 0, *, mag_disturbance:
         R=R, C=motion.C, E=E, joint_angles=true_joint_angles(motion.dofs),
         pelvis_position=motion.pelvis, imu_position=motion.imu_pos,
         imu_acceleration=acc_lin, heel_strikes=motion.heel_strikes, sensors=ideal,
+        joint_positions=point_positions(motion.C, dims) + motion.pelvis[:, None, :],
+        dimensions=dims, posture=rest,
     )
     return Recording(
         t=motion.t, raw=raw, errors=errors, frames=encode_frames(raw, errors), truth=truth,

@@ -4,11 +4,19 @@ area) and the keys help. Mixed into :class:`bpms.gui.main_window.MainWindow`."""
 
 from __future__ import annotations
 
-from PyQt6.QtCore import Qt
+from PyQt6.QtCore import QRect, Qt
 from PyQt6.QtGui import QAction, QColor, QIcon, QKeySequence, QPainter, QPixmap
-from PyQt6.QtWidgets import QMessageBox, QStyle
+from PyQt6.QtWidgets import (
+    QDialog,
+    QDialogButtonBox,
+    QStyle,
+    QTextBrowser,
+    QVBoxLayout,
+    QWidget,
+)
 
 from bpms.gui.layouts import DEFAULT_LAYOUTS
+from bpms.gui.screen_fit import fit_dialog
 from bpms.gui.view3d_keys import PLOT_BINDINGS, VIEW3D_BINDINGS, help_html
 
 
@@ -181,10 +189,37 @@ class WindowActions:
         return (window + help_html("3D view (click it first)", VIEW3D_BINDINGS)
                 + help_html("Plots", PLOT_BINDINGS))
 
-    def show_keys(self) -> QMessageBox:
-        box = QMessageBox(QMessageBox.Icon.Information, "Keys and mouse", "", parent=self)
-        box.setTextFormat(Qt.TextFormat.RichText)
-        box.setText(self.keys_html())
+    def show_keys(self, available: QRect | None = None) -> KeysDialog:
+        """The F1 page (no taller than the screen, ``available`` overriding its available
+        geometry; it scrolls)."""
+        box = KeysDialog(self.keys_html(), self, available)
         box.open()
         self.keys_box = box
         return box
+
+
+class KeysDialog(QDialog):
+    """The F1 page in a scrolling text view, sized to its text but never beyond the screen
+    (:func:`bpms.gui.screen_fit.fit_dialog`)."""
+
+    def __init__(self, html: str, parent: QWidget | None = None,
+                 available: QRect | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Keys and mouse")
+        self._html = html
+        self.view = QTextBrowser()
+        self.view.setHtml(html)
+        self.view.setOpenLinks(False)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Close)
+        buttons.rejected.connect(self.reject)
+        layout = QVBoxLayout(self)
+        layout.addWidget(self.view)
+        layout.addWidget(buttons)
+        document = self.view.document()
+        document.setTextWidth(560)
+        height = int(document.size().height()) + 80  # the page, the button row, margins
+        fit_dialog(self, 620, height, available)
+
+    def text(self) -> str:
+        """The page's HTML as given."""
+        return self._html

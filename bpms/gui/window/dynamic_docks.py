@@ -11,6 +11,9 @@ from bpms.gui.docks import make_dock
 from bpms.gui.health import stale_text
 from bpms.gui.plots import PlotWindow, cells_plot, joint_angle_plot, plot_from
 
+#: A browser view's process still running this long after opening (ms), or said to have ended.
+BROWSER_CHECK_MS = 8000
+
 
 class DynamicDocks:
     """Plot and 3D-view docks: ``plot_windows``, ``view3d_windows``, ``dynamic_docks``."""
@@ -141,6 +144,15 @@ class DynamicDocks:
             view = self._vpython.open_browser_view(self.model)  # type: ignore[union-attr]
         except (RuntimeError, OSError) as exc:
             self.statusBar().showMessage(f"Browser 3D view: {exc}", 10000)
+            self.event_log.add(f"Browser 3D view not opened: {exc}", "warning")
             return None
         self.browser_views.append(view)
+        self.statusBar().showMessage("Browser 3D view: opening in the web browser…", 10000)
+        QTimer.singleShot(BROWSER_CHECK_MS, lambda: self._browser_check(view))
         return view
+
+    def _browser_check(self, view) -> None:
+        """A browser view whose process ended already: no browser page came (said once)."""
+        if view in self.browser_views and not view.alive:
+            self.event_log.add("Browser 3D view ended: no web browser page opened "
+                               f"(exit status {view.process.returncode})", "warning")

@@ -18,6 +18,8 @@ class ModeWiring:
     def _build_mode_panels(self) -> None:
         runner = self.runner
         self.playback_panel = PlaybackPanel(runner) if runner.replay is not None else None
+        if self.playback_panel is not None:  # a paused seek redraws the plots' whole window
+            self.playback_panel.window_frames = self.history.buffer.capacity
         self.udp_panel = UdpServerPanel(runner) if runner.mode in ("suit", "sim") else None
 
     def _add_playback_actions(self, menu: QMenu) -> None:
@@ -30,6 +32,9 @@ class ModeWiring:
             menu.addAction(acts[key])
         menu.addSeparator()
         menu.addAction(acts["drift"])
+        from bpms.gui.compare_panel import add_compare_action  # docs/compare.md
+
+        add_compare_action(self, menu)
 
     def _listening(self) -> str | None:
         """The UDP client's listening address (host:port), else None."""

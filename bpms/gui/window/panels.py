@@ -23,6 +23,7 @@ from bpms.gui.optional import optional_module
 from bpms.gui.plots import PlotDropArea
 from bpms.gui.safety import guard_wheel
 from bpms.gui.widgets import button, row
+from bpms.io.timebase import stream_time
 
 
 def _column() -> tuple[QWidget, QVBoxLayout]:
@@ -41,6 +42,9 @@ class WindowPanels:
         session_box = self._build_session_box()
         filter_box = self._build_filter_box()
         self.event_log = EventLog()
+        if self.playback_panel is not None:  # one clock in playback: the recording's
+            panel = self.playback_panel
+            self.event_log.use_recording_clock(lambda: stream_time(panel.shown))
         self.docks: dict[str, QDockWidget] = {
             "table": make_dock("Data table", "table", table_box),
             "status": make_dock("Status", "status", status_box, scroll=True),
@@ -118,6 +122,7 @@ class WindowPanels:
         self.status_panel = StatusPanel()
         self.status_panel.set_sources(self.runner.calibration_source,
                                       self.runner.options_source)
+
         self.status_panel.dataToggled.connect(self.set_data)
         self.status_panel.resetZeroClicked.connect(self.reset_zero)
         status_box, status_layout = _column()
@@ -131,6 +136,10 @@ class WindowPanels:
         self.file_panel = FilePanel(self.runner)
         self.file_panel.on_stopped.append(self._logging_stopped)
         self._build_mode_panels()
+        if self.playback_panel is not None:  # the options' source says a filter chosen
+            self.playback_panel.filterChosen.connect(
+                lambda: self.status_panel.set_sources(self.runner.calibration_source,
+                                                      self.runner.options_source))
         session_box, session_layout = _column()
         for panel in (self.playback_panel, self.file_panel, self.udp_panel):
             if panel is not None:
@@ -139,7 +148,11 @@ class WindowPanels:
         return session_box
 
     def _build_filter_box(self) -> QWidget:
-        self.gains_panel = GainsPanel(self.options.filter)
+        # playback: the recording's own filter and values (its processor's), not the app's
+        processor = getattr(self.runner.session, "processor", None)
+        shown = processor.options.filter if self.runner.replay is not None \
+            and processor is not None else self.options.filter
+        self.gains_panel = GainsPanel(shown)
         self.gains_panel.gainsChanged.connect(self._set_gains)
         self.gains_panel.filterChanged.connect(self.select_filter)
         self.gains_panel.logged.connect(lambda text, level: self.event_log.add(text, level))

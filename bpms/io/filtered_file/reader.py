@@ -15,6 +15,7 @@ from bpms.io.bounded import MAX_HEADER_BYTES
 from bpms.io.closing import Closing
 from bpms.io.filtered_file.columns import FIXED_COLUMNS, FORMAT_NAME, FORMAT_VERSION, column_groups
 from bpms.io.frames import N_IMUS
+from bpms.io.paths import require_regular_input
 
 N_LEGACY_COLUMNS = 1 + 3 * N_IMUS
 #: The first column of a version-0 file is absolute epoch time when above this (s; 1973).
@@ -124,6 +125,7 @@ class FilteredReader(Closing):
         self.path = Path(path)
         self.problems: list[str] = []
         try:
+            require_regular_input(self.path)
             self._file: TextIO = open(self.path, encoding="utf-8", newline="")  # noqa: SIM115
             self._header()
         except (OSError, UnicodeDecodeError) as exc:

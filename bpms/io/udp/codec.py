@@ -27,7 +27,9 @@ count S, uint16 angle count A, S quaternions (w, x, y, z float32, body→NED, IM
 joint angles (float32 rad, order :data:`bpms.filter.joints.JOINT_ANGLE_NAMES`). From version
 2 on, POSE appends extension blocks (uint16 tag, uint16 length, data; readers skip unknown
 tags): tag 1 joint positions (uint16 P, P × 3 float32 m NED, order ``POINT_NAMES``), tag 2 the
-joint-angle convention name (ASCII), tag 3 the disturbance masks.
+joint-angle convention name (ASCII), tag 3 the disturbance masks, tag 4 the segments that
+carry data (uint32 mask; a segment without data, and every angle and position needing it, is
+NaN).
 
 ZERO payload (version 4): the sender's Reset Zero in force (sent at each capture and once a
 second), so that a client shows the sender's segment angles: uint8 source
@@ -64,6 +66,11 @@ EXT_CONVENTION = 2
 #: POSE extension: two uint32 masks, bit i = IMU i magnetometer / acceleration disturbed.
 EXT_DISTURBANCE = 3
 DISTURBANCE_MASKS = struct.Struct("!II")
+#: POSE extension: uint32 mask, bit i set when segment i carries data (docs/udp.md "A segment
+#: without data"); a clear bit's quaternion is NaN, and so is every angle and joint position
+#: that needs that segment.
+EXT_VALIDITY = 4
+VALIDITY_MASK = struct.Struct("!I")
 HEADER = struct.Struct("!4sBBHIIdd")
 #: The shortest header (versions 1 and 2), bytes.
 HEADER_SIZE = HEADER.size
@@ -124,6 +131,15 @@ class Pose:
     #: bit i set: IMU i's magnetometer disturbed / acceleration far from gravity (tag 3)
     mag_disturbed: int | None = None
     acc_disturbed: int | None = None
+    #: bit i set: segment i carries data (tag 4); None: no tag, every segment does
+    valid: int | None = None
+
+    def segment_valid(self) -> np.ndarray:
+        """``[S]`` bool: the segments that carry data (all of them without tag 4)."""
+        n = len(self.quaternions)
+        if self.valid is None:
+            return np.ones(n, dtype=bool)
+        return np.array([(self.valid >> i) & 1 for i in range(n)], dtype=bool)
 
 
 @dataclass(frozen=True)
@@ -223,21 +239,32 @@ def encode_raw_frame(frame: bytes, *, session: int, seq: int, suit_time: float,
                          flags, version, sender, epoch) + bytes(frame)
 
 
-def encode_pose_payload(quaternions: np.ndarray, angles: np.ndarray) -> bytes:
+def encode_pose_payload(quaternions: np.ndarray, angles: np.ndarray,
+                        valid: np.ndarray | None = None) -> bytes:
     """POSE payload from ``quaternions[S, 4]`` (normalised here) and ``angles[A]`` rad.
 
-    Raises ValueError on wrong shapes, non-finite values or a zero quaternion."""
+    ``valid[S]`` bool (the segments with data; docs/udp.md "A segment without data"): the
+    quaternion of a segment without data is written as NaN, and an angle may be NaN (it needs
+    such a segment); the caller then sends the validity block (tag 4) with
+    :func:`encode_pose_extensions`. Raises ValueError on wrong shapes, infinite values, NaN
+    where a segment has data (or anywhere when ``valid`` is None) or a zero quaternion."""
     q = np.asarray(quaternions, dtype=np.float64)
     a = np.asarray(angles, dtype=np.float64).reshape(-1)
     if q.ndim != 2 or q.shape[1] != 4:
         raise ValueError(f"quaternions must have shape [S, 4], got {q.shape}")
-    if not (np.isfinite(q).all() and np.isfinite(a).all()):
+    ok = (np.ones(len(q), dtype=bool) if valid is None
+          else np.asarray(valid, dtype=bool).reshape(-1))
+    if ok.shape != (len(q),):
+        raise ValueError(f"valid must have one flag per segment ({len(q)})")
+    if not (np.isfinite(q[ok]).all() and not np.isinf(a).any()
+            and (valid is not None or np.isfinite(a).all())):
         raise ValueError("pose contains NaN or infinite values")
-    norms = np.linalg.norm(q, axis=1)
+    norms = np.linalg.norm(q[ok], axis=1)
     if (norms < 1e-6).any():
         raise ValueError("pose contains a zero quaternion")
-    q = q / norms[:, None]
-    return (POSE_COUNTS.pack(len(q), len(a)) + q.astype(">f4").tobytes()
+    out = np.full(q.shape, np.nan)
+    out[ok] = q[ok] / norms[:, None]
+    return (POSE_COUNTS.pack(len(q), len(a)) + out.astype(">f4").tobytes()
             + a.astype(">f4").tobytes())
 
 
@@ -249,14 +276,17 @@ def disturbance_mask(flags: np.ndarray) -> int:
 
 def encode_pose_extensions(positions: np.ndarray | None = None,
                            convention: str | None = None,
-                           disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> bytes:
+                           disturbance: tuple[np.ndarray, np.ndarray] | None = None,
+                           valid: np.ndarray | None = None) -> bytes:
     """POSE extension blocks (version 2 on): joint positions ``[P, 3]`` m (NED), the joint-angle
-    convention name and/or the disturbance flags ``(mag[18], acc[18])`` bool (tag 3, two
-    masks). Raises ValueError on non-finite positions."""
+    convention name, the disturbance flags ``(mag[18], acc[18])`` bool (tag 3, two masks)
+    and/or the segments with data ``valid[S]`` bool (tag 4; then a position may be NaN: it
+    needs a segment without data). Raises ValueError on infinite positions, or NaN ones
+    without ``valid``."""
     out = b""
     if positions is not None:
         p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-        if not np.isfinite(p).all():
+        if np.isinf(p).any() or (valid is None and not np.isfinite(p).all()):
             raise ValueError("joint positions contain NaN or infinite values")
         data = POSE_COUNTS.pack(len(p), 0)[:2] + p.astype(">f4").tobytes()
         out += EXT_BLOCK.pack(EXT_JOINT_POSITIONS, len(data)) + data
@@ -266,6 +296,9 @@ def encode_pose_extensions(positions: np.ndarray | None = None,
     if disturbance is not None:
         data = DISTURBANCE_MASKS.pack(*(disturbance_mask(f) for f in disturbance))
         out += EXT_BLOCK.pack(EXT_DISTURBANCE, len(data)) + data
+    if valid is not None:
+        data = VALIDITY_MASK.pack(disturbance_mask(valid))
+        out += EXT_BLOCK.pack(EXT_VALIDITY, len(data)) + data
     return out
 
 
@@ -286,15 +319,19 @@ def _decode_extensions(data: bytes) -> dict:
             if length != 2 + 12 * n:
                 raise DatagramError("POSE joint-position block has the wrong length")
             p = np.frombuffer(block, ">f4", 3 * n, 2).reshape(n, 3)
-            if not np.isfinite(p).all():
-                raise DatagramError("POSE joint positions hold NaN or infinite values")
-            out["positions"] = p.astype(np.float32)
+            if np.isinf(p).any():
+                raise DatagramError("POSE joint positions hold infinite values")
+            out["positions"] = p.astype(np.float32)  # NaN: checked against tag 4 below
         elif tag == EXT_CONVENTION:
             out["convention"] = block.decode("ascii", "replace")
         elif tag == EXT_DISTURBANCE:
             if length != DISTURBANCE_MASKS.size:
                 raise DatagramError("POSE disturbance block has the wrong length")
             out["mag_disturbed"], out["acc_disturbed"] = DISTURBANCE_MASKS.unpack(block)
+        elif tag == EXT_VALIDITY:
+            if length != VALIDITY_MASK.size:
+                raise DatagramError("POSE validity block has the wrong length")
+            out["valid"] = VALIDITY_MASK.unpack(block)[0]
         # other tags: skipped (later extensions)
     return out
 
@@ -321,15 +358,25 @@ def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
                             f"({n_seg} segments, {n_ang} angles) need {expected}")
     q = np.frombuffer(payload, ">f4", 4 * n_seg, POSE_COUNTS.size).reshape(n_seg, 4)
     a = np.frombuffer(payload, ">f4", n_ang, POSE_COUNTS.size + 16 * n_seg)
-    if not (np.isfinite(q).all() and np.isfinite(a).all()):
+    mask = extensions.get("valid")
+    ok = np.array([(mask >> i) & 1 for i in range(n_seg)] if mask is not None
+                  else np.ones(n_seg), dtype=bool)
+    # NaN marks what has no data, and only with the validity block (tag 4); never infinity
+    nan_allowed = mask is not None
+    positions = extensions.get("positions")
+    if not (np.isfinite(q[ok]).all() and not np.isinf(a).any()
+            and (nan_allowed or (np.isfinite(a).all()
+                                 and (positions is None or np.isfinite(positions).all())))):
         raise DatagramError("POSE holds NaN or infinite values")
     with np.errstate(over="ignore"):
-        norms = np.sqrt(np.sum(q.astype(np.float64) ** 2, axis=1))
-    bad = np.flatnonzero(np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE)
+        norms = np.sqrt(np.sum(q[ok].astype(np.float64) ** 2, axis=1))
+    bad = np.flatnonzero(ok)[np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE]
     if bad.size:
         raise DatagramError(f"POSE quaternion {bad[0]} is not a unit quaternion "
-                            f"(norm {norms[bad[0]]:.4g})")
-    return Pose(q.astype(np.float32), a.astype(np.float32), **extensions)
+                            f"(norm {norms[np.flatnonzero(ok) == bad[0]][0]:.4g})")
+    q = q.astype(np.float32)
+    q[~ok] = np.nan  # a segment without data: whatever was written, no value
+    return Pose(q, a.astype(np.float32), **extensions)
 
 
 def decode_datagram(data: bytes | bytearray | memoryview) -> Datagram:

@@ -14,7 +14,8 @@ import socket
 import threading
 import time
 import zlib
-from collections.abc import Iterator
+from collections import OrderedDict
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 from bpms.io.closing import Closing
@@ -83,6 +84,20 @@ class SourceStats:
     same_session_sender: str = ""  # "host:port" of the last conflicting datagram, while recent
     takeover: str = ""  # the last takeover, in words, while recent
     zeros: int = 0  # ZERO datagrams of the session followed (the sender's Reset Zero)
+    takeovers: int = 0  # switches of the session followed (takeovers and returns)
+    #: "host:port" of a replaced session whose datagrams were dropped, while recent
+    stale_sender: str = ""
+    #: the last datagram refused for its trust (replayed, unauthenticated), in words, while
+    #: recent: "replayed from host:port"
+    refused_recently: str = ""
+
+    #: The reasons a datagram is refused or dropped, in the order shown.
+    REJECTIONS = ("malformed", "unauthenticated", "replayed", "foreign", "stale", "implausible",
+                  "duplicated", "conflicts")
+
+    def rejections(self) -> dict[str, int]:
+        """The datagrams refused or dropped so far, by reason (those with a count only)."""
+        return {k: getattr(self, k) for k in self.REJECTIONS if getattr(self, k)}
 
 
 @dataclass(frozen=True)
@@ -129,21 +144,28 @@ class UdpSource(Closing):
                  rcvbuf: int | None = 1 << 22, poll_s: float = 0.5,
                  window: int = REORDER_WINDOW, takeover_after_s: float = TAKEOVER_AFTER_S,
                  takeover_datagrams: int = TAKEOVER_DATAGRAMS,
-                 key: bytes | None = None) -> None:
+                 key: bytes | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         host, port = parse_address(listen)
         self.poll_s = poll_s
         self.takeover_after_s = takeover_after_s
         self.key = key or None
+        #: monotonic seconds for the takeover rule and what the status shows (tests inject one)
+        self.clock = clock
         self._gate = SessionGate(takeover_after_s, takeover_datagrams, keyed=self.key is not None)
-        self._last_foreign = self._last_conflict = -math.inf
-        self._foreign_sender = self._conflict_sender = ""
+        self._last_foreign = self._last_conflict = self._last_stale = -math.inf
+        self._last_refused, self._refused = -math.inf, ""
+        self._foreign_sender = self._conflict_sender = self._stale_sender = ""
+        self._stale_log = RateLimitedLog(log, 5.0)
+        #: per session: the highest ZERO number taken (an older or repeated one never is)
+        self._zero_top: OrderedDict[SessionKey, int] = OrderedDict()
         self._foreign_log = RateLimitedLog(log, 5.0)
         self._auth_log = RateLimitedLog(log, 5.0)
         self._replay_log = RateLimitedLog(log, 5.0)
         self._conflict_log = RateLimitedLog(log, 5.0)
         self._lock = threading.Lock()
         self._read_lock = threading.Lock()
-        self._tracker = SequenceTracker(window)
+        self._tracker = SequenceTracker(window, keyed=self.key is not None)
         self._counts = {"datagrams": 0, "malformed": 0, "ignored": 0, "socket_errors": 0,
                         "foreign": 0, "unauthenticated": 0, "replayed": 0, "stale": 0,
                         "zeros": 0}
@@ -200,7 +222,8 @@ class UdpSource(Closing):
         with self._lock:
             t = self._tracker
             c = dict(self._counts)  # datagrams, malformed, ignored, socket errors, ... as kept
-            now = time.monotonic()
+            c["replayed"] += t.replayed
+            now = self.clock()
             return SourceStats(
                 received=t.unique + t.duplicated + t.implausible, delivered=t.unique,
                 lost=t.lost, pending=t.pending, duplicated=t.duplicated, reordered=t.reordered,
@@ -210,7 +233,9 @@ class UdpSource(Closing):
                 implausible=t.implausible, jumps=t.jumps, conflicts=t.conflicts,
                 same_session_sender=self._recent(self._conflict_sender, self._last_conflict,
                                                  now),
-                takeover=self._takeover_text(now), **c)
+                takeover=self._takeover_text(now), takeovers=self._gate.takeovers,
+                stale_sender=self._recent(self._stale_sender, self._last_stale, now),
+                refused_recently=self._recent(self._refused, self._last_refused, now), **c)
 
     @staticmethod
     def _recent(text: str, at: float, now: float) -> str:
@@ -220,6 +245,9 @@ class UdpSource(Closing):
         last = self._gate.last_takeover
         if last is None or now - last.at >= TAKEOVER_SHOWN_S:
             return ""
+        if last.returned:
+            return (f"sender changed: session {last.new} came back and replaced {last.old} "
+                    "(the session it had replaced)")
         why = ("a newer run of the same sender" if last.newer_run
                else f"after {last.silent_s:.1f} s of silence")
         return f"sender changed: session {last.new} replaced {last.old} ({why})"
@@ -255,12 +283,13 @@ class UdpSource(Closing):
 
     def _handle(self, data: bytes, sender: tuple[str, int]) -> ReceivedFrame | None:
         recv_time = time.time()
-        now = time.monotonic()
+        now = self.clock()
         with self._lock:
             self._counts["datagrams"] += 1
             body, tag = split_tag(data)
             if self.key is not None and not tag_is_valid(body, tag, self.key):
                 self._counts["unauthenticated"] += 1
+                self._note_refused("unauthenticated", sender, now)
                 self._auth_log.warn("UDP datagram from %s:%s refused: %s", sender[0],
                                     sender[1], "no shared-key tag" if tag is None
                                     else "wrong shared-key tag")
@@ -272,6 +301,7 @@ class UdpSource(Closing):
                 return None
             if self.key is not None and dg.version < 3:
                 self._counts["unauthenticated"] += 1
+                self._note_refused("unauthenticated", sender, now)
                 self._auth_log.warn("UDP datagram from %s:%s refused: format version %d "
                                     "carries no freshness (a shared key needs version 3)",
                                     sender[0], sender[1], dg.version)
@@ -283,18 +313,14 @@ class UdpSource(Closing):
                 return None
             if dg.type == MessageType.ZERO and dg.zero is not None and (
                     SessionKey(dg.session, dg.sender, dg.epoch) == self._gate.active):
-                self._counts["zeros"] += 1
-                seen = (dg.session, dg.suit_time, dg.zero.source, dg.zero.yaw0)
-                if seen != self._zero_seen:  # (sent again every second: taken once)
-                    self._zero_seen = seen
-                    self._zero = (dg.suit_time, dg.zero)
+                self._take_zero(dg, sender)
                 return None
             if dg.type != MessageType.RAW_FRAME:
                 self._counts["ignored"] += 1
                 return None
             assert dg.frame is not None
             verdict = self._account(dg, sender, now)
-        if verdict is None or verdict in (Verdict.DUPLICATE, Verdict.STALE,
+        if verdict is None or verdict in (Verdict.DUPLICATE, Verdict.STALE, Verdict.REPLAYED,
                                           Verdict.IMPLAUSIBLE, Verdict.CONFLICT):
             return None
         restart = verdict is Verdict.RESYNC or self._started
@@ -307,7 +333,7 @@ class UdpSource(Closing):
         key = SessionKey(dg.session, dg.sender, dg.epoch)
         who = f"{sender[0]}:{sender[1]}"
         admission = self._gate.admit(key, dg.seq, now)
-        self._started = admission in (Admission.FIRST, Admission.TAKEOVER)
+        self._started = admission in (Admission.FIRST, Admission.TAKEOVER, Admission.RETURN)
         if admission is Admission.FOREIGN:
             self._counts["foreign"] += 1
             self._foreign_sender, self._last_foreign = who, now
@@ -316,15 +342,28 @@ class UdpSource(Closing):
             return None
         if admission is Admission.STALE:
             self._counts["stale"] += 1
+            self._stale_sender, self._last_stale = who, now
+            self._stale_log.warn("UDP datagrams of replaced session %s (%s) dropped while "
+                                 "session %s is followed", key, who, self._gate.active)
             return None
         if admission is Admission.REPLAYED:
             self._counts["replayed"] += 1
-            self._replay_log.warn("UDP datagram from %s refused as replayed: session %s began "
-                                  "before the newest run followed from its sender", who, key)
+            self._note_refused("replayed", sender, now)
+            self._replay_log.warn("UDP datagram from %s refused as replayed: session %s is "
+                                  "older than the newest run followed from its sender, or "
+                                  "number %d was followed already", who, key, dg.seq)
             return None
-        if admission is Admission.TAKEOVER:
+        if admission in (Admission.TAKEOVER, Admission.RETURN):
             log.warning("UDP: %s", self._takeover_text(now))
-        verdict = self._tracker.observe(key, dg.seq, zlib.crc32(dg.frame))
+        verdict = self._tracker.observe(key, dg.seq, zlib.crc32(dg.frame),
+                                        switch=self._started)
+        if verdict is Verdict.RESYNC:
+            self._gate.followed_to(key, dg.seq)
+        if verdict is Verdict.REPLAYED:
+            self._note_refused("replayed", sender, now)
+            self._replay_log.warn("UDP datagram from %s refused as replayed: number %d of "
+                                  "session %s is older than the stream followed", who, dg.seq,
+                                  key)
         if verdict is Verdict.CONFLICT or (verdict is Verdict.REORDERED
                                            and self._tracker.conflicts > self._conflicts_seen):
             self._conflict_sender, self._last_conflict = who, now
@@ -332,6 +371,33 @@ class UdpSource(Closing):
                                     "numbers contradict the stream", key, who)
         self._conflicts_seen = self._tracker.conflicts
         return verdict
+
+    def _note_refused(self, why: str, sender: tuple[str, int], now: float) -> None:
+        self._refused, self._last_refused = f"{why} from {sender[0]}:{sender[1]}", now
+
+    def _take_zero(self, dg, sender: tuple[str, int]) -> None:
+        """A ZERO of the session followed (lock held): taken when its number is above every
+        ZERO number taken from that session (sent again every second: taken once); an older
+        or repeated one is refused as replayed, so a Reset Zero is never applied twice."""
+        key = SessionKey(dg.session, dg.sender, dg.epoch)
+        top = self._zero_top.get(key)
+        if top is not None and not 0 < (dg.seq - top) % (1 << 32) < 1 << 31:
+            self._counts["replayed"] += 1
+            self._note_refused("replayed", sender, self.clock())
+            self._replay_log.warn("UDP ZERO datagram from %s:%s refused as replayed: number %d "
+                                  "of session %s is not newer than the last one taken",
+                                  sender[0], sender[1], dg.seq, key)
+            return None
+        self._zero_top[key] = dg.seq
+        self._zero_top.move_to_end(key)
+        while len(self._zero_top) > 16:
+            self._zero_top.popitem(last=False)
+        self._counts["zeros"] += 1
+        seen = (dg.session, dg.suit_time, dg.zero.source, dg.zero.yaw0)
+        if seen != self._zero_seen:  # (sent again every second: taken once)
+            self._zero_seen = seen
+            self._zero = (dg.suit_time, dg.zero)
+        return None
 
     def take_zero(self) -> tuple[float, ZeroMessage] | None:
         """The followed sender's newest Reset Zero (its capture's suit time s, the zero), once:

@@ -231,14 +231,18 @@ class UdpForwarder(Closing):
 
     def send_pose(self, quaternions: np.ndarray, angles: np.ndarray, suit_time: float,
                   positions: np.ndarray | None = None, convention: str | None = None,
-                  disturbance: tuple[np.ndarray, np.ndarray] | None = None) -> int:
+                  disturbance: tuple[np.ndarray, np.ndarray] | None = None,
+                  valid: np.ndarray | None = None) -> int:
         """Forward one filtered pose: ``quaternions[18, 4]`` (w, x, y, z, body→NED) and
-        ``angles[28]`` rad; with ``positions[21, 3]`` (m, NED), ``convention`` and/or
-        ``disturbance`` = (mag[18], acc[18]) bool flags a POSE carrying them (extension
-        blocks). Raises ValueError on bad shapes or non-finite values."""
-        payload = encode_pose_payload(quaternions, angles)
-        if positions is not None or convention or disturbance is not None:
-            payload += encode_pose_extensions(positions, convention, disturbance)
+        ``angles[28]`` rad; with ``positions[21, 3]`` (m, NED), ``convention``,
+        ``disturbance`` = (mag[18], acc[18]) bool flags and/or ``valid[18]`` bool (the segments
+        with data: the others, and the angles and positions needing them, go as NaN with the
+        validity block, docs/udp.md) a POSE carrying them (extension blocks). Raises
+        ValueError on bad shapes, infinite values or NaN where ``valid`` does not allow it."""
+        payload = encode_pose_payload(quaternions, angles, valid)
+        if (positions is not None or convention or disturbance is not None
+                or valid is not None):
+            payload += encode_pose_extensions(positions, convention, disturbance, valid)
 
         def build(seq: int) -> bytes:
             return encode_header(MessageType.POSE, self.session, seq, suit_time, time.time(),

@@ -22,6 +22,9 @@ JUMP_CONFIRM = 25
 DIGESTS_KEPT = 1024
 #: A frame arriving this many numbers late is evidence of another sender on the session.
 FAR_LATE = 256
+#: With a shared key, the reorder window (numbers): anything older, or before the first number
+#: followed, is refused as replayed (docs/udp.md "Freshness"). 5 s at 50 Hz.
+KEYED_WINDOW = 256
 
 
 class Verdict(IntEnum):
@@ -32,6 +35,7 @@ class Verdict(IntEnum):
     IMPLAUSIBLE = 4  # jumped implausibly far: dropped (held until JUMP_CONFIRM follow it)
     CONFLICT = 5  # received before with a different frame: dropped (another sender)
     RESYNC = 6  # a held jump confirmed: delivered, the numbers start anew from here
+    REPLAYED = 7  # keyed: older than the keyed window, or before the session's first: refused
 
 
 def _signed(d: int) -> int:
@@ -56,10 +60,17 @@ class SequenceTracker:
 
     Gaps are kept as ranges of unwrapped sequence numbers, so the cost of one datagram is
     O(log gaps) whatever the jump (a jump of 40,000 costs what a jump of 2 does).
+
+    ``keyed`` (the datagrams are authenticated): freshness is complete. The window shrinks to
+    :data:`KEYED_WINDOW`; a number more than that behind the highest, or before the first
+    number of the session followed, is REPLAYED (refused, never held, never a jump back), so
+    no number is ever accepted twice, however old and whenever the receiver joined.
     """
 
-    def __init__(self, window: int = REORDER_WINDOW) -> None:
-        self.window = window
+    def __init__(self, window: int = REORDER_WINDOW, keyed: bool = False) -> None:
+        self.keyed = keyed
+        self.window = min(window, KEYED_WINDOW) if keyed else window
+        self.replayed = 0
         self.session: object | None = None
         self._first = 0  # unwrapped
         self._highest = 0  # unwrapped
@@ -192,21 +203,28 @@ class SequenceTracker:
             self._ends.insert(k + 1, end)
         return True
 
-    def observe(self, session: object, seq: int, digest: int | None = None) -> Verdict:
+    def observe(self, session: object, seq: int, digest: int | None = None,
+                switch: bool = False) -> Verdict:
         """Account for one well-formed datagram of ``session`` (any hashable identity) with
         number ``seq`` and, optionally, a ``digest`` of its contents; tell the caller what it
-        was."""
+        was. ``switch``: the caller decided to follow ``session`` from this datagram on (a
+        replaced session coming back included)."""
         if self.session is None or session != self.session:
             if self.session is not None:
                 if session in self._retired:
-                    self.stale += 1
-                    return Verdict.STALE
+                    if not switch:
+                        self.stale += 1
+                        return Verdict.STALE
+                    self._retired.remove(session)
                 self._retired.append(self.session)
                 self.restarts += 1
             self._start(session, seq, digest)
             return Verdict.NEW
         d = _signed(seq - self._highest)
         u = self._highest + d
+        if self.keyed and (d < -self.window or u < self._first):
+            self.replayed += 1  # no network delays a datagram this long: a replay
+            return Verdict.REPLAYED
         if d > MAX_PLAUSIBLE_GAP or d < -self.window:
             return self._held(seq, d, digest)
         self._jump = None  # the stream goes on where it was: a held jump is forgotten
