@@ -44,7 +44,6 @@ def scratch_copy(tmp_path: Path) -> Path:
      "SensorCalibration\n    return SensorCalibration\n",
      "The simulated suit imports nothing from bpms.filter"),
     ("bpms/filter/_planted.py", "import PyQt6.QtCore\n", "Qt only in bpms.gui"),
-<<<<<<< HEAD
     # upward imports no forbidden list names: the layers contract (docs/architecture.md)
     ("bpms/pipeline/_planted.py", "from bpms.analysis import rom\n",
      "The rooms of docs/architecture.md"),
@@ -54,7 +53,6 @@ def scratch_copy(tmp_path: Path) -> Path:
      "The rooms of docs/architecture.md"),
     ("bpms/analysis/_planted.py", "from bpms.calibration import procedures\n",
      "The rooms of docs/architecture.md"),
-=======
     ("bpms/firmware/sim/_planted.py", "from bpms.io.options import BodyOptions\n",
      "The simulated suit imports from bpms only bpms.io.frames and bpms.io.events"),
     ("bpms/firmware/sim/_planted.py", "def f():\n    from bpms.io.calib_file import "
@@ -63,7 +61,6 @@ def scratch_copy(tmp_path: Path) -> Path:
     # a bpms.io module added after the contract was written is forbidden too
     ("bpms/firmware/sim/_planted.py", "from bpms.io._brand_new import X\n",
      "The simulated suit imports from bpms only bpms.io.frames and bpms.io.events"),
->>>>>>> main
 ])
 def test_planted_upward_import_is_caught(tmp_path, module, line, contract):
     root = scratch_copy(tmp_path)

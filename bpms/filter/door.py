@@ -31,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,7 +39,7 @@ import numpy as np
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.result import Result
-from bpms.filter.zero_choice import ResetZeroChoice, capture_at, fallback_zero, identity_zero
+from bpms.filter.zero_choice import ResetZeroChoice, fallback_line, planned_events
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
@@ -261,13 +261,10 @@ class OpenedRecording:
             planned = planned_events(recorded, self.reset_zero, self.settings_given,
                                      [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
             skipped += planned.skipped
-<<<<<<< HEAD
             fallbacks += planned.fallbacks
-=======
             if self.pose_event is not None and lo <= self.pose_event[0] < lo + len(host):
                 planned.append(self.pose_event)
                 planned.sort(key=lambda item: item[0])
->>>>>>> main
             result = proc.process(decoded.raw, decoded.errors,
                                   [(slot - lo, event) for slot, event in planned])
             yield Chunk(lo, result, host, decoded.raw, decoded.errors,
@@ -355,51 +352,6 @@ class OpenedRecording:
         result.calibration_source = self.calibration_source
         result.options_source = self.options_source
         return result
-
-
-class _Planned(list):
-    skipped = 0  # recorded filter/gain changes left out
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.fallbacks: list[int] = []  # frames of lost Reset Zero records (automatic instead)
-
-
-def fallback_line(path: Path, frames: Sequence[int]) -> str:
-    """The one line a door says when recorded Reset Zero captures were lost to damage."""
-    shown = ", ".join(str(k) for k in frames[:6]) + (", ..." if len(frames) > 6 else "")
-    return (f"{path}: {len(frames)} recorded Reset Zero capture(s) lost to damage (frame "
-            f"{shown}): the automatic Reset Zero is used from there")
-
-
-def planned_events(recorded: Iterable[tuple[int, SessionEvent]], choice: ResetZeroChoice,
-                   settings_given: bool, extra: Sequence[int] = (), start: bool = False
-                   ) -> _Planned:
-    """The events a door applies, ``(slot, event)`` in slot order: the recorded ones ``choice``
-    keeps (filter and gain changes only when no filter or options file was given), the
-    ``none`` choice's identity zero at the start (``start``) and after each restart, a
-    re-analysis capture at each ``extra`` frame, and the automatic Reset Zero
-    (:func:`bpms.filter.zero_choice.fallback_zero`) where a recorded one was lost to damage."""
-    out = _Planned()
-    none = choice.mode == "none"
-    if none and start:
-        out.append((0, identity_zero()))
-    for slot, event in recorded:
-        if (event.kind == "lost" and choice.mode == "events"
-                and event.data.get("kind") in ("reset_zero", "unknown")):
-            out.append((slot, fallback_zero(slot)))  # (a lost record of unknown kind may be one)
-            out.fallbacks.append(slot)
-            continue
-        if settings_given and event.kind in ("filter", "gains"):
-            out.skipped += 1
-            continue
-        if choice.keeps(event):
-            out.append((slot, event))
-            if none and event.kind == "filters" and event.data.get("action") == "restart":
-                out.append((slot, identity_zero(slot)))
-    out.extend((k, capture_at(k)) for k in extra)
-    out.sort(key=lambda item: item[0])
-    return out
 
 
 def process_file(path: str | Path, calibration: str | Path | CalibrationTable | None = None,

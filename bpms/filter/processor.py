@@ -70,8 +70,7 @@ from bpms.filter.hinge import HingeConstraint
 from bpms.filter.pose import PoseCalibrator
 from bpms.filter.result import Result
 from bpms.filter.warmup import ensure_kernels, kernels_ready
-<<<<<<< HEAD
-from bpms.io.calib_file import CalibrationTable, checked, load_calibration
+from bpms.io.calib_file import CalibrationTable, as_table, checked, load_calibration
 from bpms.io.event_types import (
     ADOPTED_SOURCES,
     Alignment,
@@ -81,9 +80,6 @@ from bpms.io.event_types import (
     Gains,
     ResetZero,
 )
-=======
-from bpms.io.calib_file import CalibrationTable, as_table, checked, load_calibration
->>>>>>> main
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
 from bpms.io.options import Options, load_options
 from bpms.io.session_events import SessionEvent

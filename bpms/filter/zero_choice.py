@@ -19,7 +19,9 @@ recorded filter and gain changes.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -100,4 +102,52 @@ def fallback_zero(frame: int) -> SessionEvent:
     return SessionEvent.of(ResetZero("automatic", fallback=True), frame)
 
 
-__all__ = ["MODES", "ResetZeroChoice", "capture_at", "fallback_zero", "identity_zero"]
+class Planned(list):
+    """The events a door applies, ``(slot, event)``, and what it says about them."""
+
+    skipped = 0  # recorded filter/gain changes left out
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.fallbacks: list[int] = []  # frames of lost Reset Zero records (automatic instead)
+
+
+def fallback_line(path: Path, frames: Sequence[int]) -> str:
+    """The one line a door says when recorded Reset Zero captures were lost to damage."""
+    shown = ", ".join(str(k) for k in frames[:6]) + (", ..." if len(frames) > 6 else "")
+    return (f"{path}: {len(frames)} recorded Reset Zero capture(s) lost to damage (frame "
+            f"{shown}): the automatic Reset Zero is used from there")
+
+
+def planned_events(recorded: Iterable[tuple[int, SessionEvent]], choice: ResetZeroChoice,
+                   settings_given: bool, extra: Sequence[int] = (), start: bool = False
+                   ) -> Planned:
+    """The events a door applies, ``(slot, event)`` in slot order: the recorded ones ``choice``
+    keeps (filter and gain changes only when no filter or options file was given), the
+    ``none`` choice's identity zero at the start (``start``) and after each restart, a
+    re-analysis capture at each ``extra`` frame, and the automatic Reset Zero
+    (:func:`bpms.filter.zero_choice.fallback_zero`) where a recorded one was lost to damage."""
+    out = Planned()
+    none = choice.mode == "none"
+    if none and start:
+        out.append((0, identity_zero()))
+    for slot, event in recorded:
+        if (event.kind == "lost" and choice.mode == "events"
+                and event.data.get("kind") in ("reset_zero", "unknown")):
+            out.append((slot, fallback_zero(slot)))  # (a lost record of unknown kind may be one)
+            out.fallbacks.append(slot)
+            continue
+        if settings_given and event.kind in ("filter", "gains"):
+            out.skipped += 1
+            continue
+        if choice.keeps(event):
+            out.append((slot, event))
+            if none and event.kind == "filters" and event.data.get("action") == "restart":
+                out.append((slot, identity_zero(slot)))
+    out.extend((k, capture_at(k)) for k in extra)
+    out.sort(key=lambda item: item[0])
+    return out
+
+
+__all__ = ["MODES", "Planned", "ResetZeroChoice", "capture_at", "fallback_line", "fallback_zero",
+           "identity_zero", "planned_events"]

@@ -25,9 +25,10 @@ from bpms.io.options import check_option
 #: Where a Reset Zero came from. ``provisional``: one frame, the first where every IMU has
 #: data; ``automatic``: the window after the filters settled, once the subject is still;
 #: ``in force``: the zero already in force when logging started; ``network``: the sender's,
-#: received over UDP; ``re-analysis``: asked for when a recording is filtered again.
+#: received over UDP; ``re-analysis``: asked for when a recording is filtered again;
+#: ``posture`` / ``functional``: a pose calibration (docs/pose-calibration.md), adopted.
 ZERO_SOURCES = ("manual", "automatic", "provisional", "3d-view", "network", "in force",
-                "re-analysis")
+                "re-analysis", "posture", "functional")
 #: Reset Zero sources whose recorded zero is adopted as it is (never captured again).
 ADOPTED_SOURCES = ("network", "in force")
 
@@ -70,7 +71,9 @@ class ResetZero(Change):
     the window (``motion_deg``, ``motion_imu``; ``moved``: more than a still pose allows) and
     the frames the automatic capture ``waited`` for a still pose. ``adopt``: use ``R0`` and
     ``yaw0`` as they are; ``fallback``: a recorded capture lost to damage, the automatic one
-    instead; ``sender_source``: a network zero's source at its sender."""
+    instead; ``sender_source``: a network zero's source at its sender; ``details``: what a
+    pose calibration adds (``posture``, ``still``, ``moves``, ``quality``: docs/
+    pose-calibration.md), kept as recorded."""
 
     KIND: ClassVar[str] = "reset_zero"
     CHANGES_NUMBERS: ClassVar[bool] = True
@@ -86,6 +89,12 @@ class ResetZero(Change):
     adopt: bool = False
     fallback: bool = False
     sender_source: str | None = None
+    details: Mapping[str, Any] = field(default_factory=dict)
+
+    #: The keys of :meth:`to_data` other than ``details``'.
+    KEYS: ClassVar[tuple[str, ...]] = (
+        "source", "adopt", "fallback", "sender_source", "window", "R0", "yaw0", "heading",
+        "motion_deg", "motion_imu", "moved", "waited")
 
     def __post_init__(self) -> None:
         if self.source not in ZERO_SOURCES:
@@ -124,7 +133,13 @@ class ResetZero(Change):
             value = getattr(self, key)
             if value is not None:
                 data[key] = value
+        data.update((k, v) for k, v in self.details.items() if k not in self.KEYS)
         return data
+
+    def merged(self, data: Mapping[str, Any]) -> ResetZero:
+        """This capture with ``data``'s values in place of its own (e.g. ``adopt`` and a pose
+        calibration's ``details``), checked again."""
+        return ResetZero.from_data({**self.to_data(), **data})
 
     @classmethod
     def from_data(cls, data: Mapping[str, Any]) -> ResetZero:
@@ -135,7 +150,8 @@ class ResetZero(Change):
                    _optional(data, "motion_deg", float), _optional(data, "motion_imu", int),
                    _optional(data, "moved", bool), _optional(data, "waited", int),
                    bool(data.get("adopt", False)), bool(data.get("fallback", False)),
-                   _optional(data, "sender_source", str))
+                   _optional(data, "sender_source", str),
+                   {k: v for k, v in data.items() if k not in cls.KEYS})
 
 
 @dataclass(frozen=True)

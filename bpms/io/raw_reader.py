@@ -34,7 +34,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from bpms.io.frames import FRAME_DTYPE, N_IMUS, DecodedFrames, decode_frames, encode_frame
-<<<<<<< HEAD
+from bpms.io.paths import require_regular_input
 from bpms.io.raw_events import (
     LOOKAHEAD,
     Copies,
@@ -46,9 +46,6 @@ from bpms.io.raw_events import (
     kind_in,
     lost_event,
 )
-=======
-from bpms.io.paths import require_regular_input
->>>>>>> main
 from bpms.io.raw_layout import (
     EVENT_END,
     EVENT_HEAD,

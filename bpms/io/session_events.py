@@ -47,16 +47,6 @@ from bpms.io.timebase import stream_time
 CHANGE_KINDS = frozenset(k for k, c in CHANGES.items() if c.CHANGES_NUMBERS)
 #: The kinds a recording stores (``lost`` is the reader's, never written).
 KINDS = (*sorted(CHANGE_KINDS), "marker", "logging", "note")
-<<<<<<< HEAD
-=======
-#: Where a Reset Zero came from. ``provisional``: one frame, the first where every IMU has
-#: data; ``automatic``: the window after the filters settled, once the subject is still;
-#: ``in force``: the zero already in force when logging started; ``network``: the sender's,
-#: received over UDP; ``re-analysis``: asked for when a recording is filtered again;
-#: ``posture`` / ``functional``: a pose calibration (docs/pose-calibration.md), adopted.
-ZERO_SOURCES = ("manual", "automatic", "provisional", "3d-view", "network", "in force",
-                "re-analysis", "posture", "functional")
->>>>>>> main
 
 
 @dataclass(frozen=True)

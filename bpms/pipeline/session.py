@@ -516,21 +516,16 @@ class LiveSession:
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
         for z in result.zeros:
-<<<<<<< HEAD
-            self.events.emit(SessionEvent.of(z.change(), head.index + z.frame - first),
-                             warning=z.moved)
-=======
-            data = z.event_data()
+            change = z.change()
             if self._adopting is not None and z.source == self._adopting[0]:  # adopted
-                data |= self._adopting[1]
+                change = change.merged(self._adopting[1])
                 self._adopting = None
-            self.events.emit(SessionEvent("reset_zero", head.index + z.frame - first,
-                                          data=data), warning=z.moved)
+            self.events.emit(SessionEvent.of(change, head.index + z.frame - first),
+                             warning=z.moved)
             if z.source == "posture" and self._posture is not None:  # the capture
                 self._adopt_posture(z)
         if self._functional is not None:
             self._collect_functional(result, raw, errors)
->>>>>>> main
         for k, m in marks:
             if m.kind != "reset_zero":
                 self.events.emit(m.at(events[k].index))
