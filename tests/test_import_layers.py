@@ -44,6 +44,15 @@ def scratch_copy(tmp_path: Path) -> Path:
      "SensorCalibration\n    return SensorCalibration\n",
      "The simulated suit imports nothing from bpms.filter"),
     ("bpms/filter/_planted.py", "import PyQt6.QtCore\n", "Qt only in bpms.gui"),
+    # upward imports no forbidden list names: the layers contract (docs/architecture.md)
+    ("bpms/pipeline/_planted.py", "from bpms.analysis import rom\n",
+     "The rooms of docs/architecture.md"),
+    ("bpms/pipeline/_planted.py", "def f():\n    from bpms.commands import filter\n",
+     "The rooms of docs/architecture.md"),
+    ("bpms/filter/_planted.py", "import bpms.analysis.track\n",
+     "The rooms of docs/architecture.md"),
+    ("bpms/analysis/_planted.py", "from bpms.calibration import procedures\n",
+     "The rooms of docs/architecture.md"),
     ("bpms/firmware/sim/_planted.py", "from bpms.io.options import BodyOptions\n",
      "The simulated suit imports from bpms only bpms.io.frames and bpms.io.events"),
     ("bpms/firmware/sim/_planted.py", "def f():\n    from bpms.io.calib_file import "

@@ -286,7 +286,11 @@ def _damage(raw: Path, out: Path, case: str) -> Path:
             at = frame_at(k)
             data[at + 8:at + 10] = b"\0\0"
     elif case == "event_lost":
-        data[manual + 3] ^= 0x20  # inside its JSON: its CRC fails
+        data[manual + 3] ^= 0x20  # inside its JSON: its CRC fails (its copy stands in)
+    elif case == "both_copies_lost":
+        copy = bytes(data).index(b'"source":"manual"', manual + 1)
+        data[manual + 3] ^= 0x20
+        data[copy + 3] ^= 0x20
     elif case == "all_markers_lost":
         start = bytes(data).index(intact.frames[0].tobytes())
         for k in range(len(intact)):
@@ -296,7 +300,8 @@ def _damage(raw: Path, out: Path, case: str) -> Path:
     return out
 
 
-@pytest.mark.parametrize("case", ["deleted", "inserted", "markers_lost", "event_lost"])
+@pytest.mark.parametrize("case", ["deleted", "inserted", "markers_lost", "event_lost",
+                                  "both_copies_lost"])
 def test_damaged_copies_keep_every_slot_and_every_other_event(field, api, case, tmp_path,
                                                                capsys):
     damaged = _damage(field[0], tmp_path / f"Raw_{case}_1.bpmsraw", case)
@@ -314,7 +319,12 @@ def test_damaged_copies_keep_every_slot_and_every_other_event(field, api, case, 
     again = process_file(damaged)
     want = [(z.source, z.frame) for z in api.zeros]
     got = [(z.source, z.frame) for z in again.zeros]
-    assert got == (want[:-1] if case == "event_lost" else want)
+    if case != "both_copies_lost":
+        assert got == want
+    else:  # the manual capture lost: the automatic one from its frame on, said in one line
+        assert got[:-1] == want[:-1] and got[-1][0] == "automatic"
+        assert got[-1][1] >= want[-1][1]
+        assert "the automatic Reset Zero is used from there" in err
 
 
 def test_a_copy_without_a_valid_frame_is_refused_in_one_line(field, tmp_path):

@@ -94,8 +94,10 @@ def run(args: argparse.Namespace) -> int:
                        f"{recording.duration_s:.1f} s")
     opened = _opened(args.raw_file, args.options, args.reset_zero)
     processor = opened.processor
-    source = ReplaySource(recording, speed=args.speed or None, autoplay=False,
-                          events=opened.replay_events(recording.events))
+    shown = len(opened.problems)
+    events = opened.replay_events(recording.events)
+    warn("replay", opened.problems[shown:])  # (a lost Reset Zero: the automatic one instead)
+    source = ReplaySource(recording, speed=args.speed or None, autoplay=False, events=events)
     source.seek(seconds=args.start_s)
     session = LiveSession(source, processor.options, processor)
     bridges: list = []

@@ -23,8 +23,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from itertools import pairwise
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -49,9 +50,9 @@ class AttitudeBank(Protocol):
 
     def reset(self, imu: int | None = None) -> None: ...
 
-    def snapshot(self) -> object: ...
+    def snapshot(self) -> Any: ...
 
-    def restore(self, snap: object) -> None: ...
+    def restore(self, snap: Any) -> None: ...
 
     def set_gains(self, **gains: float) -> None: ...
 
@@ -68,8 +69,11 @@ def make_bank(gravity: np.ndarray, options: FilterOptions) -> AttitudeBank:
     """The bank of ``options.algorithm`` for IMUs with accelerometer ``gravity[n]`` counts/g.
     Raises ValueError for an unknown name and
     :class:`bpms.filter.vqf_filter.VqfMissingError` when ``vqf`` is chosen but not installed."""
-    banks = {"mahony": MahonyBank, "observer": ObserverBank, "vqf": VqfBank,
-             "adaptive": AdaptiveBank}
+    banks: dict[str, Callable[..., AttitudeBank]] = {
+        # (MahonyBank.set_gains names its keywords, the protocol takes any)
+        "mahony": MahonyBank,  # type: ignore[dict-item]
+        "observer": ObserverBank, "vqf": VqfBank,
+        "adaptive": AdaptiveBank}
     name = options.algorithm
     if name not in banks:
         raise ValueError(f"unknown attitude filter '{name}' (choose {', '.join(ALGORITHMS)})")
@@ -94,7 +98,7 @@ def adaptive_gains(options: FilterOptions) -> ObserverGains:
         mag_dip_th_deg=options.adaptive_mag_dip_th_deg,
         rest_gyr=math.radians(options.adaptive_rest_gyr_dps),
         rest_time=options.adaptive_rest_time_s, rest_tau=options.adaptive_rest_tau_s,
-        trapezoid=ADAPTIVE["trapezoid"])
+        trapezoid=bool(ADAPTIVE["trapezoid"]))
 
 
 class _PhysicalBank(FilterBank):
@@ -119,9 +123,11 @@ class _PhysicalBank(FilterBank):
         IMU, each IMU's rows contiguous). The conversion reads the inputs in their own order
         either way."""
         if out is None:
-            out = to = tuple(np.empty(np.shape(acc)) for _ in range(3))
+            to = (np.empty(np.shape(acc)), np.empty(np.shape(acc)), np.empty(np.shape(acc)))
+            out = to
         else:
-            to = tuple(x.transpose(1, 0, 2) for x in out)
+            to = (out[0].transpose(1, 0, 2), out[1].transpose(1, 0, 2),
+                  out[2].transpose(1, 0, 2))
         np.multiply(acc, self._acc_factor, out=to[0])
         if self.relative:  # 6D: the magnetometer is not read
             to[1][...] = HEADING_FREE_FIELD
@@ -134,7 +140,7 @@ class _PhysicalBank(FilterBank):
         """Change settings by their :class:`FilterOptions` names (e.g. ``observer_k_incl``,
         ``vqf_tau_acc_s``, ``dt``) from the next frame on; other filters' gains are kept for
         when they are selected."""
-        self.options = dataclasses.replace(self.options, **gains)
+        self.options = dataclasses.replace(self.options, **gains)  # type: ignore[arg-type]
         self._apply_options()
 
     def set_options(self, options: FilterOptions) -> None:
@@ -229,10 +235,10 @@ class VqfBank(_PhysicalBank):
         """A block's inputs (f, m, g ``[n, k, 3]``, IMU by IMU) with each failed sample
         replaced, in place, by the last good one of its IMU and sensor (before the block: the
         held one); the valid mask ``[n, k]`` (None: every sample is)."""
-        valid = None
+        valid: np.ndarray | None = None
         if err is not None:
             good = ~err.transpose(1, 0, 2)  # [n, k, sensor]
-            valid = good.all(axis=-1)
+            valid = np.asarray(good.all(axis=-1))
             last_good = np.maximum.accumulate(
                 np.where(good, np.arange(good.shape[1])[:, None], -1), axis=1)
             for s, x in enumerate(inputs):
@@ -268,7 +274,7 @@ class VqfBank(_PhysicalBank):
             b = min(n, a + VQF_BLOCK)
             k = b - a
             by_imu = self.physical(acc[a:b], mag[a:b], gyr[a:b],
-                                   out=tuple(x[:, :k] for x in inputs))
+                                   out=(inputs[0][:, :k], inputs[1][:, :k], inputs[2][:, :k]))
             block_err = None if err is None else err[a:b]
             valid = self._fill(by_imu, block_err)
             for i in range(self.n):
@@ -277,8 +283,8 @@ class VqfBank(_PhysicalBank):
                     if hi > lo:
                         self._run(i, lo, hi, lo in resets_at, by_imu, valid, block_err,
                                   quat[i], block_bias[i])
-            ned_dcm_of_enu(*np.moveaxis(quat[:, :k], -1, 0), out=R[a:b].transpose(1, 0, 2, 3),
-                           work=work[:, :, :k])
+            w, x, y, z = np.moveaxis(quat[:, :k], -1, 0)
+            ned_dcm_of_enu(w, x, y, z, out=R[a:b].transpose(1, 0, 2, 3), work=work[:, :, :k])
             bias[a:b] = block_bias[:, :k].transpose(1, 0, 2)
         return BankOutput(R, gyro_bias=bias)
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bpms.filter.kernel_state import KernelState
 from bpms.filter.mahony import N_PARAMS, MahonyState, run_batch
 from bpms.filter.rotations import dcm_to_euler
 from bpms.io.frames import N_IMUS
@@ -64,6 +65,8 @@ class FilterBank:
     """What every bank of ``n`` attitude filters shares: ``gravity[n]`` (accelerometer counts
     per g, checked), the IMUs waiting to re-initialise (:meth:`reset`), and the count of steps
     that used a held sensor value (``state.held_count`` of the bank's state arrays)."""
+
+    state: KernelState  # the bank's state arrays (each bank makes its own)
 
     def __init__(self, gravity: np.ndarray) -> None:
         self.gravity = checked_gravity(gravity)

@@ -31,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,7 +39,7 @@ import numpy as np
 
 from bpms.filter.processor import BodyPoseProcessor
 from bpms.filter.result import Result
-from bpms.filter.zero_choice import ResetZeroChoice, capture_at, identity_zero
+from bpms.filter.zero_choice import ResetZeroChoice, fallback_line, planned_events
 from bpms.io.calib_file import CalibrationTable
 from bpms.io.frames import DecodedFrames, decode_frames
 from bpms.io.options import HEADING_TEXT, Options, load_options, options_from_dict
@@ -245,18 +245,23 @@ class OpenedRecording:
         """The events replay applies (``bpms replay``, GUI playback): the same rules as
         :meth:`chunks`, for the whole recording's events ``(slot, event)``."""
         dt = self.processor.options.filter.dt
-        return planned_events(recorded, self.reset_zero, self.settings_given,
-                              self.reset_zero.frames(dt), start=True)
+        planned = planned_events(recorded, self.reset_zero, self.settings_given,
+                                 self.reset_zero.frames(dt), start=True)
+        if planned.fallbacks:
+            self._note(fallback_line(self.path, planned.fallbacks))
+        return planned
 
     def _raw_chunks(self, extra: list[int], chunk_frames: int) -> Iterator[Chunk]:
         proc = self.processor
         skipped = 0
+        fallbacks: list[int] = []
         for lo, host, frames, recorded in self._raw_records(chunk_frames):
             decoded = decode_frames(frames)
             # the events to apply in frames lo .. lo+n-1, as (index into the chunk, event)
             planned = planned_events(recorded, self.reset_zero, self.settings_given,
                                      [k for k in extra if lo <= k < lo + len(host)], start=lo == 0)
             skipped += planned.skipped
+            fallbacks += planned.fallbacks
             if self.pose_event is not None and lo <= self.pose_event[0] < lo + len(host):
                 planned.append(self.pose_event)
                 planned.sort(key=lambda item: item[0])
@@ -267,6 +272,8 @@ class OpenedRecording:
         if skipped:
             self._note(f"{self.path}: {skipped} recorded filter/gain change(s) "
                        "not applied (a filter or options file was given)")
+        if fallbacks:
+            self._note(fallback_line(self.path, fallbacks))
 
     def _raw_records(self, chunk_frames: int
                      ) -> Iterator[tuple[int, np.ndarray, bytes, list[tuple[int, SessionEvent]]]]:
@@ -345,34 +352,6 @@ class OpenedRecording:
         result.calibration_source = self.calibration_source
         result.options_source = self.options_source
         return result
-
-
-class _Planned(list):
-    skipped = 0  # recorded filter/gain changes left out
-
-
-def planned_events(recorded: Iterable[tuple[int, SessionEvent]], choice: ResetZeroChoice,
-                   settings_given: bool, extra: Sequence[int] = (), start: bool = False
-                   ) -> _Planned:
-    """The events a door applies, ``(slot, event)`` in slot order: the recorded ones ``choice``
-    keeps (filter and gain changes only when no filter or options file was given), the
-    ``none`` choice's identity zero at the start (``start``) and after each restart, and a
-    re-analysis capture at each ``extra`` frame."""
-    out = _Planned()
-    none = choice.mode == "none"
-    if none and start:
-        out.append((0, identity_zero()))
-    for slot, event in recorded:
-        if settings_given and event.kind in ("filter", "gains"):
-            out.skipped += 1
-            continue
-        if choice.keeps(event):
-            out.append((slot, event))
-            if none and event.kind == "filters" and event.data.get("action") == "restart":
-                out.append((slot, identity_zero(slot)))
-    out.extend((k, capture_at(k)) for k in extra)
-    out.sort(key=lambda item: item[0])
-    return out
 
 
 def process_file(path: str | Path, calibration: str | Path | CalibrationTable | None = None,
@@ -574,7 +553,7 @@ def filtered_arrays(result: Result, groups: Sequence[str]) -> dict[str, np.ndarr
             # the output angles: segment angles after Reset Zero where 'corrected', else sensor
             out[g] = result.euler_output
         elif g == "corrected":
-            out[g] = result.corrected.astype(np.float64)[:, None]
+            out[g] = np.asarray(result.corrected, dtype=np.float64)[:, None]
         elif g == "joints":
             out[g] = result.joint_angles
         elif g in ("mag_disturbed", "acc_disturbed"):

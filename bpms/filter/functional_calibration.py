@@ -231,7 +231,8 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
     for name, p, d, sense in HINGES:
         w1, w2 = gyr[moves, p], gyr[moves, d]
         rel = np.swapaxes(R[moves, d], -1, -2) @ R[moves, p]
-        ok = np.isfinite(w1).all(1) & np.isfinite(w2).all(1) & np.isfinite(rel).all((1, 2))
+        ok = np.asarray(np.isfinite(w1).all(1) & np.isfinite(w2).all(1)
+                        & np.isfinite(rel).all((1, 2)))
         w1, w2 = np.where(ok[:, None], w1, 0.0), np.where(ok[:, None], w2, 0.0)
         rel = np.where(ok[:, None, None], rel, np.eye(3))
         wr = w2 - np.einsum("kij,kj->ki", rel, w1)
@@ -285,7 +286,7 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
     for hand, forearm in HANDS:
         if np.isfinite(M[forearm]).all():
             M[hand] = R_still[hand].T @ R_still[forearm] @ M[forearm]
-    for imu in np.flatnonzero(~np.isfinite(M).all(axis=(1, 2))):  # a hinge not moved
+    for imu in np.flatnonzero(~np.isfinite(M).all(axis=(1, 2))).tolist():  # a hinge not moved
         M[imu] = _frame(R_still[imu].T @ y_world, down[imu])
     R0 = rot_z(yaw0) @ np.swapaxes(M, -1, -2)
     return R0, yaw0, report

@@ -163,7 +163,8 @@ def _concat(parts: list[BankOutput]) -> BankOutput:
         values = [getattr(p, name) for p in parts]
         return None if any(v is None for v in values) else np.concatenate(values)
 
-    return BankOutput(**{f.name: join(f.name) for f in dataclasses.fields(BankOutput)})
+    joined: dict[str, Any] = {f.name: join(f.name) for f in dataclasses.fields(BankOutput)}
+    return BankOutput(**joined)
 
 
 def _reinit(bank: Any, guard: StateGuard, imus: np.ndarray) -> None:

@@ -24,6 +24,11 @@ class KernelState:
             setattr(self, name, np.full((n, *shape), initial, dtype=dtype))
         self._arrays = tuple(getattr(self, name) for name, *_ in self.LAYOUT)
 
+    def __getattr__(self, name: str) -> np.ndarray:
+        # only called for a name not set: the LAYOUT's attributes are set in __init__; this
+        # tells the type checker that they are arrays
+        raise AttributeError(f"{type(self).__name__} has no state array '{name}'")
+
     def arrays(self) -> tuple[np.ndarray, ...]:
         """The state arrays in kernel argument order (the same objects for the state's life:
         they are updated in place, never replaced)."""

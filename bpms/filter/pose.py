@@ -30,7 +30,7 @@ filtered in one call and the same frames pushed one by one give identical output
    the given ``R0`` and ψ0 from the next frame on (:meth:`PoseCalibrator.adopt`).
 
 Each capture is a :class:`Zero`, which also says where it came from, its window and the motion
-measured during it (:meth:`Zero.event_data`: what the recording stores).
+measured during it (:meth:`Zero.change`: what the recording stores).
 
 Reset Zero only changes filtered outputs; raw data and the filter states are untouched.
 """
@@ -46,7 +46,7 @@ import numpy as np
 from bpms.filter.body_model import joint_positions
 from bpms.filter.joints import joint_angles
 from bpms.filter.rotations import dcm_to_euler, rot_z
-from bpms.io.frames import N_IMUS
+from bpms.io.event_types import ResetZero
 from bpms.io.options import BodyOptions
 
 HIP_IMU = 6
@@ -121,26 +121,13 @@ class Zero:
         """The subject moved during the window (more than :data:`STILL_DEG`)."""
         return self.motion_deg > STILL_DEG
 
-    def event_data(self) -> dict:
-        """What a recording stores of this capture (the ``reset_zero`` event's data)."""
-        return {"source": self.source, "window": int(self.window), "R0": self.R0,
-                "yaw0": float(self.yaw0), "heading": self.heading,
-                "motion_deg": round(float(self.motion_deg), 3),
-                "motion_imu": int(self.motion_imu), "moved": bool(self.moved),
-                "waited": int(self.waited)}
-
-
-def zero_values(data: dict) -> tuple[np.ndarray, float] | None:
-    """(``R0[18, 3, 3]``, ψ0) stored in a ``reset_zero`` event's data (null → NaN), or None
-    when they are missing or malformed."""
-    try:
-        R0 = np.array(data["R0"], dtype=np.float64)  # null (None) → NaN
-        yaw0 = float(data["yaw0"])
-    except (KeyError, TypeError, ValueError):
-        return None
-    if R0.shape != (N_IMUS, 3, 3) or not np.isfinite(yaw0):
-        return None
-    return R0, yaw0
+    def change(self, source: str | None = None) -> ResetZero:
+        """What a recording stores of this capture: the ``reset_zero`` event
+        (:class:`bpms.io.event_types.ResetZero`), as made here or under another ``source``
+        (``in force``: the zero in force when logging started)."""
+        return ResetZero(source or self.source, int(self.window), self.R0, float(self.yaw0),
+                         self.heading, round(float(self.motion_deg), 3), int(self.motion_imu),
+                         bool(self.moved), int(self.waited))
 
 
 HEADING_REFERENCES = ("hip", "mean")
@@ -228,6 +215,7 @@ class PoseCalibrator:
         self._held = 0  # frames in the ring
         self._next = 0  # where the next frame goes (the oldest, once the ring is full)
         self._provisional_done = False
+        self._fallback_provisional = False
         self._auto_pending = self.auto
         #: While the automatic capture waits for a still pose: (deg, IMU) of the last window.
         self.waiting: tuple[float, int] | None = None
@@ -249,6 +237,17 @@ class PoseCalibrator:
         with no data in ``R0`` keeps its present zero."""
         self._pending.append(("adopt", source, int(window), np.array(R0, dtype=np.float64),
                               float(yaw0), motion))
+
+    def fall_back(self) -> None:
+        """A recorded capture is lost (its record damaged): the automatic capture runs again
+        from the next frame, at the first still window (after the settling time when the
+        stream has just started), preceded by the provisional one-frame capture when no zero
+        is in force yet."""
+        self._auto_pending = True
+        self.waiting = None
+        if self.zero is None and not self._pending:
+            self._provisional_done = False
+            self._fallback_provisional = True
 
     @property
     def auto_frame(self) -> int:
@@ -346,7 +345,7 @@ class PoseCalibrator:
         if self._pending and n:
             ops[0] = [*self._pending, *ops.get(0, [])]
             self._pending = []
-        if self.provisional and not self._provisional_done:
+        if (self.provisional or self._fallback_provisional) and not self._provisional_done:
             ok = np.isfinite(R[:, :, 0, 0]).all(axis=1)
             if ok.any():
                 k = int(np.argmax(ok))

@@ -24,6 +24,7 @@ import numpy as np
 
 from bpms.filter.functional_calibration import functional_calibration, sensor_values
 from bpms.filter.posture_calibration import parse_posture, posture_zero
+from bpms.io.event_types import ResetZero
 from bpms.io.session_events import SessionEvent
 
 METHODS = ("reset-zero", "posture", "functional")
@@ -108,4 +109,4 @@ def calibration_event(opened: Any, choice: PoseCalibrationChoice
         opened.pose_report = report
     data |= {"R0": R0.tolist(), "yaw0": float(yaw0)}
     slot = int(zero.frame) + 1
-    return slot, SessionEvent("reset_zero", slot, data=data)
+    return slot, SessionEvent.of(ResetZero.from_data(data), slot)

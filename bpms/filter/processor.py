@@ -55,8 +55,9 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -66,12 +67,21 @@ from bpms.filter.calibration import SensorCalibration
 from bpms.filter.disturbance import Disturbance, DisturbanceTracker
 from bpms.filter.guard import StateGuard, failed_inputs, guarded_process
 from bpms.filter.hinge import HingeConstraint
-from bpms.filter.pose import PoseCalibrator, zero_values
+from bpms.filter.pose import PoseCalibrator
 from bpms.filter.result import Result
 from bpms.filter.warmup import ensure_kernels, kernels_ready
 from bpms.io.calib_file import CalibrationTable, as_table, checked, load_calibration
+from bpms.io.event_types import (
+    ADOPTED_SOURCES,
+    Alignment,
+    Change,
+    FilterChoice,
+    Filters,
+    Gains,
+    ResetZero,
+)
 from bpms.io.frames import N_CHANNELS, N_IMUS, decode_frames
-from bpms.io.options import Options, check_option, load_options
+from bpms.io.options import Options, load_options
 from bpms.io.session_events import SessionEvent
 from bpms.io.timebase import stream_times
 
@@ -125,7 +135,7 @@ class BodyPoseProcessor:
         if user_default and not self.table.problems:
             self.table.source = f"user default ({calibration})"
         self.options = _load_options(options)
-        ellipsoids = {}
+        ellipsoids: dict[int, Any] = {}
         if isinstance(calibration, str | Path):
             # A magnetometer ellipsoid fit in the modern companion file (Calib.json beside
             # Calib.cfg, docs/calibration.md) is used for the IMUs whose numbers agree.
@@ -196,59 +206,80 @@ class BodyPoseProcessor:
         ``source``: who asked (:data:`bpms.io.session_events.ZERO_SOURCES`)."""
         self.pose.request(source)
 
-    def apply_event(self, event: SessionEvent) -> bool:
-        """Apply a recorded event (:class:`bpms.io.session_events.SessionEvent`) before the
-        next frame, through the same calls a live session makes: a Reset Zero captures over
-        its recorded window when this stream holds it, else its recorded zero is adopted;
-        alignment, filter, gains, filters re-initialised or restarted. Returns False (and
-        notes a problem) when the event cannot be applied; other kinds change nothing."""
-        d = event.data
+    def apply_event(self, event: SessionEvent | Change,
+                    on_error: Callable[[str], None] | None = None) -> SessionEvent | None:
+        """Apply one change before the next frame: the one road of every change, live (a
+        :class:`bpms.io.event_types.Change` that :class:`bpms.pipeline.settings_queue.
+        SettingsQueue` queued, checked when it was made) or recorded (a
+        :class:`bpms.io.session_events.SessionEvent` on replay and re-analysis). A Reset Zero
+        captures over its window when this stream holds it, else its recorded zero is
+        adopted; alignment (None toggles), filter, gains, filters re-initialised or
+        restarted; other kinds change nothing. Returns the event as applied (a toggle
+        resolved to its new state), or None when it cannot be applied: the reason goes to
+        ``on_error``, else into :attr:`problems`."""
+        if isinstance(event, SessionEvent) and not event.changes_numbers:
+            return event
         try:
-            if event.kind == "reset_zero":
-                self._replay_zero(d)
-            elif event.kind == "alignment":
-                self.set_corrected_output(bool(d["on"]))
-            elif event.kind == "filter":
-                self.select_filter(str(d["algorithm"]))
-            elif event.kind == "gains":
-                self.set_gains(**{str(k): v for k, v in dict(d["values"]).items()})  # checked there
-            elif event.kind == "filters":
-                if d.get("action") == "restart":
-                    self.restart(keep_time=True)
-                else:
-                    self.reinitialise()
-            return True
-        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
-            problem = f"{event.describe(self.options.filter.dt)}: not applied ({exc})"
-            if problem not in self.problems:
+            change = event if isinstance(event, Change) else event.change
+            applied = self._apply(change)
+        except Exception as exc:  # a change that fails never stops the frames
+            if isinstance(event, Change):
+                problem = f"setting {event.KIND} not applied: {exc}"
+            else:
+                problem = f"{event.describe(self.options.filter.dt)}: not applied ({exc})"
+            if on_error is not None:
+                on_error(problem)
+            elif problem not in self.problems:
                 self.problems.append(problem)
-            return False
+            return None
+        if isinstance(event, Change):
+            return SessionEvent.of(applied)
+        return event if applied is change else SessionEvent.of(applied, event.frame, event.time)
 
-    def _replay_zero(self, d: dict) -> None:
-        source = str(d.get("source", "manual"))
-        window = int(d.get("window", self.pose.window))
-        values = zero_values(d)
-        adopt = (bool(d.get("adopt")) or source in ("network", "in force")
-                 or self.pose.frames < window - 1)  # its window is not in this stream
-        if adopt and values is not None:
-            motion = (float(d.get("motion_deg", 0.0)), int(d.get("motion_imu", -1)))
-            self.pose.adopt(values[0], values[1], source, window, motion)
-        elif adopt and source in ("network", "in force"):
+    def _apply(self, change: Change) -> Change:
+        if isinstance(change, ResetZero):
+            self._reset_zero(change)
+        elif isinstance(change, Alignment):
+            return Alignment(self.set_corrected_output(change.on), change.source)
+        elif isinstance(change, FilterChoice):
+            self.select_filter(change.algorithm)
+        elif isinstance(change, Gains):
+            self._use_filter_options(change.values)
+        elif isinstance(change, Filters):
+            if change.action == "restart":
+                self.restart(keep_time=True)
+            else:
+                self.reinitialise()
+        return change
+
+    def _reset_zero(self, z: ResetZero) -> None:
+        if z.fallback:  # the recorded capture is lost: the automatic one instead
+            self.pose.fall_back()
+            return
+        window = self.pose.window if z.window is None else z.window
+        stored = z.zero
+        adopt = z.adopted or self.pose.frames < window - 1  # its window is not in this stream
+        if adopt and stored is not None:
+            motion = (z.motion_deg or 0.0, -1 if z.motion_imu is None else z.motion_imu)
+            self.pose.adopt(stored[0], stored[1], z.source, window, motion)
+        elif adopt and z.source in ADOPTED_SOURCES:
             raise ValueError("no zero stored")
         else:
-            self.pose.request(source, window)
+            self.pose.request(z.source, window)
 
     def set_gains(self, **gains: float) -> None:
         """Change ``kp_rollpitch``, ``ki_rollpitch``, ``kp_yaw``, ``ki_yaw``, ``dt`` (s)
         from the next frame on (Mahony); the other filters take their
         :class:`bpms.io.options.FilterOptions` names (``observer_k_incl``, ``vqf_tau_acc_s``,
-        ...). Every value is checked first against :data:`bpms.io.options.VALID_RANGES`:
-        one outside raises :class:`bpms.io.options.OptionRangeError` (a ValueError naming the
-        range) and nothing changes. Each filter's values are kept in ``options.filter``, so
-        switching filter and back (:meth:`select_filter`) keeps them."""
-        checked = {name: check_option("filter", name, value) for name, value in gains.items()}
-        if "algorithm" in checked:
-            raise ValueError("use select_filter() to change the attitude filter")
+        ...). Every value is checked first (:class:`bpms.io.event_types.Gains`, against
+        :data:`bpms.io.options.VALID_RANGES`): one outside raises
+        :class:`bpms.io.options.OptionRangeError` (a ValueError naming the range) and nothing
+        changes. Each filter's values are kept in ``options.filter``, so switching filter and
+        back (:meth:`select_filter`) keeps them."""
+        self._use_filter_options(Gains(gains).values)
+
+    def _use_filter_options(self, checked: Mapping[str, Any]) -> None:
+        """Run with these checked ``[filter]`` values from the next frame on."""
         options = dataclasses.replace(self.options.filter, **checked)
         self.bank.set_options(options)
         self.options.filter = options
@@ -317,6 +348,7 @@ class BodyPoseProcessor:
             errors = failed_inputs(acc, mag, gyr, errors)
         # the disturbance flags come from the sensors alone, before the filters use them
         disturbance = self.disturbance.update(acc, mag, gyr, errors)
+        terms: dict[str, Any]
         if isinstance(self.bank, MahonyBank):
             terms = {"store_terms": True}
         elif isinstance(self.bank, ObserverBank):  # the heading trusts a flagged field less

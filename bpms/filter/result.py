@@ -14,6 +14,7 @@ import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -123,7 +124,7 @@ class Result:
         """A Result of ``n`` frames with the fields ``like`` carries (per-frame shapes and
         dtypes), its per-frame arrays allocated and not yet filled: :meth:`put` fills them
         part by part, so a whole recording costs its arrays and one part at a time."""
-        values = {}
+        values: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
             v = getattr(like, f.name)
             if isinstance(v, np.ndarray | Disturbance) and f.name not in _RUNNING_FIELDS:
@@ -150,7 +151,7 @@ class Result:
 
     def head(self, n: int) -> Result:
         """The first ``n`` frames (views of this Result's arrays)."""
-        values = {}
+        values: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if isinstance(v, np.ndarray | Disturbance) and f.name not in _RUNNING_FIELDS:
@@ -167,7 +168,7 @@ class Result:
         if len(parts) == 1:
             return parts[0]
         last = parts[-1]
-        values = {}
+        values: dict[str, Any] = {}
         for f in dataclasses.fields(Result):
             if f.name == "euler" and not all(_EULER.known(p) for p in parts):
                 continue  # computed from the joined R when read, in one call
@@ -206,7 +207,8 @@ class Result:
     def euler_output(self) -> np.ndarray:
         """``[N, 18, 3]`` rad: the per-IMU angles the table, plots, filtered file and streams
         give: :attr:`euler_segment` at frames where ``corrected``, else :attr:`euler_sensor`."""
-        return np.where(self.corrected[:, None, None], self.euler_segment, self.euler)
+        corrected = np.asarray(self.corrected, dtype=np.bool_)
+        return np.where(corrected[:, None, None], self.euler_segment, self.euler)
 
     @cached_property
     def estimates(self) -> np.ndarray:

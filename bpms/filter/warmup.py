@@ -27,7 +27,7 @@ import subprocess
 import sys
 import threading
 import time
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -195,7 +195,7 @@ class _CompileListener:
 
     def __init__(self, on_compile) -> None:
         self.on_compile = on_compile
-        self._listener = None
+        self._listener: Any = None  # a numba event listener while registered
 
     def __enter__(self) -> _CompileListener:
         from numba.core import event

@@ -261,7 +261,8 @@ def load_calibration(path: str | Path | None) -> CalibrationTable:
         big = isinstance(exc, BoundError)
         table = load_factory_calibration().copy()
         report(table.problems, path, "file", str(exc) if big else
-               f"cannot be read ({exc.strerror or exc})", "factory calibration used")
+               f"cannot be read ({getattr(exc, 'strerror', None) or exc})",
+               "factory calibration used")
         table.source = f"factory ({path} {'too big' if big else 'unreadable'})"
         return table
     return parse_legacy(text, path)

@@ -34,7 +34,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import serial
 import serial.tools.list_ports
@@ -125,7 +125,8 @@ class SerialTransport:
             self._fd: int | None = self._ser.fileno()
         except (AttributeError, NotImplementedError, serial.SerialException, OSError):
             self._fd = None
-        self._wake_r = self._wake_w = None
+        self._wake_r: socket.socket | None = None
+        self._wake_w: socket.socket | None = None
         if self._fd is not None:
             self._wake_r, self._wake_w = socket.socketpair()
 
@@ -134,7 +135,8 @@ class SerialTransport:
             if self._closing:
                 raise LinkClosedError("the link is closed")
             if self._fd is not None:
-                ready, _, _ = select.select([self._fd, self._wake_r], [], [], max(wait_s, 0.0))
+                waits: list[Any] = [self._fd, self._wake_r]  # (both set together)
+                ready, _, _ = select.select(waits, [], [], max(wait_s, 0.0))
                 if self._closing:
                     raise LinkClosedError("the link was closed during a read")
                 return self._ser.read(READ_CHUNK) if self._fd in ready else b""

@@ -520,7 +520,7 @@ def format_options(options: Options) -> str:
             owner.setdefault(key, algo)
     for name, section in options.sections().items():
         out.append(f"[{name}]")
-        fields = dataclasses.fields(section)
+        fields = list(dataclasses.fields(section))
         if name == "filter":  # shared settings first, then each filter's own, grouped
             order = {algo: k for k, algo in enumerate(ALGORITHM_SETTINGS, start=1)}
             fields = sorted(fields, key=lambda f: order.get(owner.get(f.name, ""), 0))

@@ -12,7 +12,9 @@ the record after it, or an event record whose CRC holds. A damaged stretch keeps
 it becomes ``round(bytes / 348)`` placeholder frames with every sensor flagged failed (none
 for fewer than 174 bytes between two intact records: bytes inserted there), so every later
 frame keeps its position, hence its time (index × 0.02 s). A damaged event record costs only
-itself (no slot). A torn last record is ignored with a warning.
+itself (no slot, even when its marker or length field was hit: :mod:`bpms.io.raw_events`), and
+nothing when its copy beside it is intact; a lost one is handed on as a ``lost`` event naming
+its kind and frame. A torn last record is ignored with a warning.
 
 Events (format version 2) apply at the frame they name, whatever their place in the file: the
 live session writes an event after the frames it processed, so :meth:`RawFile.chunks` holds a
@@ -33,8 +35,20 @@ import numpy as np
 
 from bpms.io.frames import FRAME_DTYPE, N_IMUS, DecodedFrames, decode_frames, encode_frame
 from bpms.io.paths import require_regular_input
+from bpms.io.raw_events import (
+    LOOKAHEAD,
+    Copies,
+    Counts,
+    damaged_events,
+    event_at,
+    find_record,
+    frame_in,
+    kind_in,
+    lost_event,
+)
 from bpms.io.raw_layout import (
-    EVENT_START,
+    EVENT_END,
+    EVENT_HEAD,
     EVENTS_VERSION,
     FRAME_END,
     FRAME_START,
@@ -42,8 +56,6 @@ from bpms.io.raw_layout import (
     RECORD_SIZE,
     RawFileError,
     event_size_at,
-    is_frame_record_at,
-    parse_event,
     read_preamble,
 )
 from bpms.io.session_events import SessionEvent
@@ -54,9 +66,6 @@ log = logging.getLogger(__name__)
 BLOCK_BYTES = 1 << 22
 #: Frame records checked in one vectorised step.
 SCAN_RECORDS = 4096
-#: Frames a chunk waits for events that name it: a live session writes an event at most a
-#: processing backlog (3,000 frames, docs/pipeline.md) plus a batch after its frame.
-LOOKAHEAD = 8192
 #: Default frames per chunk of :meth:`RawFile.chunks`.
 CHUNK_FRAMES = 5_000
 
@@ -149,72 +158,13 @@ def _placeholders(count: int, t0: float, t1: float) -> np.ndarray:
     return recs
 
 
-def _event_at(buf: bytes, q: int, eof: bool) -> tuple[str, int]:
-    """Is there an event record at ``q``? ("yes", size), ("no", 0) or ("more", size) when
-    its bytes are not all in ``buf`` yet (never at the end of the file)."""
-    if q + 14 > len(buf):
-        return ("no", 0) if eof else ("more", 14)
-    size = event_size_at(buf, q)
-    if size is None:
-        return "no", 0
-    if q + size > len(buf):
-        return ("no", 0) if eof else ("more", size)
-    return ("yes", size) if parse_event(buf, q, size) is not None else ("no", 0)
-
-
-def _find_record(buf: bytes, start: int, eof: bool, events: bool) -> tuple[int | None, str]:
-    """The first offset ≥ ``start`` where a record begins: a frame record confirmed by the
-    next record (or the end of the file), or an intact event record. (offset, "found"),
-    (None, "none"), or (offset, "more") when deciding needs bytes beyond ``buf``."""
-    n = len(buf)
-    s = start + 8
-    a = buf.find(FRAME_START, s)
-    b = buf.find(EVENT_START, s) if events else -1
-    while a >= 0 or b >= 0:
-        if a >= 0 and (b < 0 or a < b):
-            q = a - 8
-            if q + RECORD_SIZE > n:
-                if not eof:
-                    return q, "more"
-            elif is_frame_record_at(buf, q):
-                nxt = q + RECORD_SIZE
-                if nxt + RECORD_SIZE <= n and is_frame_record_at(buf, nxt):
-                    return q, "found"
-                state = _event_at(buf, nxt, eof) if events else ("no", 0)
-                if state[0] == "yes":
-                    return q, "found"
-                if nxt + RECORD_SIZE > n:
-                    if eof:
-                        return q, "found"  # no room for a confirming record: the end
-                    return q, "more"
-                if state[0] == "more":
-                    return q, "more"
-            a = buf.find(FRAME_START, a + 1)
-        else:
-            q = b - 8
-            state = _event_at(buf, q, eof)
-            if state[0] == "yes":
-                return q, "found"
-            if state[0] == "more":
-                return q, "more"
-            b = buf.find(EVENT_START, b + 1)
-    return None, "none"
-
-
-@dataclass
-class _Counts:
-    damaged: int = 0
-    skipped: int = 0
-    torn: int = 0
-    lost_events: int = 0
-
-
-def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int = 0,
+def _pieces(f: BinaryIO, offset: int, events: bool, counts: Counts, slot: int = 0,
             last_time: float = float("nan")) -> Iterator[tuple]:
     """The data part from ``offset`` in file order: ``("frames", slot, records, file offset,
     time before)``, ``("gap", slot, placeholder records)`` and ``("event", slot, event)``
     (``slot``: where the piece begins)."""
     f.seek(offset)
+    copies = Copies(counts)
     buf = b""
     base = offset  # file offset of buf[0]
     p = 0
@@ -248,6 +198,7 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
             good = (recs["frame"]["start"] == FRAME_START) & (recs["frame"]["end"] == FRAME_END)
             k = m if good.all() else int(np.argmin(good))
             if k:
+                yield from copies.flush(slot)
                 yield "frames", slot, recs[:k], base + p, last_time
                 slot += k
                 p += k * RECORD_SIZE
@@ -255,32 +206,45 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
                 continue
         event_size = None  # a damaged event record begins here (its length is plausible)
         if events:
-            state, size = _event_at(buf, p, eof)
+            state, size = event_at(buf, p, eof)
             while state == "more":
                 fill(size)
-                state, size = _event_at(buf, p, eof)
+                state, size = event_at(buf, p, eof)
             if state == "yes":
-                event = parse_event(buf, p, size)
-                assert event is not None
-                yield "event", slot, event
+                yield from copies.intact(buf[p:p + size], slot)
                 p += size
                 continue
             event_size = event_size_at(buf, p)
+            if event_size is not None:
+                fill(event_size)
+                if (len(buf) - p >= event_size
+                        and buf[p + event_size - 2:p + event_size] == EVENT_END):
+                    # a damaged event record whose length and end marker hold: it is skipped
+                    # exactly (no slot), and lost unless its copy beside it is intact
+                    copies.damaged(buf[p:p + event_size])
+                    p += event_size
+                    continue
             if (event_size is not None and p + event_size > len(buf)
-                    and _find_record(buf, p + 1, True, events)[0] is None):
+                    and find_record(buf, p + 1, True, events)[0] is None):
                 counts.torn = len(buf) - p  # a cut-off last event
                 break
         if eof and avail < RECORD_SIZE and event_size is None:
             counts.torn = avail
             break
+        last_intact = copies.last
+        copy_head = last_intact is not None and last_intact[:EVENT_HEAD.size] == bytes(
+            buf[p:p + EVENT_HEAD.size])
+        yield from copies.flush(slot)
+        lost_kind = "unknown" if event_size is None else kind_in(buf[p:p + event_size])
+        lost_frame = slot if event_size is None else frame_in(buf[p:p + event_size], slot)
         gap_start = base + p
         search = p + 1
         while True:
-            q, status = _find_record(buf, search, eof, events)
+            q, status = find_record(buf, search, eof, events)
             if status == "found" or (status == "none" and eof):
                 break
             # keep only what may still begin a record; the rest of the gap is counted, not kept
-            p = q if status == "more" else max(search, len(buf) - 16)
+            p = q if status == "more" and q is not None else max(search, len(buf) - 16)
             fill(len(buf) - p + BLOCK_BYTES)  # (buf now starts at the old buf[p])
             search = 0
         end = base + (len(buf) if q is None else q)
@@ -288,8 +252,30 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
         if q is None and event_size is None and gap < RECORD_SIZE:
             counts.torn = gap
             break
+        head, hit = (damaged_events(buf[gap_start - base:q])
+                     if events and q is not None and gap_start >= base else (gap, []))
+        if hit and q is not None:  # damaged event records end the stretch: no slot for them
+            count = round(head / RECORD_SIZE)
+            if count:
+                yield "gap", slot, _placeholders(count, last_time,
+                                                 struct.unpack_from("<d", buf, q)[0])
+                counts.damaged += count
+                slot += count
+            copies.last = None if count else last_intact
+            for record in hit:
+                copies.damaged(record)
+            counts.skipped += gap
+            p = q
+            continue
         if event_size is not None and gap >= event_size - RECORD_SIZE // 2:
-            counts.lost_events += 1  # a damaged event record, and what follows it
+            # a damaged event record, and what follows it: lost, unless it begins as the
+            # intact record just read (the same time written and length: its copy)
+            if copy_head:
+                counts.copies += 1
+            else:
+                counts.lost_events += 1
+                counts.lost.append((lost_kind, lost_frame))
+                yield "event", slot, lost_event(lost_kind, slot, lost_frame)
             count = max(0, round((gap - event_size) / RECORD_SIZE))
         else:  # (fewer than half a record between intact records: bytes inserted, no slot)
             count = round(gap / RECORD_SIZE)
@@ -302,6 +288,7 @@ def _pieces(f: BinaryIO, offset: int, events: bool, counts: _Counts, slot: int =
         if q is None:
             break
         p = q
+    yield from copies.flush(slot)
 
 
 class _ChunkQueue:
@@ -369,7 +356,7 @@ class RawFile:
         self.path = Path(path)
         self.header, self.data_offset, self.version = read_preamble(self.path)
         self.problems: list[str] = []
-        self.counts = _Counts()
+        self.counts = Counts()
         self.frames_read = 0  # slots of the last complete pass
 
     @property
@@ -379,7 +366,7 @@ class RawFile:
         return self.version >= EVENTS_VERSION and self.header.get("session_events") is True
 
     def pieces(self, offset: int | None = None, slot: int = 0,
-               last_time: float = float("nan"), counts: _Counts | None = None
+               last_time: float = float("nan"), counts: Counts | None = None
                ) -> Iterator[tuple]:
         """The data part in file order (see :func:`_pieces`), from ``offset`` (a frame
         record's start met by an earlier pass, with its slot and the time before it)."""
@@ -397,7 +384,7 @@ class RawFile:
         file: one pass, nothing decoded or kept."""
         slots = valid = 0
         first = float("nan")
-        for piece in self.pieces(counts=_Counts()):
+        for piece in self.pieces(counts=Counts()):
             if piece[0] == "event":
                 continue
             if piece[0] == "frames":
@@ -412,7 +399,7 @@ class RawFile:
         """The recording ``chunk_frames`` slots at a time, each with the events that apply in
         it (read up to ``lookahead`` frames beyond it). Problems are in :attr:`problems` at
         the end, the events after the last frame in :attr:`trailing_events`."""
-        self.counts = _Counts()
+        self.counts = Counts()
         self.problems = []
         self.trailing_events = []
         queue = _ChunkQueue()
@@ -443,7 +430,13 @@ class RawFile:
             self.problems.append(f"{path}: {c.skipped} byte(s) between intact records "
                                  "(inserted): skipped, no frame lost")
         if c.lost_events:
-            self.problems.append(f"{path}: {c.lost_events} damaged event record(s): lost")
+            where = ", ".join(f"{kind} at frame {slot}" for kind, slot in c.lost[:6])
+            more = ", ..." if len(c.lost) > 6 else ""
+            self.problems.append(f"{path}: {c.lost_events} damaged event record(s) lost "
+                                 f"({where}{more})")
+        if c.copies:
+            self.problems.append(f"{path}: {c.copies} damaged event record(s) whose copy "
+                                 "beside it is intact: nothing lost")
         if late:
             self.problems.append(f"{path}: {late} event(s) found more than {LOOKAHEAD} frames "
                                  "after their frame: applied from the first frame not yet "
@@ -539,11 +532,11 @@ class RawFrames:
         k = bisect.bisect_right(self._checkpoints, lo, key=lambda cp: cp.slot)
         point = self._checkpoints[k - 1] if k else None
         if point is None:
-            self._cursor = self.file.pieces(counts=_Counts())
+            self._cursor = self.file.pieces(counts=Counts())
             self._buffer_start = 0
         else:
             self._cursor = self.file.pieces(point.offset, point.slot, point.last_time,
-                                            _Counts())
+                                            Counts())
             self._buffer_start = point.slot
         self._buffer = np.zeros(0, RECORD_DTYPE)
 
@@ -556,7 +549,7 @@ class RawFrames:
         if self._cursor is None or lo < self._buffer_start or lo > end + SCAN_RECORDS:
             self._restart(lo)
         while self._buffer_start + len(self._buffer) < hi:
-            piece = next(self._cursor, None)
+            piece = None if self._cursor is None else next(self._cursor, None)
             if piece is None:
                 break
             if piece[0] == "event":

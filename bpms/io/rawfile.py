@@ -5,7 +5,7 @@ here).
 The writer flushes to the disk (``fsync``) at least once per flush interval, so after a crash
 every record before the last flush reads back; a torn last record is ignored with a warning.
 Event records (:class:`bpms.io.session_events.SessionEvent`) go between the frame records as
-they happen, written and flushed with them.
+they happen, written and flushed with them; one that changes numbers is written twice.
 """
 
 from __future__ import annotations
@@ -132,10 +132,14 @@ class RawWriter(Closing):
 
     def write_event(self, event: SessionEvent, host_time: float | None = None) -> None:
         """Append one event record after the frames written so far (``event.frame``: the slot
-        of the first frame it affects; ``host_time``: s since the epoch, default now)."""
+        of the first frame it affects; ``host_time``: s since the epoch, default now). An
+        event that changes numbers is written as two identical records in a row (the reader
+        keeps one), so that damage to one copy does not lose it."""
         if self.failed:
             raise RecordingError(f"writing {self.path} failed earlier: recording stopped")
         data = event_record(event, time.time() if host_time is None else host_time)
+        if event.changes_numbers:  # two identical records: one damaged copy is not the only one
+            data += data
         try:
             self._file.write(data)
         except OSError as exc:

@@ -23,6 +23,7 @@ All controls are thread-safe; :meth:`read` wakes up at once when a control chang
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections.abc import Sequence
@@ -30,6 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
+from bpms.io.event_types import Gains, ResetZero
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.frames import FRAME_PERIOD_S, FRAME_SIZE
 from bpms.io.session_events import SessionEvent
@@ -228,8 +230,18 @@ def state_before(events: Sequence[tuple[int, SessionEvent]], slot: int
             last.pop("reset_zero", None)
     out = [last[k].at(slot) for k in ("filter", "alignment") if k in last]
     if gains:
-        out.append(SessionEvent("gains", slot, data={"values": gains}))
+        try:
+            out.append(SessionEvent.of(Gains(gains), slot))
+        except (TypeError, ValueError):  # a recorded value out of range: applying says so
+            out.append(SessionEvent("gains", slot, data={"values": gains}))
     if "reset_zero" in last:
         zero = last["reset_zero"]
-        out.append(SessionEvent("reset_zero", slot, zero.time, {**zero.data, "adopt": True}))
+        try:
+            change = zero.change
+        except (KeyError, TypeError, ValueError):  # unreadable: applying it says so
+            out.append(SessionEvent("reset_zero", slot, zero.time, {**zero.data, "adopt": True}))
+        else:
+            if isinstance(change, ResetZero):  # its recorded zero, adopted
+                change = dataclasses.replace(change, adopt=True)
+            out.append(SessionEvent.of(change, slot, zero.time))
     return tuple(out)

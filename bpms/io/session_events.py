@@ -10,7 +10,9 @@ and the GUI's event log and the LSL event stream show the same lines.
 ``frame`` is the first frame the event affects: in a recording, the slot index of that frame
 in the file (frame k at stream time k × 0.02 s); in a live session, the source's frame index
 (the session converts it when it writes the file). ``data`` holds the kind's values, plain
-JSON (numbers, strings, booleans, lists; NaN is written as null).
+JSON (numbers, strings, booleans, lists; NaN is written as null). Each kind is a small typed
+class of :mod:`bpms.io.event_types` that checks its values and is the one writer
+(:meth:`SessionEvent.of`) and the one reader (:attr:`SessionEvent.change`) of its ``data``.
 
 Kinds and their ``data``:
 
@@ -24,7 +26,10 @@ Kinds and their ``data``:
 - ``filter``: ``algorithm``; ``gains``: ``values`` (``[filter]`` option names → numbers);
 - ``filters``: ``action`` (``restart``: a new stream, the automatic Reset Zero runs again;
   ``reinit``: the filters re-initialise, Reset Zero kept) and ``reason``;
-- ``marker``: ``text``; ``logging``: ``action`` (``start``/``stop``); ``note``: ``text``.
+- ``marker``: ``text``; ``logging``: ``action`` (``start``/``stop``); ``note``: ``text``;
+- ``lost`` (made by the reader, never written): an event record too damaged to read, at its
+  place between the frames (``frame``: the slot of the frame after it); ``kind``: the kind it
+  was when its bytes still say, else ``unknown``.
 """
 
 from __future__ import annotations
@@ -35,18 +40,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from bpms.io.event_types import CHANGES, ZERO_SOURCES, Change, ResetZero
 from bpms.io.timebase import stream_time
 
 #: Kinds whose events change derived numbers (re-analysis applies them at their frames).
-CHANGE_KINDS = frozenset({"reset_zero", "alignment", "filter", "gains", "filters"})
+CHANGE_KINDS = frozenset(k for k, c in CHANGES.items() if c.CHANGES_NUMBERS)
+#: The kinds a recording stores (``lost`` is the reader's, never written).
 KINDS = (*sorted(CHANGE_KINDS), "marker", "logging", "note")
-#: Where a Reset Zero came from. ``provisional``: one frame, the first where every IMU has
-#: data; ``automatic``: the window after the filters settled, once the subject is still;
-#: ``in force``: the zero already in force when logging started; ``network``: the sender's,
-#: received over UDP; ``re-analysis``: asked for when a recording is filtered again;
-#: ``posture`` / ``functional``: a pose calibration (docs/pose-calibration.md), adopted.
-ZERO_SOURCES = ("manual", "automatic", "provisional", "3d-view", "network", "in force",
-                "re-analysis", "posture", "functional")
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,20 @@ class SessionEvent:
     frame: int = -1
     time: float = float("nan")
     data: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, change: Change, frame: int = -1, time: float = float("nan")) -> SessionEvent:
+        """The event of a typed change (:mod:`bpms.io.event_types`): its kind's one writer."""
+        return cls(change.KIND, int(frame), time, change.to_data())
+
+    @property
+    def change(self) -> Change:
+        """The typed change (:mod:`bpms.io.event_types`): its kind's one reader. Raises
+        ValueError (or KeyError, TypeError) for an unknown kind or a wrong value."""
+        kind = CHANGES.get(self.kind)
+        if kind is None:
+            raise ValueError(f"unknown event kind '{self.kind}'")
+        return kind.from_data(self.data)
 
     @property
     def changes_numbers(self) -> bool:
@@ -100,20 +114,12 @@ class SessionEvent:
         at = f" at {stream_time(self.frame, dt):.2f} s" if self.frame >= 0 else ""
         d = self.data
         if self.kind == "reset_zero":
-            line = f"Reset Zero ({d.get('source', '?')}){at}"
-            window = d.get("window")
-            if isinstance(window, int | float) and window > 1:
-                line += f", window {window * dt:.2f} s"
-                moved, imu = d.get("motion_deg"), d.get("motion_imu")
-                if isinstance(moved, int | float) and isinstance(imu, int) and imu >= 0:
-                    line += f", moved {moved:.1f}° (IMU {imu})"
-                if d.get("moved") and d.get("source") in ("manual", "3d-view"):
-                    line += (": the subject moved during its window; stand still in the "
-                             "calibration pose and press again")
-            waited = d.get("waited")
-            if isinstance(waited, int | float) and waited > 0:
-                line += f", after waiting {waited * dt:.2f} s for a still pose"
-            return line
+            try:
+                change = self.change
+            except (KeyError, TypeError, ValueError):
+                return f"Reset Zero ({d.get('source', '?')}){at}"
+            assert isinstance(change, ResetZero)
+            return _describe_zero(change, at, dt)
         if self.kind == "alignment":
             state = "on (segment angles)" if d.get("on") else "off (sensor angles)"
             force = " in force" if d.get("source") == "in force" else ""
@@ -135,9 +141,25 @@ class SessionEvent:
             return what + (f" ({reason})" if reason else "") + at
         if self.kind == "marker":
             return f"marker{at}: {d.get('text', '')}" if at else f"marker: {d.get('text')}"
+        if self.kind == "lost":
+            return f"a damaged {d.get('kind', 'unknown')} event record lost{at}"
         if self.kind == "logging":
             return f"logging {d.get('action', '?')}"
         return str(d.get("text", self.kind))
+
+
+def _describe_zero(z: ResetZero, at: str, dt: float) -> str:
+    line = f"Reset Zero ({z.source}){at}"
+    if z.window is not None and z.window > 1:
+        line += f", window {z.window * dt:.2f} s"
+        if z.motion_deg is not None and z.motion_imu is not None and z.motion_imu >= 0:
+            line += f", moved {z.motion_deg:.1f}° (IMU {z.motion_imu})"
+        if z.moved and z.source in ("manual", "3d-view"):
+            line += (": the subject moved during its window; stand still in the "
+                     "calibration pose and press again")
+    if z.waited is not None and z.waited > 0:
+        line += f", after waiting {z.waited * dt:.2f} s for a still pose"
+    return line
 
 
 def _plain(value: Any) -> Any:

@@ -22,6 +22,7 @@ import logging
 import threading
 import time
 
+from bpms.io.event_types import Note
 from bpms.io.frames import FRAME_PERIOD_S
 from bpms.io.session_events import SessionEvent
 from bpms.io.timebase import plausible_host_time
@@ -78,7 +79,7 @@ class SessionEvents:
 
     def note(self, text: str, frame: int = -1, warning: bool = True) -> SessionEvent:
         """A line for the event log (and the recording): a warning by default."""
-        return self.emit(SessionEvent("note", frame, data={"text": text}), warning)
+        return self.emit(SessionEvent.of(Note(text), frame), warning)
 
     def at_next_frame(self, event: SessionEvent, warning: bool = False) -> None:
         """Emit ``event`` when the next frame is processed, naming that frame."""

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bpms.io.event_types import Alignment, FilterChoice, Filters, Gains, Logging, Text
 from bpms.io.events import FrameEvent, FrameSource
 from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import decode_frames
@@ -232,7 +233,7 @@ class LiveSession:
     def marker(self, text: str) -> None:
         """A marker note at the next processed frame: in the raw recording, the event log and
         the LSL event stream."""
-        self.events.at_next_frame(SessionEvent("marker", data={"text": str(text)}))
+        self.events.at_next_frame(SessionEvent.of(Text(str(text))))
 
     def set_gains(self, **gains: float) -> None:
         """Change filter settings from the next frame on (see BodyPoseProcessor.set_gains).
@@ -294,9 +295,9 @@ class LiveSession:
                 beside = self._raw_logger
                 self._commands.put(lambda: self._filtered.open(writer, beside))
         self._recording = status
-        self.events.emit(SessionEvent("logging", data={
-            "action": "start", "raw": raw_path.name if raw else None,
-            "filtered": status.filtered_path.name if status.filtered_path else None}))
+        self.events.emit(SessionEvent.of(Logging(
+            "start", raw_path.name if raw else None,
+            status.filtered_path.name if status.filtered_path else None)))
         self._commands.put(self._state_in_force)
         return status
 
@@ -306,22 +307,19 @@ class LiveSession:
         proc = self.processor
         values = {k: v for k, v in dataclasses.asdict(proc.options.filter).items()
                   if k != "algorithm"}
-        for event in (SessionEvent("filter", data={"algorithm": proc.options.filter.algorithm,
-                                                   "source": "in force"}),
-                      SessionEvent("gains", data={"values": values, "source": "in force"}),
-                      SessionEvent("alignment", data={"on": bool(proc.corrected_output),
-                                                      "source": "in force"})):
-            self.events.at_next_frame(event)
+        for change in (FilterChoice(proc.options.filter.algorithm, "in force"),
+                       Gains(values, "in force"),
+                       Alignment(bool(proc.corrected_output), "in force")):
+            self.events.at_next_frame(SessionEvent.of(change))
         zero = proc.pose.zero
         if zero is not None:
-            data = {**zero.event_data(), "source": "in force"}
-            self.events.at_next_frame(SessionEvent("reset_zero", data=data))
+            self.events.at_next_frame(SessionEvent.of(zero.change("in force")))
 
     def stop_logging(self) -> RecordingStatus | None:
         """Stop recording; files are flushed and closed. Returns the final status."""
         status, self._recording = self._recording, None
         if status is not None:
-            self.events.emit(SessionEvent("logging", data={"action": "stop"}))
+            self.events.emit(SessionEvent.of(Logging("stop")))
         with self._feed_lock:  # no frame is handed to the raw file after this
             logger, self._raw_logger = self._raw_logger, None
             if logger is not None:
@@ -504,8 +502,7 @@ class LiveSession:
             else:
                 proc.reinitialise()
                 action, reason = "reinit", "the stream resumed after a gap"
-            self.events.at_next_frame(SessionEvent("filters", data={"action": action,
-                                                                    "reason": reason}))
+            self.events.at_next_frame(SessionEvent.of(Filters(action, reason)))
         if self.events.waiting:
             self.events.frame_reached(head.index)
         # one frame live at 50 Hz, several when behind: the same call
@@ -519,12 +516,12 @@ class LiveSession:
         self._note_reinit(result)
         first = proc.frames - len(events)  # stream frame number of events[0]
         for z in result.zeros:
-            data = z.event_data()
+            change = z.change()
             if self._adopting is not None and z.source == self._adopting[0]:  # adopted
-                data |= self._adopting[1]
+                change = change.merged(self._adopting[1])
                 self._adopting = None
-            self.events.emit(SessionEvent("reset_zero", head.index + z.frame - first,
-                                          data=data), warning=z.moved)
+            self.events.emit(SessionEvent.of(change, head.index + z.frame - first),
+                             warning=z.moved)
             if z.source == "posture" and self._posture is not None:  # the capture
                 self._adopt_posture(z)
         if self._functional is not None:

@@ -9,6 +9,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from bpms.io.event_types import ResetZero
 from bpms.io.events import FrameEvent, SourceStatus
 from bpms.io.link import (
     CMD_IDENTIFY,
@@ -80,10 +81,13 @@ class UdpFrameSource:
         if taken is None:
             return ()
         suit_time, zero = taken
-        return (SessionEvent("reset_zero", frame_at(suit_time), data={
-            "source": "network", "adopt": True, "sender_source": zero.source,
-            "window": zero.window, "heading": zero.heading, "yaw0": zero.yaw0,
-            "R0": zero.R0.tolist()}),)
+        try:
+            change = ResetZero("network", max(1, int(zero.window)), zero.R0, zero.yaw0,
+                               zero.heading, adopt=True, sender_source=zero.source)
+        except ValueError as exc:  # (the receiver checked it: never expected)
+            log.warning("the sender's Reset Zero is not used: %s", exc)
+            return ()
+        return (SessionEvent.of(change, frame_at(suit_time)),)
 
     def status(self) -> SourceStatus:
         s = self.udp.stats

@@ -317,11 +317,17 @@ def read_filtered(path: str | Path) -> FilteredData:
         return (np.concatenate([get(b) for b in parts]) if parts
                 else np.zeros((0, *shape)))
 
+    def group(g: str) -> Callable[[FilteredBlock], np.ndarray]:
+        return lambda b: b.groups[g]
+
+    def extra(c: str) -> Callable[[FilteredBlock], np.ndarray]:
+        return lambda b: b.extra[c]
+
     known = column_groups()
-    groups = {g: cat(lambda b, g=g: b.groups[g], known[g].shape) for g in info.groups}
+    groups = {g: cat(group(g), known[g].shape) for g in info.groups}
     return FilteredData(
         t=cat(lambda b: b.t, ()), euler=groups[euler_name],
         joint_angles=groups.get("joints"), columns=info.columns, unit=info.unit,
         legacy=info.legacy, problems=list(problems), host_time=cat(lambda b: b.host_time, ()),
         hole=cat(lambda b: b.hole, ()).astype(bool), groups=groups,
-        extra={c: cat(lambda b, c=c: b.extra[c], ()) for c in info.extra}, info=info)
+        extra={c: cat(extra(c), ()) for c in info.extra}, info=info)

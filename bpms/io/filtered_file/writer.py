@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import BinaryIO, TextIO
+from typing import BinaryIO, TextIO, cast
 
 import numpy as np
 
@@ -83,9 +83,11 @@ class FilteredWriter(Closing):
     def _write(self, text: str | bytes) -> None:
         self.bytes_written += len(text)
         if self._binary:
-            self._file.write(text.encode("utf-8") if isinstance(text, str) else text)
+            cast(BinaryIO, self._file).write(text.encode("utf-8") if isinstance(text, str)
+                                             else text)
         else:
-            self._file.write(text.decode("ascii") if isinstance(text, bytes) else text)
+            cast(TextIO, self._file).write(text.decode("ascii") if isinstance(text, bytes)
+                                           else text)
 
     def write_block(self, t: np.ndarray, euler: np.ndarray | None = None,
                     joint_angles: np.ndarray | None = None, *,

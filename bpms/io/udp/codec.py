@@ -185,7 +185,7 @@ def encode_zero_payload(zero: ZeroMessage) -> bytes:
     R0 = np.asarray(zero.R0, dtype=np.float64)
     if R0.shape != (N_IMUS, 3, 3) or not math.isfinite(zero.yaw0):
         raise ValueError("a zero needs R0 [18, 3, 3] and a finite heading")
-    finite = np.isfinite(R0).all(axis=(1, 2))
+    finite = np.asarray(np.isfinite(R0).all(axis=(1, 2)))
     mask = disturbance_mask(finite)
     values = np.where(finite[:, None, None], R0, 0.0)
     source = ZERO_SOURCES.index(zero.source) if zero.source in ZERO_SOURCES else 0

@@ -313,7 +313,8 @@ class UdpSource(Closing):
                 return None
             if dg.type == MessageType.ZERO and dg.zero is not None and (
                     SessionKey(dg.session, dg.sender, dg.epoch) == self._gate.active):
-                return self._take_zero(dg, sender)
+                self._take_zero(dg, sender)
+                return None
             if dg.type != MessageType.RAW_FRAME:
                 self._counts["ignored"] += 1
                 return None
