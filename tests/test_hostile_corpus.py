@@ -33,14 +33,8 @@ def _load_tool():
 
 tool = _load_tool()
 
-ISSUE_43_1 = pytest.mark.xfail(strict=False, reason="issue 43.1, events branch: a damaged "
-                               "event record costs frame slots, or every angle")
-
-
 def _params():
-    return [pytest.param(command, case.name, id=f"{command}-{case.name}",
-                         marks=[ISSUE_43_1] if (command, case.name) in tool.ISSUE_43_1_PAIRS
-                         else [])
+    return [pytest.param(command, case.name, id=f"{command}-{case.name}")
             for command, case in tool.pairs()]
 
 
@@ -84,9 +78,7 @@ def test_the_corpus_expectations_agree_with_read_raw(corpus):
 V2_CASES = [c.name for c in tool.RECORDING_CASES if c.name.startswith("v2_")]
 
 
-@pytest.mark.parametrize("case", [
-    pytest.param(name, marks=[ISSUE_43_1] if name in tool._SLOTS_ADDED else [])
-    for name in V2_CASES])
+@pytest.mark.parametrize("case", V2_CASES)
 def test_a_version_2_recording_keeps_every_frame_slot_whatever_the_damage(corpus, case):
     """The frame slots are the frame records the live session wrote (counted from the
     documented layout, tools/corpus_events.py), damage or not; the frames damaged are at
@@ -104,7 +96,6 @@ def test_a_version_2_recording_keeps_every_frame_slot_whatever_the_damage(corpus
         assert {e.kind for _, e in rec.events} == set(KINDS)
 
 
-@ISSUE_43_1
 def test_a_damaged_reset_zero_record_leaves_the_joint_angles(corpus, tmp_path):
     """One bit flipped in every Reset Zero record of a live recording: the frames are intact,
     so every row keeps its joint angles (issue 43.1: none did)."""

@@ -23,7 +23,7 @@ print no frame count (rom, track, drift) must give the same output as for the re
 is always a failure; so is a command still running after :data:`HANG_S` (an alarm ends it),
 exit 0 with wrong output or without an output it was asked for, and a pickle that ran code.
 The closing table (tools/corpus_table.py) counts the runs by damage class and what went
-wrong; :data:`ISSUE_43_1_PAIRS` are the pairs known to fail until issue 43.1 is done.
+wrong.
 
 Commands run in this process through :func:`bpms.cli.main` (stdout and stderr captured), so
 the whole corpus costs seconds, not a process start per case. tests/test_hostile_corpus.py
@@ -103,14 +103,6 @@ ONE_READER_PAIRS: frozenset[tuple[str, str]] = frozenset(
 #: later frames' times shift), and with every Reset Zero lost no frame has segment
 #: orientations (rom and batch refuse the recording). tests/test_hostile_corpus.py marks
 #: them xfail (not strict); the table counts them like any other.
-_SLOTS_ADDED = ("v2_reset_zero_bits", "v2_every_event_bits", "v2_event_length",
-                "v2_event_marker_lost")
-_COUNTED = ("filter", "export-matlab", "export-bvh", "export-opensim", "convert", "extract",
-            "replay", "batch")
-ISSUE_43_1_PAIRS: frozenset[tuple[str, str]] = frozenset(
-    {(cmd, case) for case in _SLOTS_ADDED for cmd in _COUNTED}
-    | {(cmd, case) for case in ("v2_reset_zero_bits", "v2_every_event_bits")
-       for cmd in ("rom", "batch")})
 
 
 #: Commands that cost a second or more per run (batch draws its summary figure): given one
@@ -542,9 +534,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"bad inputs tried {totals.tried}, tracebacks {totals.tracebacks}, wrong outputs "
               f"{totals.wrong} ({time.perf_counter() - t0:.1f} s)")
         for line in totals.failures:
-            known = " (issue 43.1)" if tuple(line.split(":")[0].split()) in ISSUE_43_1_PAIRS \
-                else ""
-            print("  " + line + known)
+            print("  " + line)
         print()
         print(table(totals.verdicts))
     return 1 if totals.tracebacks or totals.wrong else 0
