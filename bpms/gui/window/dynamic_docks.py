@@ -214,7 +214,7 @@ class ViewDocks:
             return None
         say = self._window.statusBar().showMessage
         try:
-            view = module.open_browser_view(self._model)  # type: ignore[union-attr]
+            view = module.open_browser_view(self._model)  # type: ignore[attr-defined]
         except (RuntimeError, OSError) as exc:
             say(f"Browser 3D view: {exc}", 10000)
             self._panels.event_log.add(f"Browser 3D view not opened: {exc}", "warning")

@@ -45,8 +45,8 @@ class StatusDisplay:
         self.readout = readout
         self._update_toolbar = update_toolbar
         self.tick_times_s: list[float] = []
-        self._last_recording = None
-        self._error_said_of = None  # the recording whose error the event log has
+        self._last_recording: object | None = None
+        self._error_said_of: object | None = None  # the recording whose error is logged
         self._counters: dict[str, int] = {}
         self._texts_at = -1e9
         self._last_state = ""
