@@ -93,6 +93,8 @@ def gaps(t: np.ndarray) -> int:
 
 # -- the two phases ----------------------------------------------------------------------------
 def run_app(app, recording: Path, folder: Path, refresh: float) -> dict:
+    from PyQt6.QtCore import Qt
+
     from bpms.gui.layouts import LIVE, LayoutStore
     from bpms.gui.main_window import MainWindow
     from bpms.gui.modes import ModeConfig, SessionRunner
@@ -105,29 +107,31 @@ def run_app(app, recording: Path, folder: Path, refresh: float) -> dict:
     runner.prepare()
     window = MainWindow(runner, layout_store=LayoutStore(folder / "layouts.json"),
                         restore_last=False)
-    window.apply_default_layout(LIVE, views3d=N_VIEWS)
-    for cells in plot_cells():
-        window.table.select_cells(cells)
-        window.plot_selection()
-    window.tile_plots()  # all 8 in view (new plots beyond the room side by side are tabbed)
+    # the bench's own size: not maximised (a screen below 1600 x 900 opens it maximised)
+    window.setWindowState(Qt.WindowState.WindowNoState)
     window.resize(*SIZE)
+    window.layouts.apply_default_layout(LIVE, views3d=N_VIEWS)
+    for cells in plot_cells():
+        window.panels.table.select_cells(cells)
+        window.views.plot_selection()
+    window.layouts.tile_plots()  # all 8 in view (new plots beyond the room side by side are tabbed)
     window.show()
     model = window.model
 
-    painted = PaintCounter([p.graphics.viewport() for p in window.plot_windows])
+    painted = PaintCounter([p.graphics.viewport() for p in window.views.plot_windows])
 
     def counters() -> dict:
-        return {"plots": [p.redraws for p in window.plot_windows],
+        return {"plots": [p.redraws for p in window.views.plot_windows],
                 "plot_paints": list(painted.counts),
-                "views": [v.draws for v in window.view3d_windows],
+                "views": [v.draws for v in window.views.view3d_windows],
                 "paints": [v.view.paints if v.view is not None else 0
-                           for v in window.view3d_windows]}
+                           for v in window.views.view3d_windows]}
 
     def check() -> dict:
-        return {"gaps": max((gaps(p.buffer.view()[:, 0]) for p in window.plot_windows),
+        return {"gaps": max((gaps(p.buffer.view()[:, 0]) for p in window.views.plot_windows),
                             default=0),
-                "visible_plots": sum(p.isVisible() for p in window.plot_windows),
-                "gl": [v.view is not None for v in window.view3d_windows]}
+                "visible_plots": sum(p.isVisible() for p in window.views.plot_windows),
+                "gl": [v.view is not None for v in window.views.view3d_windows]}
 
     return measure(app, model, runner, window, counters, check)
 
@@ -260,8 +264,8 @@ def measure(app, model, runner, window, counters, check, ticks=None, dropped=Non
 
     args = ARGS
     if model is not None:
-        ticks = window.tick_times_s
-        window.set_data(True)
+        ticks = window.display.tick_times_s
+        window.commands.set_data(True)
     state: dict = {}
 
     def start() -> None:

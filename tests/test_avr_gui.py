@@ -39,13 +39,13 @@ def test_the_app_streams_and_records_the_firmware_suit(qtbot, tmp_path, avr_buil
         window = blocker.args[0]
         qtbot.addWidget(window)
         if not window.runner.data_on:
-            window.status_panel.data_button.click()  # Start Data
+            window.panels.status_panel.data_button.click()  # Start Data
         qtbot.waitUntil(lambda: window.model.last_status is not None
                         and window.model.last_status.processed > 25, timeout=30000)
         status = window.model.last_status
         assert status.source.state == "streaming" and not status.source.simulated
         assert status.source.battery_v == pytest.approx(3.35, abs=0.01)
-        panel = window.file_panel
+        panel = window.panels.file_panel
         panel.name_edit.setText("avrgui")
         panel.raw_box.setChecked(True)
         panel.filtered_box.setChecked(False)

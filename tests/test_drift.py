@@ -122,7 +122,7 @@ def test_gui_drift_panel_after_playback_shows_the_hand_computed_drift(biased, tm
     runner.prepare()
     window = MainWindow(runner, restore_last=False)
     qtbot.addWidget(window)
-    panel = window.open_drift_check()
+    panel = window.mode.open_drift_check()
     assert panel is not None
     qtbot.waitUntil(lambda: panel.report is not None or "no drift" in panel.summary.text(),
                     timeout=60000)

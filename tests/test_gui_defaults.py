@@ -43,9 +43,9 @@ def test_save_as_default_then_restart_records_with_it(qtbot, tmp_path):
     second.select_mode("sim")
     window = open_main_window(qtbot, second)
     if not window.runner.data_on:  # the simulated suit streams from GO on
-        window.status_panel.data_button.click()
+        window.panels.status_panel.data_button.click()
     qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)
-    panel = window.file_panel
+    panel = window.panels.file_panel
     panel.name_edit.setText("after")
     panel.raw_box.setChecked(True)
     panel.log_button.click()
@@ -78,8 +78,8 @@ def test_the_gui_remembers_mode_port_targets_folder_subject_and_geometry(qtbot, 
     first.resize(first.width(), 450)  # taller than it opens (420 px)
     size = (first.width(), first.height())
     window = open_main_window(qtbot, first)
-    window.file_panel.name_edit.setText("subject07")
-    window.udp_panel.targets_edit.setText("127.0.0.1:6100, 127.0.0.1:6101")
+    window.panels.file_panel.name_edit.setText("subject07")
+    window.panels.udp_panel.targets_edit.setText("127.0.0.1:6100, 127.0.0.1:6101")
     # the offscreen screen is below 1600 x 900: the window opened maximised (issue 44.5);
     # a normal window of the user's own size is what is saved and must come back
     window.showNormal()
@@ -103,7 +103,7 @@ def test_the_gui_remembers_mode_port_targets_folder_subject_and_geometry(qtbot, 
         assert window.height() == main_size[1] and not window.isMaximized()
     else:  # (the offscreen screen is narrower than the window's least width) maximised
         assert window.isMaximized() and not window.placement.restored
-    assert window.file_panel.name_edit.text() == "subject07"
+    assert window.panels.file_panel.name_edit.text() == "subject07"
     window.close()
     second.select_mode("suit")
     second.port_combo.setCurrentText("/dev/ttyBPMS")
@@ -124,7 +124,7 @@ def test_gains_panel_shows_the_selected_filters_own_settings(qtbot, tmp_path):
     qtbot.addWidget(startup)
     startup.select_mode("sim")
     window = open_main_window(qtbot, startup)
-    panel = window.gains_panel
+    panel = window.panels.gains_panel
     visible = lambda: set(panel.shown_settings())  # noqa: E731
     assert visible() == {"kp_rollpitch", "ki_rollpitch", "kp_yaw", "ki_yaw"}
     panel.filter_combo.setCurrentText("observer")
@@ -132,7 +132,7 @@ def test_gains_panel_shows_the_selected_filters_own_settings(qtbot, tmp_path):
     panel.filter_combo.setCurrentText("vqf")
     assert visible() == {"vqf_tau_acc_s", "vqf_tau_mag_s"}
     # a value outside the range typed through the API path is refused with the range named
-    window._set_gains({"kp_rollpitch": 2.0})
+    window.commands.set_gains({"kp_rollpitch": 2.0})
     assert "[0, 0.18]" in window.statusBar().currentMessage()
     window.close()
 

@@ -49,19 +49,23 @@ def _window(qtbot, recording: Path, tmp_path: Path) -> MainWindow:
 def _wait_shown(qtbot, window: MainWindow, index: int) -> None:
     qtbot.waitUntil(lambda: window.model.latest is not None
                     and window.model.latest.index == index
-                    and window.history.block(window.table_model.calibration) is not None
-                    and abs(window.history.block(window.table_model.calibration).t[-1]
-                            - index * DT) < 1e-9, timeout=10000)
+                    and _history(window) is not None
+                    and abs(_history(window).t[-1] - index * DT) < 1e-9, timeout=10000)
+
+
+def _history(window: MainWindow):
+    """The window's plot history as one block (None before the first frame)."""
+    return window.display.history.block(window.panels.table_model.calibration)
 
 
 def test_a_paused_seek_and_steps_redraw_the_plots_window(qtbot, tmp_path, recording, batch):
     window = _window(qtbot, recording, tmp_path)
     try:
-        joints = next(p for p in window.plot_windows if p.kind == "joints")
-        window.table.select_cells([(5, 1)])  # the right forearm's pitch
-        cells = window.plot_selection()
-        panel = window.playback_panel
-        assert panel.window_frames == window.history.buffer.capacity == 3000
+        joints = next(p for p in window.views.plot_windows if p.kind == "joints")
+        window.panels.table.select_cells([(5, 1)])  # the right forearm's pitch
+        cells = window.views.plot_selection()
+        panel = window.panels.playback_panel
+        assert panel.window_frames == window.display.history.buffer.capacity == 3000
         target = 900  # 18 s in: the window is the 18 s before it, from frame 0
         panel.slider.setValue(target)
         _wait_shown(qtbot, window, target)
@@ -78,7 +82,7 @@ def test_a_paused_seek_and_steps_redraw_the_plots_window(qtbot, tmp_path, record
                                    atol=1e-6)
         # a step forward continues (no seek, nothing re-initialised, no log line)
         seeks = sum("re-initialised (seek)" in e for e in window.model.last_status.events)
-        window.step_frames(1)
+        window.mode.step_frames(1)
         _wait_shown(qtbot, window, target + 1)
         qtbot.waitUntil(lambda: len(cells.buffer) == target + 2, timeout=5000)
         assert cells.buffer.view()[-1, 1] == pytest.approx(
@@ -87,10 +91,10 @@ def test_a_paused_seek_and_steps_redraw_the_plots_window(qtbot, tmp_path, record
         assert sum("re-initialised (seek)" in e
                    for e in window.model.last_status.events) == seeks
         # a step back redraws the window up to the frame before (pre-rolled, not empty)
-        window.step_frames(-50)
+        window.mode.step_frames(-50)
         _wait_shown(qtbot, window, target + 1 - 50)
         qtbot.waitUntil(lambda: len(cells.buffer) == target + 2 - 50, timeout=5000)
-        assert not any("re-initialised (seek)" in t for t in window.event_log.texts())
+        assert not any("re-initialised (seek)" in t for t in window.panels.event_log.texts())
     finally:
         window.close()
 
@@ -109,7 +113,7 @@ def test_the_readout_after_200_random_seeks_is_in_the_standard_ranges(qtbot, tmp
                                                                       recording):
     window = _window(qtbot, recording, tmp_path)
     try:
-        panel = window.playback_panel
+        panel = window.panels.playback_panel
         rng = random.Random(44)
         n = len(window.runner.replay)
         for _ in range(200):
@@ -118,7 +122,7 @@ def test_the_readout_after_200_random_seeks_is_in_the_standard_ranges(qtbot, tmp
             panel.window_frames = rng.randrange(1, 100)
             panel.seek(target)
             _wait_shown(qtbot, window, target)
-            shown = window.table_model.euler  # [18, 3] rad, what the table reads
+            shown = window.panels.table_model.euler  # [18, 3] rad, what the table reads
             own = _standard(np.asarray(window.model.latest.euler_output, np.float64))
             away = ~poorly_defined(own[:, 1])
             assert np.abs(np.degrees(shown[away, 1])).max() <= 90.0 + 1e-9
@@ -155,10 +159,10 @@ def changes_recording(tmp_path_factory) -> Path:
 
 def _seek_values(qtbot, window: MainWindow, target: int) -> np.ndarray:
     """Right forearm pitch (deg) of frames 0..target after a paused seek to ``target``."""
-    window.table.select_cells([(5, 1)])
-    plot = window.plot_selection()
+    window.panels.table.select_cells([(5, 1)])
+    plot = window.views.plot_selection()
     window.model.latest = None  # (the frame shown before: the same index)
-    window.playback_panel.seek(target)
+    window.panels.playback_panel.seek(target)
     _wait_shown(qtbot, window, target)
     qtbot.waitUntil(lambda: len(plot.buffer) == target + 1
                     and plot.buffer.view()[0, 0] == 0.0, timeout=5000)
@@ -181,9 +185,9 @@ def test_playback_replays_the_recorded_filter_and_gains_not_the_apps(qtbot, tmp_
     window.show()
     window.model.set_refresh_hz(100)
     try:
-        panel = window.playback_panel
+        panel = window.panels.playback_panel
         assert panel.override_label.isHidden()
-        assert window.gains_panel.filter_combo.currentText() == "mahony"
+        assert window.panels.gains_panel.filter_combo.currentText() == "mahony"
         shown = _seek_values(qtbot, window, 400)
         # the recorded filter switch was applied at its frame
         assert runner.session.processor.options.filter.algorithm == "observer"
@@ -196,7 +200,7 @@ def test_playback_replays_the_recorded_filter_and_gains_not_the_apps(qtbot, tmp_
         assert "adaptive" in panel.override_label.text()
         assert "not applied" in panel.override_label.text()
         assert "adaptive (chosen in playback)" in \
-            window.status_panel.labels["options"].text()
+            window.panels.status_panel.labels["options"].text()
         shown = _seek_values(qtbot, window, 400)
         assert runner.session.processor.options.filter.algorithm == "adaptive"
         chosen = process_file(changes_recording, algorithm="adaptive")
@@ -207,7 +211,7 @@ def test_playback_replays_the_recorded_filter_and_gains_not_the_apps(qtbot, tmp_
         # back to "as recorded": no word on screen, the recorded numbers again
         panel.filter_combo.setCurrentIndex(0)
         assert panel.override_label.isHidden()
-        assert "chosen" not in window.status_panel.labels["options"].text()
+        assert "chosen" not in window.panels.status_panel.labels["options"].text()
         shown = _seek_values(qtbot, window, 400)
         np.testing.assert_allclose(shown, np.degrees(recorded.euler_output[:401, 5, 1]),
                                    atol=1e-6)

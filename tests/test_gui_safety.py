@@ -63,7 +63,7 @@ def _sim_window(qtbot, tmp_path) -> MainWindow:
 def test_double_click_toggles_once_and_an_empty_target_is_refused(qtbot, tmp_path):
     window = _sim_window(qtbot, tmp_path)
     try:
-        panel = window.udp_panel
+        panel = window.panels.udp_panel
         panel.targets_edit.setText("   ")
         panel.button.click()
         assert not panel.on and window.runner.session.status().forwarding == []
@@ -77,8 +77,8 @@ def test_double_click_toggles_once_and_an_empty_target_is_refused(qtbot, tmp_pat
         panel.button.click()
         assert not panel.on
         # Start Data double-clicked: data stays on
-        window.status_panel.data_button.click()
-        window.status_panel.data_button.click()
+        window.panels.status_panel.data_button.click()
+        window.panels.status_panel.data_button.click()
         assert window.runner.data_on
     finally:
         window.close()
@@ -87,7 +87,7 @@ def test_double_click_toggles_once_and_an_empty_target_is_refused(qtbot, tmp_pat
 def test_stopping_a_recording_closes_the_files_off_the_gui_thread(qtbot, tmp_path):
     window = _sim_window(qtbot, tmp_path)
     try:
-        window.set_data(True)
+        window.commands.set_data(True)
         session = window.runner.session
         threads: list[str] = []
         stop = session.stop_logging
@@ -97,7 +97,7 @@ def test_stopping_a_recording_closes_the_files_off_the_gui_thread(qtbot, tmp_pat
             return stop()
 
         session.stop_logging = watched_stop
-        panel = window.file_panel
+        panel = window.panels.file_panel
         panel.name_edit.setText("bg")
         panel.log_button.click()
         qtbot.waitUntil(lambda: session.status().recording.raw_records > 20, timeout=15000)

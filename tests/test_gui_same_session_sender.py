@@ -22,7 +22,7 @@ def test_the_status_panel_says_another_sender_on_this_session(qtbot, tmp_path,
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     window = _window(qtbot, tmp_path, ModeConfig(mode="udp", listen=f"127.0.0.1:{port}"))
-    window.set_data(True)
+    window.commands.set_data(True)
     raw = read_raw(recording_path).frames.tobytes()
     frames = [raw[i:i + 340] for i in range(0, len(raw), 340)]
     real = UdpForwarder([f"127.0.0.1:{port}"])
@@ -45,13 +45,13 @@ def test_the_status_panel_says_another_sender_on_this_session(qtbot, tmp_path,
     timer.start(20)
     try:
         qtbot.waitUntil(lambda: "another sender on this session" in
-                        window.health_panel.source_label.text(), timeout=15000)
+                        window.panels.health_panel.source_label.text(), timeout=15000)
     finally:
         timer.stop()
         real.close()
         spoofer.close()
-    assert "#f0a000" in window.health_panel.source_label.styleSheet()  # amber
-    assert window.health_panel.source_label.text().startswith(
+    assert "#f0a000" in window.panels.health_panel.source_label.styleSheet()  # amber
+    assert window.panels.health_panel.source_label.text().startswith(
         "another sender on this session (127.0.0.1:")
-    window.set_data(False)
+    window.commands.set_data(False)
     window.close()

@@ -125,17 +125,17 @@ def test_at_1366x768_rec_reset_zero_and_the_link_light_are_in_view(qtbot, tmp_pa
     window.setGeometry(0, TITLE_BAR, SMALL.width(), SMALL.height() - TITLE_BAR)
     window.show()
     qtbot.waitExposed(window)
-    window.apply_default_layout("live monitoring")
-    window.file_panel.toggle_logging()
+    window.layouts.apply_default_layout("live monitoring")
+    window.panels.file_panel.toggle_logging()
     try:
-        window.set_data(True)
-        badge = window.health_panel.rec_badge
+        window.commands.set_data(True)
+        badge = window.panels.health_panel.rec_badge
         qtbot.waitUntil(lambda: badge.isVisible() and badge.text().startswith("REC"),
                         timeout=10000)
         qtbot.wait(100)  # the layout's deferred sizing
-        reset = window.toolbar.widgetForAction(window.actions_by_name["reset_zero"])
-        for widget in (badge, reset, window.health_panel.link_badge,
-                       window.health_panel.light, window.status_panel.reset_button):
+        reset = window.menus.toolbar.widgetForAction(window.menus.actions_by_name["reset_zero"])
+        for widget in (badge, reset, window.panels.health_panel.link_badge,
+                       window.panels.health_panel.light, window.panels.status_panel.reset_button):
             assert _fully_in_view(widget, window), widget
         assert window.frameGeometry().height() <= SMALL.height()
         # tab labels whole (not elided) and in the window
@@ -148,8 +148,8 @@ def test_at_1366x768_rec_reset_zero_and_the_link_light_are_in_view(qtbot, tmp_pa
                 corner = bar.mapTo(window, bar.tabRect(i).bottomRight())
                 assert window.rect().contains(corner), text
     finally:
-        if window.file_panel.logging:
-            window.file_panel.toggle_logging()
+        if window.panels.file_panel.logging:
+            window.panels.file_panel.toggle_logging()
         window.close()
 
 
@@ -160,7 +160,7 @@ def test_the_f1_page_and_the_options_fit_the_screen_and_scroll(qtbot, tmp_path, 
     window = MainWindow(runner, layout_store=LayoutStore(tmp_path / "layouts.json"),
                         restore_last=False, available=SMALL)
     qtbot.addWidget(window)
-    box = window.show_keys(available=SMALL)
+    box = window.menus.show_keys(available=SMALL)
     try:
         assert box.height() <= SMALL.height() - TITLE_BAR
         scroll = box.findChild(QAbstractScrollArea)

@@ -43,9 +43,9 @@ def _rows(window: MainWindow) -> int:
 
 
 def _plot_six(qtbot, window: MainWindow):
-    window.table.select_cells(SIX_CELLS)
-    assert window.table.selected_cells() == SIX_CELLS
-    plot = window.plot_selection()
+    window.panels.table.select_cells(SIX_CELLS)
+    assert window.panels.table.selected_cells() == SIX_CELLS
+    plot = window.views.plot_selection()
     labels = [c.name() for c in plot.curves]
     assert labels[0] == "Right Leg raw acc x [counts]"
     assert labels[1] == "Right Arm acc x [m/s²]"
@@ -57,7 +57,7 @@ def _plot_six(qtbot, window: MainWindow):
 
 
 def _log(qtbot, window: MainWindow, raw: bool, name: str):
-    panel = window.file_panel
+    panel = window.panels.file_panel
     panel.name_edit.setText(name)
     panel.raw_box.setChecked(raw)
     panel.filtered_box.setChecked(True)
@@ -75,41 +75,41 @@ def test_simulated_suit_session(qtbot, tmp_path):
     startup.select_mode("sim")
     window = open_main_window(qtbot, startup)
     assert not startup.isVisible()
-    assert window.udp_panel is not None and window.playback_panel is None
+    assert window.panels.udp_panel is not None and window.panels.playback_panel is None
     # the simulated suit streams at once (one click on GO shows live data)
-    assert window.runner.data_on and window.status_panel.reset_button.isEnabled()
+    assert window.runner.data_on and window.panels.status_panel.reset_button.isEnabled()
     qtbot.waitUntil(lambda: _frames(window) > 25, timeout=15000)
     assert window.model.last_status.source.battery_v == pytest.approx(3.35, abs=0.05)
-    window.status_panel.reset_button.click()
+    window.panels.status_panel.reset_button.click()
     # the table shows the newest sample, units in the headers
-    model = window.table_model
+    model = window.panels.table_model
     # the output angles after Reset Zero: the segment angles, and the header says so
     qtbot.waitUntil(lambda: model.headerData(0, Qt.Orientation.Horizontal)
                     == "roll (segment) [deg]", timeout=10000)
-    window.unit_combo.setCurrentText("rad")
+    window.panels.unit_combo.setCurrentText("rad")
     assert COLUMNS[0].label(model.angle_unit) == "roll [rad]"
     assert abs(model.value(8, 0)) < 2 * np.pi
-    window.unit_combo.setCurrentText("deg")
+    window.panels.unit_combo.setCurrentText("deg")
     _plot_six(qtbot, window)
-    joints = window.open_joint_plot()
+    joints = window.views.open_joint_plot()
     assert len(joints.curves) == 28
     # gains at run time reach the filter bank (applied between two frames)
-    window.gains_panel.edits["kp_yaw"].setText("0.5")
-    window.gains_panel.edits["kp_yaw"].editingFinished.emit()
+    window.panels.gains_panel.edits["kp_yaw"].setText("0.5")
+    window.panels.gains_panel.edits["kp_yaw"].editingFinished.emit()
     bank = window.runner.session.processor.bank
     qtbot.waitUntil(lambda: bank.params[2] == 0.5, timeout=5000)
     # UDP server: the live stream goes to the configured target
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sink:
         sink.bind(("127.0.0.1", 0))
         sink.settimeout(5.0)
-        window.udp_panel.targets_edit.setText(f"127.0.0.1:{sink.getsockname()[1]}")
-        window.udp_panel.button.click()
+        window.panels.udp_panel.targets_edit.setText(f"127.0.0.1:{sink.getsockname()[1]}")
+        window.panels.udp_panel.button.click()
         assert len(sink.recv(2048)) > 340
         qtbot.wait(600)  # a second click within 0.5 s would be ignored (debounced)
-        window.udp_panel.button.click()
-        assert not window.udp_panel.on
+        window.panels.udp_panel.button.click()
+        assert not window.panels.udp_panel.on
     rec = _log(qtbot, window, raw=True, name="guisim")
-    window.status_panel.data_button.click()  # Stop Data
+    window.panels.status_panel.data_button.click()  # Stop Data
     assert not window.runner.data_on
     raw = read_raw(rec.raw_path)
     filtered = read_filtered(rec.filtered_path)
@@ -132,25 +132,25 @@ def test_file_mode_session(qtbot, tmp_path, recording_path):
     startup.select_mode("file")
     startup.file_edit.setText(str(recording_path))
     window = open_main_window(qtbot, startup)
-    panel = window.playback_panel
-    assert panel is not None and window.udp_panel is None
-    assert not window.file_panel.raw_box.isEnabled()  # raw recording disabled in file mode
+    panel = window.panels.playback_panel
+    assert panel is not None and window.panels.udp_panel is None
+    assert not window.panels.file_panel.raw_box.isEnabled()  # raw recording disabled in file mode
     panel.slider.setValue(100)  # seek to 2 s while stopped: that frame is shown
     qtbot.waitUntil(lambda: window.model.latest is not None, timeout=10000)
     assert window.model.latest.index == 100
-    assert window.table_model.has_data and window.table_model.data(
-        window.table_model.index(0, 13)) == str(window.model.latest.raw[0, 0])
-    window.status_panel.data_button.click()  # play
+    assert window.panels.table_model.has_data and window.panels.table_model.data(
+        window.panels.table_model.index(0, 13)) == str(window.model.latest.raw[0, 0])
+    window.panels.status_panel.data_button.click()  # play
     qtbot.waitUntil(lambda: not panel.slider.isEnabled(), timeout=5000)
     assert not panel.speed_combo.isEnabled()
     qtbot.waitUntil(lambda: window.model.latest is not None, timeout=10000)
     assert window.model.latest.index >= 100
-    window.status_panel.reset_button.click()
+    window.panels.status_panel.reset_button.click()
     plot = _plot_six(qtbot, window)
     data = plot.buffer.view()  # time axis: frame index × 20 ms; the paused seek to 2 s drew
     assert data[0, 0] == 0.0 and data[-1, 0] >= 2.0  # the plots' window from the file start
     qtbot.wait(600)  # (a second click within 0.5 s is ignored)
-    window.status_panel.data_button.click()  # pause
+    window.panels.status_panel.data_button.click()  # pause
     assert not window.runner.replay.playing
     qtbot.waitUntil(lambda: panel.slider.isEnabled(), timeout=5000)
     panel.speed_combo.setCurrentIndex(6)  # max
@@ -165,15 +165,15 @@ def test_file_mode_session(qtbot, tmp_path, recording_path):
 
 
 def _log_during_play(qtbot, window: MainWindow):
-    panel = window.file_panel
+    panel = window.panels.file_panel
     panel.filtered_box.setChecked(True)
     panel.name_edit.setText("guifile")
     panel.log_button.click()
     qtbot.wait(600)  # (a second click within 0.5 s is ignored)
-    window.status_panel.data_button.click()  # play on
+    window.panels.status_panel.data_button.click()  # play on
     qtbot.waitUntil(lambda: _rows(window) >= 60, timeout=15000)
     qtbot.wait(600)  # (a second click within 0.5 s is ignored)
-    window.status_panel.data_button.click()  # pause
+    window.panels.status_panel.data_button.click()  # pause
     panel.log_button.click()
     qtbot.waitUntil(lambda: not panel.busy and not panel.logging, timeout=15000)
     return panel.last_recording
@@ -193,7 +193,7 @@ def _udp_client_window(qtbot, tmp_path) -> tuple[int, MainWindow]:
     startup.select_mode("udp")
     startup.listen_edit.setText(f"127.0.0.1:{port}")
     window = open_main_window(qtbot, startup)
-    window.status_panel.data_button.click()
+    window.panels.status_panel.data_button.click()
     return port, window
 
 
@@ -205,7 +205,7 @@ def test_udp_client_session(qtbot, tmp_path, recording_path):
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         qtbot.waitUntil(lambda: _frames(window) > 25, timeout=20000)
-        window.status_panel.reset_button.click()
+        window.panels.status_panel.reset_button.click()
         _plot_six(qtbot, window)
         rec = _log(qtbot, window, raw=False, name="guiudp")
     finally:
@@ -213,7 +213,7 @@ def test_udp_client_session(qtbot, tmp_path, recording_path):
         sender.wait(10)
     filtered = read_filtered(rec.filtered_path)
     assert len(filtered.t) >= 60
-    window.status_panel.data_button.click()  # Stop Data: the session stops
+    window.panels.status_panel.data_button.click()  # Stop Data: the session stops
     assert not window.runner.session.running
     window.close()
 
@@ -222,8 +222,8 @@ def test_a_udp_flood_does_not_freeze_the_gui(qtbot, tmp_path, recording_path):
     """Frames as fast as `bpms replay --speed 0` sends them: the display timer keeps running,
     each tick drains a bounded mailbox, and what cannot be shown is counted, not queued."""
     port, window = _udp_client_window(qtbot, tmp_path)
-    window.table.select_cells(SIX_CELLS)
-    window.plot_selection()
+    window.panels.table.select_cells(SIX_CELLS)
+    window.views.plot_selection()
     batches: list[int] = []
     window.model.samplesArrived.connect(lambda samples: batches.append(len(samples)))
     sender = subprocess.Popen(
@@ -257,9 +257,9 @@ def test_each_filter_is_selectable_in_the_gui(qtbot, tmp_path, recording_path):
     processor = window.runner.session.processor
     # playback: the recording's own filter, not the app's options' (issue 44.2)
     assert processor.options.filter.algorithm == "mahony"
-    combo = window.gains_panel.filter_combo
+    combo = window.panels.gains_panel.filter_combo
     assert combo.currentText() == "mahony"
-    window.status_panel.data_button.click()  # play
+    window.panels.status_panel.data_button.click()  # play
     for algorithm in ("mahony", "vqf", "observer"):
         combo.setCurrentText(algorithm)
         qtbot.waitUntil(lambda a=algorithm: processor.options.filter.algorithm == a,
@@ -268,5 +268,5 @@ def test_each_filter_is_selectable_in_the_gui(qtbot, tmp_path, recording_path):
         qtbot.waitUntil(lambda a=after: window.model.latest is not None
                         and window.model.latest.index > a + 25, timeout=15000)
         assert np.isfinite(window.model.latest.euler).all()
-    window.status_panel.data_button.click()  # pause
+    window.panels.status_panel.data_button.click()  # pause
     window.close()

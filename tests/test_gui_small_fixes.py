@@ -47,14 +47,14 @@ def test_stop_logging_keeps_the_focus_off_the_udp_targets(qtbot, tmp_path):
     window = _window(qtbot, ModeConfig(mode="sim", recording_dir=str(tmp_path)),
                      LayoutStore(tmp_path / "layouts.json"))
     try:
-        window.set_data(True)
-        panel = window.file_panel
-        window.docks["session"].raise_()
+        window.commands.set_data(True)
+        panel = window.panels.file_panel
+        window.panels.docks["session"].raise_()
         panel.toggle_logging()
         qtbot.waitUntil(lambda: panel.logging, timeout=5000)
         panel.log_button.setFocus()
         qtbot.waitUntil(panel.log_button.hasFocus, timeout=2000)
-        targets = window.udp_panel.targets_edit
+        targets = window.panels.udp_panel.targets_edit
         text = targets.text()
         panel.log_button.click()  # Stop Logging: the button greys while the files close
         focus = QApplication.focusWidget()
@@ -91,7 +91,7 @@ def test_a_layout_saved_live_does_not_scroll_sideways_in_file_mode(qtbot, tmp_pa
     store = LayoutStore(tmp_path / "layouts.json")
     live = _window(qtbot, ModeConfig(mode="udp", listen="127.0.0.1:0",
                                      recording_dir=str(tmp_path)), store)
-    live.resizeDocks([live.docks["status"]], [150], Qt.Orientation.Horizontal)  # narrowed
+    live.resizeDocks([live.panels.docks["status"]], [150], Qt.Orientation.Horizontal)  # narrowed
     qtbot.wait(50)
     live.close()  # remembered as the last layout
     window = _window(qtbot, ModeConfig(mode="file", path=str(recording),
@@ -99,9 +99,9 @@ def test_a_layout_saved_live_does_not_scroll_sideways_in_file_mode(qtbot, tmp_pa
     try:
         qtbot.wait(100)
         for name in ("status", "session", "filter"):
-            area = window.docks[name].widget()
+            area = window.panels.docks[name].widget()
             assert isinstance(area, QScrollArea)
-            content = inner(window.docks[name])
+            content = inner(window.panels.docks[name])
             assert not area.horizontalScrollBar().isVisible(), name
             assert content.width() >= content.minimumSizeHint().width(), name
     finally:
@@ -151,10 +151,10 @@ def test_no_browser_is_said_in_the_event_log(qtbot, tmp_path, recording, monkeyp
                                        recording_dir=str(tmp_path)),
                      LayoutStore(tmp_path / "layouts.json"))
     try:
-        assert window.open_browser_view() is None
+        assert window.views.open_browser_view() is None
         assert any("Browser 3D view not opened" in t and "browser" in t
-                   for t in window.event_log.texts())
-        assert not window.browser_views
+                   for t in window.panels.event_log.texts())
+        assert not window.views.browser_views
     finally:
         window.close()
 
@@ -164,17 +164,17 @@ def test_the_playback_event_log_has_one_clock_the_recordings(qtbot, tmp_path, re
                                        recording_dir=str(tmp_path)),
                      LayoutStore(tmp_path / "layouts.json"))
     try:
-        window.playback_panel.speed_combo.setCurrentText("max")
-        window.set_data(True)
+        window.panels.playback_panel.speed_combo.setCurrentText("max")
+        window.commands.set_data(True)
         qtbot.waitUntil(lambda: window.runner.replay.ended, timeout=20000)
         window.model.tick()
-        qtbot.waitUntil(lambda: "end of the recording" in window.event_log.texts(),
+        qtbot.waitUntil(lambda: "end of the recording" in window.panels.event_log.texts(),
                         timeout=5000)
-        stamps = [when for when, _, _ in window.event_log.entries]
+        stamps = [when for when, _, _ in window.panels.event_log.entries]
         assert len(stamps) >= 4
         assert all(re.fullmatch(r"\d+:\d\d\.\d\d", s) for s in stamps), stamps
         # a session event stamped at the time it names
-        for when, _, text in window.event_log.entries:
+        for when, _, text in window.panels.event_log.entries:
             at = re.search(r" at (\d+\.\d\d) s", text)
             if at:
                 minutes, seconds = when.split(":")

@@ -113,7 +113,7 @@ def test_discover_finds_a_suit_on_a_pty_or_falls_back_to_the_simulated_suit(qtbo
         with qtbot.waitSignal(startup.mainWindowOpened, timeout=20000) as blocker:
             startup.go_button.click()
         window = blocker.args[0]
-        window.status_panel.data_button.click()
+        window.panels.status_panel.data_button.click()
         qtbot.waitUntil(lambda: window.model.latest is not None, timeout=10000)
         assert window.model.last_status.source.description == f"suit {suit.path}"
         window.close()
@@ -174,9 +174,9 @@ def test_optional_windows_open_when_their_modules_exist(qtbot, tmp_path):
     try:
         import bpms.gui.view3d  # noqa: F401
     except ImportError:
-        assert not window.view3d_button.isEnabled() and window.view3d_button.toolTip()
+        assert not window.panels.view3d_button.isEnabled() and window.panels.view3d_button.toolTip()
     else:
-        first, second = window.open_3d_view(), window.open_3d_view()
+        first, second = window.views.open_3d_view(), window.views.open_3d_view()
         assert first is not None and second is not None and first is not second
     window.close()
 
@@ -250,7 +250,7 @@ def test_when_go_finds_no_suit_the_same_dialog_offers_the_simulated_suit(qtbot, 
     assert window.runner.mode == "sim" and "SIMULATED" in window.windowTitle()
     qtbot.waitUntil(lambda: window.model.latest is not None, timeout=15000)  # live data
     # clearing Name returns to time-stamp names
-    panel = window.file_panel
+    panel = window.panels.file_panel
     for name in ("subject7", ""):
         panel.name_edit.setText(name)
         panel.toggle_logging()

@@ -57,7 +57,7 @@ def _file_window_at(qtbot, tmp_path, path: Path, index: int = 150) -> MainWindow
 
 
 def _texts(window: MainWindow) -> list[str]:
-    return [text for _, _, text in window.event_log.entries]
+    return [text for _, _, text in window.panels.event_log.entries]
 
 
 def _same_rotations(a: np.ndarray, b: np.ndarray) -> bool:
@@ -74,10 +74,10 @@ def test_output_angles_by_default_sensor_angles_on_switch_and_v_toggles(qtbot, t
     def grab(samples):
         last[0] = samples[-1]
     window.model.samplesArrived.connect(grab)
-    window.set_data(True)
-    model = window.table_model
+    window.commands.set_data(True)
+    model = window.panels.table_model
     qtbot.waitUntil(lambda: last[0] is not None and last[0].index > 30, timeout=20000)
-    window.reset_zero()
+    window.commands.reset_zero()
     # after Reset Zero the output angles are the segment angles: not the sensor angles
     qtbot.waitUntil(lambda: model.headerData(0, _H) == "roll (segment) [deg]", timeout=15000)
     assert model.headerData(2, _H) == "yaw (segment) [deg]"
@@ -92,24 +92,24 @@ def test_output_angles_by_default_sensor_angles_on_switch_and_v_toggles(qtbot, t
     assert np.array_equal(TickBlock.from_samples([s], calibration, model.show_output).euler[0],
                           s.euler_output)
     # View ▸ Sensor angles (uncorrected): the filter's angles, said in the headers
-    window.actions_by_name["sensor_angles"].trigger()
-    window._on_samples([s])
+    window.menus.actions_by_name["sensor_angles"].trigger()
+    window.display.on_samples([s])
     assert np.array_equal(model.euler, s.euler)  # the readout starts again: as given
     assert model.headerData(0, _H) == "roll (sensor) [deg]"
     assert model.data(model.index(5, 0)) == f"{np.degrees(s.euler[5, 0]):.2f}"
     assert np.array_equal(TickBlock.from_samples([s], calibration, model.show_output).euler[0],
                           s.euler)
-    window.actions_by_name["sensor_angles"].trigger()
-    window._on_samples([s])
+    window.menus.actions_by_name["sensor_angles"].trigger()
+    window.display.on_samples([s])
     assert model.headerData(0, _H) == "roll (segment) [deg]"
     # the original's v key (in the table): the session's output loses its correction
     processor = window.runner.session.processor
     assert processor.corrected_output
     window.activateWindow()
-    window.table.setFocus()
-    qtbot.waitUntil(window.table.hasFocus, timeout=5000)
-    qtbot.keyClick(window.table, Qt.Key.Key_V)
-    assert not window.actions_by_name["corrected"].isChecked()
+    window.panels.table.setFocus()
+    qtbot.waitUntil(window.panels.table.hasFocus, timeout=5000)
+    qtbot.keyClick(window.panels.table, Qt.Key.Key_V)
+    assert not window.menus.actions_by_name["corrected"].isChecked()
     window.model.attach(window.runner.session)
     qtbot.waitUntil(lambda: not processor.corrected_output, timeout=10000)
     qtbot.waitUntil(lambda: model.headerData(0, _H) == "roll (sensor) [deg]", timeout=10000)
@@ -118,7 +118,7 @@ def test_output_angles_by_default_sensor_angles_on_switch_and_v_toggles(qtbot, t
     # the session's event (the line its recording and LSL stream hold), at its frame
     qtbot.waitUntil(lambda: any(t.startswith("alignment off (sensor angles) at ")
                                 for t in _texts(window)), timeout=10000)
-    window.set_data(False)
+    window.commands.set_data(False)
     window.close()
 
 
@@ -126,16 +126,16 @@ def test_health_panel_shows_losses_write_errors_and_the_source_reason(qtbot, tmp
                                                                      recording_path):
     window = _file_window_at(qtbot, tmp_path, recording_path)
     window.model.attach(None)
-    panel = window.health_panel
+    panel = window.panels.health_panel
     base = window.runner.session.status()
     rec = RecordingStatus(raw_path=tmp_path / "Raw_x_001.bpmsraw",
                           error="[Errno 28] No space left on device")
     down = dataclasses.replace(base.source, state="gone", reason="the port vanished")
     st = dataclasses.replace(base, not_filtered=7, processing_backlog=12, display_skipped=3,
                              recording=rec, source=down)
-    window.set_data(True)
-    window._texts_at = -1e9
-    window._on_status(st)
+    window.commands.set_data(True)
+    window.display.refresh_texts()
+    window.display.on_status(st)
     label = panel.labels["not_filtered"]
     assert label.text().startswith("7 frames") and "#d62728" in label.styleSheet()
     assert panel.labels["backlog"].text() == "12 frames"
@@ -144,12 +144,12 @@ def test_health_panel_shows_losses_write_errors_and_the_source_reason(qtbot, tmp
     assert "No space left on device" in panel.rec_error_label.text()
     assert panel.source_label.text() == "gone: the port vanished"
     assert "#d62728" in panel.source_label.styleSheet()
-    assert "NOT FILTERED 7" in window.status_panel.labels["dropped"].text()
+    assert "NOT FILTERED 7" in window.panels.status_panel.labels["dropped"].text()
     # no loss: not red; logging stopped: the write error goes; a warning is amber
     amber = dataclasses.replace(base.source, warning="another sender (10.0.0.9:5005) on "
                                                      "this port: ignored")
-    window._texts_at = -1e9
-    window._on_status(dataclasses.replace(base, source=amber, recording=None))
+    window.display.refresh_texts()
+    window.display.on_status(dataclasses.replace(base, source=amber, recording=None))
     assert panel.labels["not_filtered"].text() == "0 frames"
     assert panel.labels["not_filtered"].styleSheet() == ""
     assert not panel.rec_error_label.isVisible()
@@ -157,19 +157,19 @@ def test_health_panel_shows_losses_write_errors_and_the_source_reason(qtbot, tmp
     assert "#f0a000" in panel.source_label.styleSheet()
     assert any("another sender (10.0.0.9:5005)" in t for t in _texts(window))
     # every state-guard re-initialisation is an event
-    window._on_status(dataclasses.replace(base, reinit_count=2))
-    window._on_status(dataclasses.replace(base, reinit_count=2))
-    window._on_status(dataclasses.replace(base, reinit_count=3))
+    window.display.on_status(dataclasses.replace(base, reinit_count=2))
+    window.display.on_status(dataclasses.replace(base, reinit_count=2))
+    window.display.on_status(dataclasses.replace(base, reinit_count=3))
     reinit = [t for t in _texts(window) if "state guard" in t]
     assert reinit == ["filter re-initialised by the state guard (2 re-initialisations, 2 so "
                       "far)", "filter re-initialised by the state guard (1 "
                       "re-initialisation, 3 so far)"]
     # when the session's own event line says it, the window does not say it again
     said = "12:00:00 filter re-initialised (state not a rotation): IMU 4; 5 so far"
-    window._on_status(dataclasses.replace(base, reinit_count=5, events=[said]))
+    window.display.on_status(dataclasses.replace(base, reinit_count=5, events=[said]))
     lines = [t for t in _texts(window) if "filter re-initialised" in t]
     assert lines[-1] == said.partition(" ")[2] and len(lines) == 3
-    window.set_data(False)
+    window.commands.set_data(False)
     window.close()
 
 
@@ -186,9 +186,9 @@ def test_udp_client_shows_its_address_and_another_sender(qtbot, tmp_path, record
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     window = _window(qtbot, tmp_path, ModeConfig(mode="udp", listen=f"127.0.0.1:{port}"))
-    assert window.health_panel.listening_label.isVisibleTo(window.health_panel)
-    assert window.health_panel.listening_label.text().startswith(f"127.0.0.1:{port}")
-    window.set_data(True)
+    assert window.panels.health_panel.listening_label.isVisibleTo(window.panels.health_panel)
+    assert window.panels.health_panel.listening_label.text().startswith(f"127.0.0.1:{port}")
+    window.commands.set_data(True)
     raw = read_raw(recording_path).frames.tobytes()
     frames = [raw[i:i + 340] for i in range(0, len(raw), 340)]
     first, second = UdpForwarder([f"127.0.0.1:{port}"]), UdpForwarder([f"127.0.0.1:{port}"])
@@ -205,15 +205,15 @@ def test_udp_client_shows_its_address_and_another_sender(qtbot, tmp_path, record
             qtbot.waitUntil(lambda: any("another sender" in t for t in _texts(window)),
                             timeout=15000)
             qtbot.waitUntil(lambda: "another sender" in
-                            window.health_panel.source_label.text(), timeout=5000)
+                            window.panels.health_panel.source_label.text(), timeout=5000)
         finally:
             other.stop()
     finally:
         timer.stop()
         first.close()
         second.close()
-    assert "#f0a000" in window.health_panel.source_label.styleSheet()
-    window.set_data(False)
+    assert "#f0a000" in window.panels.health_panel.source_label.styleSheet()
+    window.commands.set_data(False)
     window.close()
 
 
@@ -221,7 +221,7 @@ def test_the_data_panel_shows_where_calibration_and_options_came_from(qtbot, tmp
                                                                       recording_path):
     window = _window(qtbot, tmp_path, ModeConfig(mode="file", path=str(recording_path),
                                                  recording_dir=str(tmp_path)))
-    labels = window.status_panel.labels
+    labels = window.panels.status_panel.labels
     # playback: the one door took both from the recording's header (it holds them)
     assert labels["calibration"].text() == window.runner.calibration_source
     assert labels["options"].text() == window.runner.options_source
@@ -230,8 +230,8 @@ def test_the_data_panel_shows_where_calibration_and_options_came_from(qtbot, tmp
     window.close()
     sim = _window(qtbot, tmp_path, ModeConfig(mode="sim", recording_dir=str(tmp_path)))
     # no user default saved (tests use a fresh folder): factory values
-    assert sim.status_panel.labels["calibration"].text() == "factory"
-    assert sim.status_panel.labels["options"].text() == "factory"
+    assert sim.panels.status_panel.labels["calibration"].text() == "factory"
+    assert sim.panels.status_panel.labels["options"].text() == "factory"
     sim.close()
 
 
@@ -242,8 +242,8 @@ def test_disturbance_flags_reach_the_table_and_the_status(qtbot, tmp_path, recor
     # the processor's per-frame indicators travel with each sample
     assert s.mag_disturbed is not None and s.mag_disturbed.shape == (18,)
     assert s.acc_disturbed is not None and s.acc_disturbed.dtype == bool
-    model = window.table_model
-    header = window.table.horizontalHeader()
+    model = window.panels.table_model
+    header = window.panels.table.horizontalHeader()
     # shown beside the error flags (the model keeps it last: cell indices stay put)
     assert header.visualIndex(DISTURBANCE_COLUMN) == 4
     assert model.headerData(DISTURBANCE_COLUMN, _H) == "disturbance"
@@ -251,37 +251,38 @@ def test_disturbance_flags_reach_the_table_and_the_status(qtbot, tmp_path, recor
     acc = np.zeros(18, bool)
     mag[[2, 7]] = True
     acc[[7, 11]] = True
-    window._on_samples([s.replace(mag_disturbed=mag, acc_disturbed=acc)])
+    window.display.on_samples([s.replace(mag_disturbed=mag, acc_disturbed=acc)])
     acc[11] = False
     # 99 frames (1.98 s) later: the flags still up say since when (their kind first)
     later = PoseSample(s.index + 99, s.host_time, s.frame, s.raw, s.errors, s.euler, s.R, s.C,
                        s.joint_angles, s.joint_positions, euler_output=s.euler_output,
                        mag_disturbed=mag, acc_disturbed=acc, estimates=s.estimates)
-    window._on_samples([later])
+    window.display.on_samples([later])
     texts = [model.data(model.index(i, DISTURBANCE_COLUMN)) for i in range(18)]
     assert texts[2] == "mag 2.0 s" and texts[7] == "mag 2.0 s, acc 2.0 s" and texts[11] == ""
     assert sum(bool(t) for t in texts) == 2
     tip = model.data(model.index(7, DISTURBANCE_COLUMN), Qt.ItemDataRole.ToolTipRole)
     assert "mag: up for 2.0 s" in tip and "acc: up for 2.0 s" in tip
-    assert window.table.columnWidth(DISTURBANCE_COLUMN) >= window.table.fontMetrics() \
-        .horizontalAdvance("mag 59 min, acc 59 min")
+    table = window.panels.table
+    assert table.columnWidth(DISTURBANCE_COLUMN) \
+        >= table.fontMetrics().horizontalAdvance("mag 59 min, acc 59 min")
     colour = model.data(model.index(2, DISTURBANCE_COLUMN), Qt.ItemDataRole.ForegroundRole)
     assert colour.name() == "#c77c00"
-    window._texts_at = -1e9
-    window._on_status(window.runner.session.status())
-    label = window.health_panel.labels["disturbance"]
+    window.display.refresh_texts()
+    window.display.on_status(window.runner.session.status())
+    label = window.panels.health_panel.labels["disturbance"]
     assert label.text() == "mag 2 IMUs, acc 1 IMU" and "#f0a000" in label.styleSheet()
     # not plottable, not draggable
-    window.table.select_cells([(2, DISTURBANCE_COLUMN), (2, 0)])
-    assert window.table.selected_cells() == [(2, 0)]
+    window.panels.table.select_cells([(2, DISTURBANCE_COLUMN), (2, 0)])
+    assert window.panels.table.selected_cells() == [(2, 0)]
     window.close()
 
 
 def test_stream_to_lsl_switch(qtbot, tmp_path, recording_path, monkeypatch):
     window = _window(qtbot, tmp_path, ModeConfig(mode="file", path=str(recording_path),
                                                  recording_dir=str(tmp_path)))
-    action = window.actions_by_name["lsl"]
-    assert action.isCheckable() and action in window.toolbar.actions()
+    action = window.menus.actions_by_name["lsl"]
+    assert action.isCheckable() and action in window.menus.toolbar.actions()
     # the module cannot be imported (pylsl missing): the reason is shown, the switch stays off
     monkeypatch.setitem(sys.modules, "bpms.pipeline.lsl", None)
     action.trigger()
@@ -321,8 +322,8 @@ def test_filter_estimates_are_table_columns_and_plot_curves(qtbot, tmp_path, rec
     s = window.model.latest
     assert s.estimates is not None and s.estimates.shape == (18, 6)
     assert np.isfinite(s.estimates).all()  # the observer estimates both
-    window._on_samples([s])
-    model = window.table_model
+    window.display.on_samples([s])
+    model = window.panels.table_model
     est_cols = [k for k, c in enumerate(COLUMNS) if c.group == "est"]
     assert [COLUMNS[k].label() for k in est_cols[:1] + est_cols[3:4]] == [
         "gyro bias x [rad/s]", "body acc north [m/s²]"]

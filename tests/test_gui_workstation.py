@@ -60,7 +60,7 @@ def _file(recording: Path, tmp_path: Path) -> ModeConfig:
 
 
 def _rows_in_view(window: MainWindow) -> int:
-    table = window.table
+    table = window.panels.table
     viewport = table.viewport().rect()
     model = table.model()
     return sum(viewport.contains(table.visualRect(model.index(r, 0))) for r in range(18))
@@ -68,11 +68,11 @@ def _rows_in_view(window: MainWindow) -> int:
 
 def _play_a_little(qtbot, window: MainWindow, frames: int = 120) -> None:
     """Play the recording (as fast as the filters go) past frame ``frames``, then pause."""
-    window.playback_panel.speed_combo.setCurrentText("max")
-    window.set_data(True)
+    window.panels.playback_panel.speed_combo.setCurrentText("max")
+    window.commands.set_data(True)
     qtbot.waitUntil(lambda: window.model.latest is not None
                     and window.model.latest.index >= frames, timeout=20000)
-    window.set_data(False)
+    window.commands.set_data(False)
 
 
 # -- crowding ---------------------------------------------------------------------------
@@ -82,25 +82,25 @@ def test_the_table_keeps_its_rows_with_a_plot_and_a_3d_view(qtbot, tmp_path, rec
                                                             screen, layout):
     size, rows = SIZES[screen]
     window = _window(qtbot, _file(recording, tmp_path), tmp_path, size)
-    window.apply_default_layout(layout)
-    window.table.select_cells([(6, 0), (6, 1), (6, 2)])
-    window.plot_selection()  # one plot of the user's
+    window.layouts.apply_default_layout(layout)
+    window.panels.table.select_cells([(6, 0), (6, 1), (6, 2)])
+    window.views.plot_selection()  # one plot of the user's
     _settle(qtbot)
-    assert len(window.view3d_windows) == 1 and window.view3d_windows[0].isVisible()
-    assert window.plot_windows[-1].isVisible()
+    assert len(window.views.view3d_windows) == 1 and window.views.view3d_windows[0].isVisible()
+    assert window.views.plot_windows[-1].isVisible()
     assert _rows_in_view(window) >= rows
     # REC is in the status bar, whatever the docks
-    window.file_panel.toggle_logging()
-    qtbot.waitUntil(lambda: window.health_panel.rec_badge.isVisible(), timeout=5000)
-    badge = window.health_panel.rec_badge
+    window.panels.file_panel.toggle_logging()
+    qtbot.waitUntil(lambda: window.panels.health_panel.rec_badge.isVisible(), timeout=5000)
+    badge = window.panels.health_panel.rec_badge
     assert badge.parent() is window.statusBar() or window.statusBar().isAncestorOf(badge)
     assert badge.text().startswith("REC")
-    window.docks["status"].close()
+    window.panels.docks["status"].close()
     _settle(qtbot)
     assert badge.isVisible() and badge.visibleRegion().boundingRect().width() >= \
         badge.fontMetrics().horizontalAdvance("REC")
-    window.file_panel.toggle_logging()
-    qtbot.waitUntil(lambda: not window.file_panel.busy, timeout=10000)
+    window.panels.file_panel.toggle_logging()
+    qtbot.waitUntil(lambda: not window.panels.file_panel.busy, timeout=10000)
     window.close()
 
 
@@ -110,15 +110,15 @@ def test_no_side_panel_scrolls_sideways_at_the_default_size(qtbot, tmp_path, rec
         if mode == "udp" else _file(recording, tmp_path)
     for size, _rows in SIZES.values():
         window = _window(qtbot, config, tmp_path, size)
-        window.table.select_cells([(6, 0)])
-        window.plot_selection()
-        for dock in window.docks.values():
+        window.panels.table.select_cells([(6, 0)])
+        window.views.plot_selection()
+        for dock in window.panels.docks.values():
             dock.raise_()
             _settle(qtbot, 60)
             for area in dock.findChildren(QScrollArea):
                 bar = area.horizontalScrollBar()
                 assert bar.maximum() == 0, (mode, size, dock.windowTitle(), bar.maximum())
-        assert window.event_log.horizontalScrollBar().maximum() == 0
+        assert window.panels.event_log.horizontalScrollBar().maximum() == 0
         window.close()
 
 
@@ -160,12 +160,12 @@ def _overlaps(plot_window: PlotWindow) -> list[tuple[str, str]]:
 def test_no_axis_title_or_tick_label_overlaps_another(qtbot, tmp_path, recording, screen):
     size, _rows = SIZES[screen]
     window = _window(qtbot, _file(recording, tmp_path), tmp_path, size)  # playback layout
-    window.table.select_cells([(6, 0), (6, 1), (4, 4)])  # deg and m/s²: two stacked plots
-    window.plot_selection()
+    window.panels.table.select_cells([(6, 0), (6, 1), (4, 4)])  # deg and m/s²: two stacked plots
+    window.views.plot_selection()
     _play_a_little(qtbot, window)
-    joints = next(p for p in window.plot_windows if p.kind == "joints")
-    for plot in window.plot_windows:
-        window.dock_of(plot).raise_()
+    joints = next(p for p in window.views.plot_windows if p.kind == "joints")
+    for plot in window.views.plot_windows:
+        window.views.dock_of(plot).raise_()
         _settle(qtbot)
         assert plot.isVisible()
         assert _overlaps(plot) == [], plot.windowTitle()
@@ -174,7 +174,7 @@ def test_no_axis_title_or_tick_label_overlaps_another(qtbot, tmp_path, recording
             if legend.shown:
                 assert not legend.item.sceneBoundingRect().intersects(
                     item.getViewBox().sceneBoundingRect())
-    dock = window.dock_of(joints)
+    dock = window.views.dock_of(joints)
     dock.setFloating(True)
     for w, h in ((500, 260), (900, 900), (1500, 300)):  # the joint angles floated, resized
         dock.resize(w, h)
@@ -251,24 +251,24 @@ def test_a_locked_y_range_stays_and_is_saved(qtbot):
 # -- layouts ----------------------------------------------------------------------------
 def test_layout_switches_keep_the_users_docks_and_their_history(qtbot, tmp_path, recording):
     window = _window(qtbot, _file(recording, tmp_path), tmp_path, (1920, 1040))
-    window.table.select_cells([(6, 0), (6, 1)])
-    mine = window.plot_selection()
-    window.open_3d_view()
-    views = list(window.view3d_windows)
+    window.panels.table.select_cells([(6, 0), (6, 1)])
+    mine = window.views.plot_selection()
+    window.views.open_3d_view()
+    views = list(window.views.view3d_windows)
     assert len(views) == 2
     _play_a_little(qtbot, window, 200)
     window.model.attach(None)  # nothing arrives any more: the history must stay as it is
     history = len(mine.buffer)
     assert history > 150
-    plots = list(window.plot_windows)
+    plots = list(window.views.plot_windows)
     for name in (CALIBRATION, LIVE, PLAYBACK, LIVE):
-        window.apply_default_layout(name)
+        window.layouts.apply_default_layout(name)
         _settle(qtbot)
-        assert [id(p) for p in window.plot_windows] == [id(p) for p in plots], name
-        assert [id(v) for v in window.view3d_windows] == [id(v) for v in views], name
+        assert [id(p) for p in window.views.plot_windows] == [id(p) for p in plots], name
+        assert [id(v) for v in window.views.view3d_windows] == [id(v) for v in views], name
         assert len(mine.buffer) == history, name  # the plotted history survives
         for widget in (*plots, *views):  # each in view, or a tab away (restorable)
-            dock = window.dock_of(widget)
+            dock = window.views.dock_of(widget)
             assert dock.parent() is window and not dock.isHidden(), (name, dock.objectName())
             assert dock.isVisible() or window.tabifiedDockWidgets(dock), name
     window.close()
@@ -276,24 +276,24 @@ def test_layout_switches_keep_the_users_docks_and_their_history(qtbot, tmp_path,
 
 def test_a_saved_layout_restores_each_dock_with_its_contents(qtbot, tmp_path, recording):
     window = _window(qtbot, _file(recording, tmp_path), tmp_path, (1920, 1040))
-    window.table.select_cells([(3, 0), (3, 4)])
-    first = window.plot_selection()
+    window.panels.table.select_cells([(3, 0), (3, 4)])
+    first = window.views.plot_selection()
     _play_a_little(qtbot, window, 150)
     first.lock_button.click()
     first.legend_button.click()  # folded, by choice
     locked = first.y_ranges()
-    header = window.table.horizontalHeader()
+    header = window.panels.table.horizontalHeader()
     header.resizeSection(0, header.sectionSize(0) + 40)
     width0 = header.sectionSize(0)
-    window.save_layout("analysis")
+    window.layouts.save_layout("analysis")
     # the window changes: the plot closes, the column narrows, another layout
-    window.dock_of(first).close()
+    window.views.dock_of(first).close()
     _settle(qtbot)
     header.resizeSection(0, width0 - 30)
-    window.apply_default_layout(CALIBRATION)
-    assert window.load_layout("analysis")
+    window.layouts.apply_default_layout(CALIBRATION)
+    assert window.layouts.load_layout("analysis")
     _settle(qtbot)
-    again = [p for p in window.plot_windows if p.kind == "cells"]
+    again = [p for p in window.views.plot_windows if p.kind == "cells"]
     assert len(again) == 1
     restored = again[0]
     assert [c.name() for c in restored.curves] == [c.name() for c in first.curves]
@@ -307,9 +307,9 @@ def test_a_saved_layout_restores_each_dock_with_its_contents(qtbot, tmp_path, re
 
 def test_the_built_in_layouts_look_as_their_docs_say(qtbot, tmp_path, recording):
     window = _window(qtbot, _file(recording, tmp_path), tmp_path, (1920, 1040))
-    window.table.select_cells([(6, 0)])
-    window.plot_selection()
-    d = window.docks
+    window.panels.table.select_cells([(6, 0)])
+    window.views.plot_selection()
+    d = window.panels.docks
 
     def geo(dock):
         return dock.mapTo(window, dock.rect().topLeft()), dock.rect()
@@ -320,10 +320,10 @@ def test_the_built_in_layouts_look_as_their_docs_say(qtbot, tmp_path, recording)
     def above(a, b) -> bool:
         return geo(a)[0].y() + a.height() <= geo(b)[0].y() + 2
 
-    view = window.dock_of(window.view3d_windows[0])
-    plot = window.dock_of(window.plot_windows[-1])
+    view = window.views.dock_of(window.views.view3d_windows[0])
+    plot = window.views.dock_of(window.views.plot_windows[-1])
     for name in (LIVE, PLAYBACK):
-        window.apply_default_layout(name)
+        window.layouts.apply_default_layout(name)
         _settle(qtbot)
         # the table with the 3D view beside it, the status tabs on the right over the
         # event log, plots across the bottom under the table and the view
@@ -331,23 +331,24 @@ def test_the_built_in_layouts_look_as_their_docs_say(qtbot, tmp_path, recording)
         assert not front.visibleRegion().isEmpty()  # the tab in front
         assert left_of(d["table"], view) and left_of(view, front)
         assert above(front, d["events"]) and left_of(view, d["events"])
-        shown = next(dk for dk in (window.dock_of(p) for p in window.plot_windows)
+        shown = next(dk for dk in (window.views.dock_of(p) for p in window.views.plot_windows)
                      if not dk.visibleRegion().isEmpty())  # the plot tab in front
         assert above(d["table"], shown) and above(view, shown) and left_of(shown, front)
         assert plot is shown or plot in window.tabifiedDockWidgets(shown)
         assert set(window.tabifiedDockWidgets(d["status"])) >= {d["session"], d["filter"]}
-    joints = [p for p in window.plot_windows if p.kind == "joints"]
-    joint_dock = window.dock_of(joints[0])  # playback: the joint angles in the bottom row
+    joints = [p for p in window.views.plot_windows if p.kind == "joints"]
+    joint_dock = window.views.dock_of(joints[0])  # playback: the joint angles in the bottom row
     assert joint_dock in window.tabifiedDockWidgets(plot) or above(d["table"], joint_dock)
-    window.apply_default_layout(CALIBRATION)
+    window.layouts.apply_default_layout(CALIBRATION)
     _settle(qtbot)
     # the table large, at its calibrated and raw columns, plots and the event log under
     # it; the filter settings in front on the right, over the 3D view
     assert above(d["table"], d["events"]) and left_of(d["table"], d["filter"])
     assert not d["filter"].visibleRegion().isEmpty()
     assert above(d["filter"], view) and left_of(d["table"], view)
-    first = window.table.columnAt(0)
-    assert window.table.model().headerData(first, Qt.Orientation.Horizontal).startswith("acc")
+    first = window.panels.table.columnAt(0)
+    header = window.panels.table.model().headerData(first, Qt.Orientation.Horizontal)
+    assert header.startswith("acc")
     assert d["table"].height() > window.height() / 3
     window.close()
 
@@ -367,7 +368,7 @@ def test_views_mark_stale_data_after_a_silent_link_and_recover(qtbot, tmp_path, 
         port = s.getsockname()[1]
     window = _window(qtbot, ModeConfig(mode="udp", listen=f"127.0.0.1:{port}",
                                        recording_dir=str(tmp_path)), tmp_path)
-    window.set_data(True)
+    window.commands.set_data(True)
     raw = read_raw(recording).frames.tobytes()
     frames = [raw[i:i + 340] for i in range(0, len(raw), 340)]
     forwarder = UdpForwarder([f"127.0.0.1:{port}"])
@@ -378,26 +379,26 @@ def test_views_mark_stale_data_after_a_silent_link_and_recover(qtbot, tmp_path, 
     try:
         qtbot.waitUntil(lambda: window.model.latest is not None and state["k"] > 50,
                         timeout=15000)
-        window.table.select_cells([(6, 0)])
-        plot = window.plot_selection()
-        overlays = [window.table.stale, window.joint_table.stale, plot.stale,
-                    *(v.stale for v in window.view3d_windows)]
+        window.panels.table.select_cells([(6, 0)])
+        plot = window.views.plot_selection()
+        overlays = [window.panels.table.stale, window.panels.joint_table.stale, plot.stale,
+                    *(v.stale for v in window.views.view3d_windows)]
         assert overlays and not any(o.stale for o in overlays)  # live: nothing marked
         state["on"] = False  # the sender goes silent
         silent = time.monotonic()
         qtbot.waitUntil(lambda: all(o.stale for o in overlays), timeout=3000)
         assert time.monotonic() - silent < 2.5
-        text = window.table.stale.text
+        text = window.panels.table.stale.text
         assert text.startswith("NO DATA") and "last frame" in text
-        assert window.table.stale.isVisible() and plot.stale.isVisible()
-        qtbot.waitUntil(lambda: window.table.stale.text != text, timeout=3000)  # it ages
-        assert all(o.text == window.table.stale.text for o in overlays)  # every view alike
+        assert window.panels.table.stale.isVisible() and plot.stale.isVisible()
+        qtbot.waitUntil(lambda: window.panels.table.stale.text != text, timeout=3000)  # it ages
+        assert all(o.text == window.panels.table.stale.text for o in overlays)  # every view alike
         state["on"] = True  # back: every view recovers by itself
         qtbot.waitUntil(lambda: not any(o.stale for o in overlays), timeout=5000)
-        assert not window.table.stale.isVisible()
+        assert not window.panels.table.stale.isVisible()
         # a pause marks them too, at once
-        window.set_data(False)
-        qtbot.waitUntil(lambda: window.table.stale.text.startswith("STOPPED"), timeout=2000)
+        window.commands.set_data(False)
+        qtbot.waitUntil(lambda: window.panels.table.stale.text.startswith("STOPPED"), timeout=2000)
     finally:
         timer.stop()
         forwarder.close()
@@ -408,9 +409,9 @@ def test_views_mark_stale_data_after_a_silent_link_and_recover(qtbot, tmp_path, 
 def test_f1_lists_every_shortcut_and_every_key_of_the_views(qtbot, tmp_path, recording):
     window = _window(qtbot, _file(recording, tmp_path), tmp_path)
     QApplication.processEvents()
-    box = window.show_keys()
+    box = window.menus.show_keys()
     text = box.text()
-    for action in window.actions_by_name.values():
+    for action in window.menus.actions_by_name.values():
         if not action.shortcut().isEmpty():
             assert action.shortcut().toString() in text and action.text() in text
     for binding in (*VIEW3D_BINDINGS, *PLOT_BINDINGS):
@@ -423,35 +424,35 @@ def test_f1_lists_every_shortcut_and_every_key_of_the_views(qtbot, tmp_path, rec
 
 def test_an_out_of_range_gain_is_refused_and_logged(qtbot, tmp_path, recording):
     window = _window(qtbot, _file(recording, tmp_path), tmp_path)
-    panel = window.gains_panel
+    panel = window.panels.gains_panel
     edit = panel.edits["kp_rollpitch"]
     old = edit.text()
     edit.setText("5")
     edit.editingFinished.emit()
     assert edit.text() == old and "[0, 0.18]" in panel.message.text()
     assert window.options.filter.kp_rollpitch == float(old)
-    last = window.event_log.entries[-1]
+    last = window.panels.event_log.entries[-1]
     assert last[1] == "warning" and "[0, 0.18]" in last[2] and "5" in last[2]
     edit.setText("0.1")
     edit.editingFinished.emit()
     assert window.options.filter.kp_rollpitch == 0.1
-    assert window.event_log.entries[-1][2] == f"filter gain kp_rollpitch: {old} → 0.1"
+    assert window.panels.event_log.entries[-1][2] == f"filter gain kp_rollpitch: {old} → 0.1"
     window.close()
 
 
 def test_tile_plots_brings_every_plot_into_view(qtbot, tmp_path, recording):
     window = _window(qtbot, _file(recording, tmp_path), tmp_path, (1920, 1040))
     for imu in range(7):
-        window.table.select_cells([(imu, 0)])
-        window.plot_selection()  # with the joint angles: 8 plots, most of them tabbed
+        window.panels.table.select_cells([(imu, 0)])
+        window.views.plot_selection()  # with the joint angles: 8 plots, most of them tabbed
     _settle(qtbot)
-    assert sum(not window.dock_of(p).visibleRegion().isEmpty()
-               for p in window.plot_windows) < 8
-    window.actions_by_name["tile"].trigger()
+    assert sum(not window.views.dock_of(p).visibleRegion().isEmpty()
+               for p in window.views.plot_windows) < 8
+    window.menus.actions_by_name["tile"].trigger()
     _settle(qtbot)
-    assert len(window.plot_windows) == 8
-    for plot in window.plot_windows:  # each in view, none under another
-        assert not window.dock_of(plot).visibleRegion().isEmpty()
-        assert not window.tabifiedDockWidgets(window.dock_of(plot))
+    assert len(window.views.plot_windows) == 8
+    for plot in window.views.plot_windows:  # each in view, none under another
+        assert not window.views.dock_of(plot).visibleRegion().isEmpty()
+        assert not window.tabifiedDockWidgets(window.views.dock_of(plot))
     assert _rows_in_view(window) >= 9
     window.close()

@@ -147,13 +147,13 @@ def test_gui_window_playback_uses_the_header(site, qtbot, tmp_path):
     window = blocker.args[0]
     qtbot.addWidget(window)
     assert window.runner.calibration_source == "recording header"
-    window.playback_panel.speed_combo.setCurrentIndex(6)  # as fast as possible
-    panel = window.file_panel
+    window.panels.playback_panel.speed_combo.setCurrentIndex(6)  # as fast as possible
+    panel = window.panels.file_panel
     panel.filtered_box.setChecked(True)
     panel.name_edit.setText("door")
     panel.log_button.click()
     if not window.runner.data_on:
-        window.status_panel.data_button.click()  # play
+        window.panels.status_panel.data_button.click()  # play
     session = window.runner.session
     qtbot.waitUntil(lambda: session.status().processed >= len(rec.raw), timeout=60000)
     panel.toggle_logging()  # stop (a click within 0.5 s of the last one would be ignored)

@@ -25,7 +25,7 @@ def _rows(window: MainWindow) -> int:
 
 
 def _start_logging(qtbot, window: MainWindow, name: str, raw: bool) -> None:
-    panel = window.file_panel
+    panel = window.panels.file_panel
     panel.name_edit.setText(name)
     if panel.raw_box.isEnabled():
         panel.raw_box.setChecked(raw)
@@ -35,7 +35,7 @@ def _start_logging(qtbot, window: MainWindow, name: str, raw: bool) -> None:
 
 
 def _stop_logging(qtbot, window: MainWindow):
-    panel = window.file_panel
+    panel = window.panels.file_panel
     qtbot.wait(600)  # (a second click within 0.5 s is ignored)
     panel.log_button.click()
     qtbot.waitUntil(lambda: not panel.busy and not panel.logging, timeout=15000)
@@ -56,32 +56,32 @@ def test_gui_playback_records_the_filtered_file_written_live(qtbot, tmp_path):
     session = window.runner.session
     qtbot.waitUntil(lambda: session.status().processed > 60, timeout=15000)
     # labels from the processor: the calibration, options and filter it runs with
-    panel = window.status_panel
+    panel = window.panels.status_panel
     proc = session.processor
     qtbot.waitUntil(lambda: panel.labels["reset_zero"].text().startswith("automatic at "),
                     timeout=15000)
     assert panel.labels["calibration"].text() == proc.calibration_source
     assert panel.labels["filter"].text() == "mahony"
     # logging from the start of a run of the stream: Stop Data, Start Logging, Start Data
-    window.set_data(False)
+    window.commands.set_data(False)
     assert wait_until(lambda: _quiet(window), 10)
     _start_logging(qtbot, window, "guilive", raw=True)
     qtbot.wait(600)
-    window.set_data(True)
+    window.commands.set_data(True)
     qtbot.waitUntil(lambda: _rows(window) >= 100, timeout=15000)
-    window.reset_zero()
+    window.commands.reset_zero()
     qtbot.waitUntil(lambda: panel.labels["reset_zero"].text().startswith("manual at "),
                     timeout=10000)
     qtbot.waitUntil(lambda: _rows(window) >= 200, timeout=15000)
-    window.gains_panel.edits["kp_yaw"].setText("0.5")
-    window.gains_panel.edits["kp_yaw"].editingFinished.emit()
+    window.panels.gains_panel.edits["kp_yaw"].setText("0.5")
+    window.panels.gains_panel.edits["kp_yaw"].editingFinished.emit()
     qtbot.waitUntil(lambda: proc.options.filter.kp_yaw == 0.5, timeout=5000)
     qtbot.waitUntil(lambda: _rows(window) >= 300, timeout=15000)
-    window.add_marker("the subject waves")
+    window.commands.add_marker("the subject waves")
     qtbot.waitUntil(lambda: _rows(window) >= 350, timeout=15000)
     live_rec = _stop_logging(qtbot, window)
-    window.set_data(False)
-    texts = window.event_log.texts()
+    window.commands.set_data(False)
+    texts = window.panels.event_log.texts()
     assert any(t.startswith("Reset Zero (manual) at ") for t in texts), texts
     assert any("marker at" in t and "the subject waves" in t for t in texts), texts
     window.close()
@@ -95,16 +95,16 @@ def test_gui_playback_records_the_filtered_file_written_live(qtbot, tmp_path):
     startup.select_mode("file")
     startup.file_edit.setText(str(live_rec.raw_path))
     player = open_main_window(qtbot, startup)
-    assert player.status_panel.labels["calibration"].text() == "recording header"
+    assert player.panels.status_panel.labels["calibration"].text() == "recording header"
     replay = player.runner.replay
-    player.playback_panel.speed_combo.setCurrentIndex(6)  # as fast as possible
+    player.panels.playback_panel.speed_combo.setCurrentIndex(6)  # as fast as possible
     _start_logging(qtbot, player, "guiplayback", raw=False)
     qtbot.wait(600)
-    player.set_data(True)
+    player.commands.set_data(True)
     qtbot.waitUntil(lambda: replay.ended and _rows(player) == len(raw), timeout=30000)
     played_rec = _stop_logging(qtbot, player)
-    player.set_data(False)
-    assert any(t.startswith("Reset Zero (manual) at ") for t in player.event_log.texts())
+    player.commands.set_data(False)
+    assert any(t.startswith("Reset Zero (manual) at ") for t in player.panels.event_log.texts())
     player.close()
     played = read_filtered(played_rec.filtered_path)
     np.testing.assert_array_equal(played.t, live.t)

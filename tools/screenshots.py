@@ -94,8 +94,8 @@ def main_window(config, size: tuple[int, int]):
 
 def one_plot(app: QApplication, window) -> None:
     """The right forearm's roll, pitch and yaw in a plot (they move in the script)."""
-    window.table.select_cells([(5, c) for c in (0, 1, 2)])
-    window.plot_selection()
+    window.panels.table.select_cells([(5, c) for c in (0, 1, 2)])
+    window.views.plot_selection()
     pump(app, 0.3)
 
 
@@ -104,16 +104,16 @@ def streaming(app: QApplication, folder: Path, label: str, size: tuple[int, int]
 
     window = main_window(ModeConfig(mode="sim", recording_dir=str(folder)), size)
     try:
-        window.set_data(True)
+        window.commands.set_data(True)
         one_plot(app, window)
-        window.file_panel.toggle_logging()
+        window.panels.file_panel.toggle_logging()
         # 14 s into the script: both arms raised sideways
         wait_for(app, lambda: window.model.latest is not None
                  and window.model.latest.index >= 700, 40)
         pump(app, 0.5)
         save_widget(window, f"streaming-{label}.png")
         if label == SIZES[-1][0]:
-            views = window.view3d_windows
+            views = window.views.view3d_windows
             if views and views[0].gl_view is not None:
                 for name in ("3d-view.png", "3d-view-imu-axes.png"):
                     views[0].snapshot(520, 640).save(str(OUT / name))
@@ -133,14 +133,14 @@ def playback(app: QApplication, folder: Path, recording: Path, label: str,
     window = main_window(ModeConfig(mode="file", path=str(recording),
                                     recording_dir=str(folder)), size)
     try:
-        window.set_data(True)
+        window.commands.set_data(True)
         wait_for(app, lambda: window.model.latest is not None, 20)
         one_plot(app, window)
         # 27 s in: the second squat (knees, hips and ankles in the joint angles below)
         wait_for(app, lambda: window.model.latest.index >= 1350, 60)
-        joints = next((p for p in window.plot_windows if p.kind == "joints"), None)
+        joints = next((p for p in window.views.plot_windows if p.kind == "joints"), None)
         if joints is not None:
-            window.dock_of(joints).raise_()  # the joint angles in front of the user's plot
+            window.views.dock_of(joints).raise_()  # the joint angles in front of the user's plot
         pump(app, 0.5)
         save_widget(window, f"playback-{label}.png")
     finally:
@@ -163,7 +163,7 @@ def udp_client(app: QApplication, folder: Path, recording: Path, label: str,
     try:
         sender.start_forwarding([f"127.0.0.1:{port}"])
         sender.start()
-        window.set_data(True)
+        window.commands.set_data(True)
         wait_for(app, lambda: window.model.latest is not None, 20)
         one_plot(app, window)
         wait_for(app, lambda: window.model.latest.index >= 700, 40)

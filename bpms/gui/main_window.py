@@ -7,39 +7,44 @@ user and the last one is restored at the next launch. The menu bar lists every c
 its shortcut; the toolbar holds Start/Stop, Reset Zero and Record. Everything redraws on
 :class:`SessionModel`'s display timer; hidden docks do not repaint.
 
-The window is assembled from parts with one job each (:mod:`bpms.gui.window`): the fixed
-panels and their docks (``panels``), the menus and toolbar (``actions``), what depends on
-the mode (``mode_wiring``), plots and 3D views (``dynamic_docks``), layouts
-(``dock_layout``), the display tick and status (``status``) and the session commands
-(``commands``). This module puts them together and closes the window.
+The window is built from parts, each with one job and its own state, given what it uses in
+its constructor (:mod:`bpms.gui.window`, docs/main-window.md):
+
+- ``panels`` (:class:`WindowPanels`): the fixed panels' widgets and their docks;
+- ``commands`` (:class:`SessionCommands`): what the menus and panels ask of the session;
+- ``views`` (:class:`ViewDocks`): plots and 3D views, and where a new plot goes;
+- ``layouts`` (:class:`DockLayouts`): built-in and named layouts;
+- ``mode`` (:class:`ModeControls`): what depends on the mode (playback, UDP server);
+- ``menus`` (:class:`WindowMenus`): the actions, menu bar and toolbar;
+- ``display`` (:class:`StatusDisplay`): the display tick and the status.
+
+This module makes them, wires their signals in one place (:meth:`MainWindow._wire`) and
+closes the window. It holds the session's runner, options and model, which the parts share.
 """
 
 from __future__ import annotations
 
-from PyQt6 import sip
 from PyQt6.QtCore import QByteArray, QRect, QTimer, pyqtSignal
-from PyQt6.QtWidgets import QDockWidget, QMainWindow, QMessageBox, QWidget
+from PyQt6.QtWidgets import QMainWindow, QMessageBox, QWidget
 
 from bpms.gui.angle_readout import ContinuousAngles
 from bpms.gui.layouts import LayoutStore
 from bpms.gui.model import SessionModel
 from bpms.gui.modes import MODE_LABELS, SessionRunner
 from bpms.gui.plot_data import BlockHistory
-from bpms.gui.plots import PlotWindow
 from bpms.gui.screen_fit import place_window
-from bpms.gui.window.actions import WindowActions
+from bpms.gui.window.actions import WindowMenus
 from bpms.gui.window.commands import SessionCommands
 from bpms.gui.window.dock_layout import DockLayouts
-from bpms.gui.window.dynamic_docks import DynamicDocks
-from bpms.gui.window.mode_wiring import ModeWiring
+from bpms.gui.window.dynamic_docks import ViewDocks
+from bpms.gui.window.mode_wiring import ModeControls, nominal_hz
 from bpms.gui.window.panels import WindowPanels
 from bpms.gui.window.status import StatusDisplay
 from bpms.io.frames import FRAME_RATE_HZ
 from bpms.io.options import Options
 
 
-class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayouts,
-                 StatusDisplay, SessionCommands, QMainWindow):
+class MainWindow(QMainWindow):
     """One session's window. ``closed`` is emitted (after the session stopped) on close.
 
     ``layout_store``: where named layouts live (default: the user's config folder);
@@ -60,92 +65,103 @@ class MainWindow(WindowPanels, WindowActions, ModeWiring, DynamicDocks, DockLayo
         self.runner = runner
         self.options: Options = runner.options
         self.model = SessionModel(self.options, self)
-        self.simulated = runner.mode == "sim"
-        self._init_state()
-        self._set_up_frame()
-        self._build_docks()
-        self.layout_store = layout_store if layout_store is not None else LayoutStore()
-        self.current_layout = ""
-        self._menus()
+        simulated = runner.mode == "sim"
+        self._set_up_frame(simulated)
+        history = BlockHistory(max(1, round(self.options.display.plot_history_s
+                                            * FRAME_RATE_HZ)))
+        readout = ContinuousAngles()  # the angles shown, continuous (docs/main-window.md)
+        self.panels = WindowPanels(runner, self.options, self, simulated=simulated,
+                                   window_frames=history.buffer.capacity)
+        self.commands = SessionCommands(self, runner, self.model, self.options, self.panels,
+                                        readout)
+        self.views = ViewDocks(self, self.model, self.options, self.panels, history,
+                               self.commands.reset_zero)
+        self.layouts = DockLayouts(self, self.panels, self.views,
+                                   layout_store if layout_store is not None
+                                   else LayoutStore())
+        self.mode = ModeControls(self, runner, self.panels, self.commands)
+        self.menus = WindowMenus(self, runner, self.panels, self.commands, self.views,
+                                 self.layouts, self.mode)
+        self.display = StatusDisplay(self.model, runner, self.panels, self.views, self.mode,
+                                     history, readout, self.menus.update_toolbar)
+        self._wire()
         # REC and the link light in the status bar: in view whatever the docks (closed,
         # tabbed, scrolled)
-        self.statusBar().addPermanentWidget(self.health_panel.rec_badge)
-        self.statusBar().addPermanentWidget(self.health_panel.link_badge)
+        self.statusBar().addPermanentWidget(self.panels.health_panel.rec_badge)
+        self.statusBar().addPermanentWidget(self.panels.health_panel.link_badge)
         # the size of the screen before the layout is built (the docks are sized to it)
         self.placement = place_window(self, saved_geometry, available)
-        self._first_layout(restore_last)
+        self.layouts.first_layout(runner.replay is not None, restore_last)
         self._open_session()
 
-    def _init_state(self) -> None:
-        self.plot_windows: list[PlotWindow] = []
-        self.view3d_windows: list[QWidget] = []
-        self.browser_views: list = []
-        self.dynamic_docks: list[QDockWidget] = []
-        self._dock_serial = 0
-        self.tick_times_s: list[float] = []  # GUI time per display tick (bench/gui.py)
-        self._last_recording = None
-        self._counters: dict[str, int] = {}
-        self._texts_at = -1e9
-        self._last_state = ""
-        self._source_warning = ""
-        self._reinit_count = 0
-        self._disturbed: tuple[int, int] | None = None  # IMUs (mag, acc) disturbed now
-        self.readout = ContinuousAngles()  # the angles shown, continuous (docs/main-window.md)
-        self.history = BlockHistory(max(1, round(self.options.display.plot_history_s
-                                                 * FRAME_RATE_HZ)))
-
-    def _set_up_frame(self) -> None:
+    def _set_up_frame(self, simulated: bool) -> None:
         title = f"BPMS Suite — {MODE_LABELS[self.runner.mode]}"
-        self.setWindowTitle(("SIMULATED — " + title) if self.simulated else title)
+        self.setWindowTitle(("SIMULATED — " + title) if simulated else title)
         self.setDockNestingEnabled(True)
         self.setDockOptions(QMainWindow.DockOption.AllowTabbedDocks
                             | QMainWindow.DockOption.AllowNestedDocks
                             | QMainWindow.DockOption.AnimatedDocks)
 
+    def _wire(self) -> None:
+        """What the panels' buttons and signals do: the one place the parts are connected."""
+        panels, commands, views = self.panels, self.commands, self.views
+        panels.plot_button.clicked.connect(views.plot_selection)
+        panels.joints_button.clicked.connect(views.open_joint_plot)
+        panels.view3d_button.clicked.connect(views.open_3d_view)
+        panels.browser_button.clicked.connect(views.open_browser_view)
+        panels.unit_combo.currentTextChanged.connect(commands.set_angle_unit)
+        panels.status_panel.dataToggled.connect(commands.set_data)
+        panels.status_panel.resetZeroClicked.connect(commands.reset_zero)
+        panels.file_panel.on_stopped.append(self.display.logging_stopped)
+        panels.gains_panel.gainsChanged.connect(commands.set_gains)
+        panels.gains_panel.filterChanged.connect(commands.select_filter)
+        panels.drop_area.cellsDropped.connect(views.cells_dropped)
+        panels.drop_area.jointsDropped.connect(views.joints_dropped)
+        commands.dataSwitched.connect(lambda _on: self.menus.update_toolbar())
+        # The docks fill the window; the central widget is an empty strip.
+        central = QWidget()
+        central.setMaximumSize(0, 0)
+        self.setCentralWidget(central)
+
     def _open_session(self) -> None:
         """Show the runner's file warnings, connect the model and attach the session."""
+        log = self.panels.event_log
         for problem in getattr(self.runner, "problems", []):
-            self.event_log.add(f"file warning: {problem}", "warning")
-        self.model.nominal_hz = self._nominal_hz
-        self.model.samplesArrived.connect(self._on_samples)
-        self.model.healthChanged.connect(self._show_stale)
-        self.model.statusChanged.connect(self._on_status)
+            log.add(f"file warning: {problem}", "warning")
+        runner = self.runner
+        self.model.nominal_hz = lambda: nominal_hz(runner)
+        self.model.samplesArrived.connect(self.display.on_samples)
+        self.model.healthChanged.connect(self.display.show_stale)
+        self.model.statusChanged.connect(self.display.on_status)
         self.model.attach(self.runner.session)
         self.model.set_data_on(self.runner.data_on)
-        self.event_log.add(f"session opened: {MODE_LABELS[self.runner.mode]}"
-                           + (" (SIMULATED data)" if self.simulated else ""))
+        log.add(f"session opened: {MODE_LABELS[self.runner.mode]}"
+                + (" (SIMULATED data)" if self.runner.mode == "sim" else ""))
 
     def shutdown(self) -> None:
         """Close plots and 3D views, stop the session (files closed), free the source."""
-        if self.file_panel.stopping is not None:
-            self.file_panel.stopping.wait(15.0)
-        for view in self.browser_views:
-            self.model.samplesArrived.disconnect(view.feed)
-            view.close()
-        self.browser_views.clear()
-        self._prune()
-        for view in list(self.view3d_windows):
-            if not sip.isdeleted(view):
-                view.close()
+        if self.panels.file_panel.stopping is not None:
+            self.panels.file_panel.stopping.wait(15.0)
+        self.views.close_all()
         self.model.attach(None)
         self.runner.close()
 
     def showEvent(self, event) -> None:
         super().showEvent(event)
-        QTimer.singleShot(0, self.raise_front)
+        QTimer.singleShot(0, self.layouts.raise_front)
 
     def resizeEvent(self, event) -> None:
         super().resizeEvent(event)
-        QTimer.singleShot(0, self.fit_table)  # the table keeps its rows in view
+        QTimer.singleShot(0, self.views.fit_table)  # the table keeps its rows in view
 
     def closeEvent(self, event) -> None:
-        if self.file_panel.logging:
+        if self.panels.file_panel.logging:
             answer = QMessageBox.question(self, "BPMS Suite",
                                           "Logging is on. Stop logging and close?")
             if answer != QMessageBox.StandardButton.Yes:
                 event.ignore()
                 return
-        self.layout_store.remember(self.current_layout_state())
+        self.layouts.layout_store.remember(self.layouts.current_layout_state())
         self.shutdown()
         self.closed.emit()
         super().closeEvent(event)

@@ -116,14 +116,15 @@ def saved_main_geometry(store: SettingsStore | None = None) -> QByteArray | None
     return (store or SettingsStore()).get("main_geometry")
 
 
-def remember_main(window: Any, store: SettingsStore | None = None) -> None:
-    """Keep the main window's geometry, subject name and UDP targets (on close)."""
+def remember_main(window: Any, panels: Any = None, store: SettingsStore | None = None) -> None:
+    """Keep the main window's geometry, and from its ``panels`` (their ``file_panel`` and
+    ``udp_panel``) the subject name and UDP targets (on close)."""
     store = store or SettingsStore()
     store.set("main_geometry", window.saveGeometry())
-    panel = getattr(window, "file_panel", None)
+    panel = getattr(panels, "file_panel", None)
     if panel is not None and hasattr(panel, "name_edit"):
         store.set("subject", panel.name_edit.text().strip() or None)
-    udp = getattr(window, "udp_panel", None)
+    udp = getattr(panels, "udp_panel", None)
     if udp is not None and hasattr(udp, "targets_edit"):
         store.set("udp_targets", udp.targets_edit.text().strip() or None)
     store.sync()

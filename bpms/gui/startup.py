@@ -429,12 +429,12 @@ class StartupWindow(QWidget):
 
     def open_main_window(self, runner: SessionRunner) -> MainWindow:
         window = MainWindow(runner, saved_geometry=settings_store.saved_main_geometry())
-        window.closed.connect(lambda: settings_store.remember_main(window))
+        window.closed.connect(lambda: settings_store.remember_main(window, window.panels))
         window.closed.connect(self._main_closed)
         self.main_window = window
         window.show()
         if runner.mode == "sim":
-            window.set_data(True)  # one click on GO shows live data
+            window.commands.set_data(True)  # one click on GO shows live data
         self.hide()
         self.mainWindowOpened.emit(window)
         return window

@@ -19,6 +19,7 @@ if "BPMS_CONFIG_DIR" not in os.environ:  # run by hand: a config folder removed 
     _CONFIG_FOLDER = tempfile.TemporaryDirectory(prefix="bpms-gl-config-")
     os.environ["BPMS_CONFIG_DIR"] = _CONFIG_FOLDER.name
 
+from PyQt6.QtCore import Qt
 from PyQt6.QtWidgets import QApplication
 
 from bpms.firmware.sim.session import simulate
@@ -43,34 +44,36 @@ def main(out: Path) -> int:
                            Options())
     runner.prepare()
     window = MainWindow(runner, restore_last=False)
+    # this size, not maximised (a screen below 1600 x 900 opens the window maximised)
+    window.setWindowState(Qt.WindowState.WindowNoState)
     window.resize(1500, 900)
     window.show()
-    while len(window.view3d_windows) < 3:
-        window.open_3d_view()
+    while len(window.views.view3d_windows) < 3:
+        window.views.open_3d_view()
     pump(app, 0.3)
     # the playback's 4× speed (what a user picks in the Speed box): the views draw the same
     # frames in a quarter of the time
-    window.playback_panel.speed_combo.setCurrentText("4×")
+    window.panels.playback_panel.speed_combo.setCurrentText("4×")
     assert runner.replay.speed == 4.0
-    window.set_data(True)
+    window.commands.set_data(True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and (window.model.latest is None
                                            or window.model.latest.index < 745):
         pump(app, 0.05)
-    window.set_data(False)
+    window.commands.set_data(False)
     pump(app, 0.5)
     results: dict = {"docked": [], "index": window.model.latest.index}
-    for k, view in enumerate(window.view3d_windows):
+    for k, view in enumerate(window.views.view3d_windows):
         image = view.gl_view.grabFramebuffer()
         image.save(str(out / f"docked_{k}.png"))
         results["docked"].append({"valid": view.gl_view.isValid(), "draws": view.draws,
                                   **measure(image)})
-    dock = window.dock_of(window.view3d_windows[1])
+    dock = window.views.dock_of(window.views.view3d_windows[1])
     dock.setFloating(True)
     pump(app, 0.5)
-    window.step_frames(1)  # a new frame while floating: drawn in the new top-level window
+    window.mode.step_frames(1)  # a new frame while floating: drawn in the new top-level window
     pump(app, 1.0)
-    view = window.view3d_windows[1]
+    view = window.views.view3d_windows[1]
     image = view.gl_view.grabFramebuffer()
     image.save(str(out / "floating.png"))
     results["floating"] = {"valid": view.gl_view.isValid(), "floating": dock.isFloating(),

@@ -1,6 +1,6 @@
 """The main window's menus and toolbar: every command as a QAction with its shortcut, the
 menu bar, the Layouts menu, the toolbar (Start/Stop, Reset Zero, Record, LSL, the plot drop
-area) and the keys help. Mixed into :class:`bpms.gui.main_window.MainWindow`."""
+area) and the keys help (:class:`WindowMenus`)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from PyQt6.QtGui import QAction, QColor, QIcon, QKeySequence, QPainter, QPixmap
 from PyQt6.QtWidgets import (
     QDialog,
     QDialogButtonBox,
+    QMainWindow,
     QStyle,
     QTextBrowser,
     QVBoxLayout,
@@ -16,8 +17,14 @@ from PyQt6.QtWidgets import (
 )
 
 from bpms.gui.layouts import DEFAULT_LAYOUTS
+from bpms.gui.modes import SessionRunner
 from bpms.gui.screen_fit import fit_dialog
 from bpms.gui.view3d_keys import PLOT_BINDINGS, VIEW3D_BINDINGS, help_html
+from bpms.gui.window.commands import SessionCommands
+from bpms.gui.window.dock_layout import DockLayouts
+from bpms.gui.window.dynamic_docks import ViewDocks
+from bpms.gui.window.mode_wiring import ModeControls
+from bpms.gui.window.panels import WindowPanels
 
 
 def record_icon(size: int = 16) -> QIcon:
@@ -33,11 +40,30 @@ def record_icon(size: int = 16) -> QIcon:
     return QIcon(pixmap)
 
 
-class WindowActions:
-    """``actions_by_name``, ``layouts_menu``, ``toolbar`` and its start/stop/record actions."""
+class WindowMenus:
+    """The commands of ``window`` as actions, in its menu bar and toolbar:
+    ``actions_by_name`` (every command with its shortcut), ``layouts_menu``, ``toolbar``
+    and its ``start_action``, ``stop_action`` and ``record_action``. The actions call the
+    parts given here; :meth:`update_toolbar` shows whether the data and the logging are
+    on."""
+
+    def __init__(self, window: QMainWindow, runner: SessionRunner, panels: WindowPanels,
+                 commands: SessionCommands, views: ViewDocks, layouts: DockLayouts,
+                 mode: ModeControls) -> None:
+        self._window = window
+        self._runner = runner
+        self._panels = panels
+        self._commands = commands
+        self._views = views
+        self._layouts = layouts
+        self._mode = mode
+        self.keys_box: KeysDialog | None = None
+        self._make_actions()
+        self._build_menu_bar()
+        self._build_toolbar()
 
     def _action(self, text: str, slot, keys: str | None = None, tip: str = "") -> QAction:
-        action = QAction(text, self)
+        action = QAction(text, self._window)
         if keys:
             action.setShortcut(QKeySequence(keys))
             action.setShortcutContext(Qt.ShortcutContext.WindowShortcut)
@@ -45,51 +71,50 @@ class WindowActions:
             action.setToolTip(tip)
             action.setStatusTip(tip)
         action.triggered.connect(lambda *_: slot())
-        self.addAction(action)
+        self._window.addAction(action)
         return action
-
-    def _menus(self) -> None:
-        self._make_actions()
-        self._build_menu_bar()
-        self._build_toolbar()
 
     def _make_actions(self) -> None:
         """``actions_by_name``: every command with its shortcut and tip."""
         a = self._action
+        commands, views, layouts, mode = self._commands, self._views, self._layouts, self._mode
+        runner, panels = self._runner, self._panels
         self.actions_by_name: dict[str, QAction] = {
-            "data": a("Start/Stop Data", lambda: self.set_data(not self.runner.data_on),
+            "data": a("Start/Stop Data", lambda: commands.set_data(not runner.data_on),
                       "Ctrl+Space", "Start or stop the stream (play/pause a recording)"),
-            "reset_zero": a("Reset Zero", self.reset_zero, "Ctrl+R",
+            "reset_zero": a("Reset Zero", commands.reset_zero, "Ctrl+R",
                             "Stand in the calibration pose, then press"),
-            "marker": a("Marker…", lambda: self.add_marker(), "Ctrl+M",
+            "marker": a("Marker…", lambda: commands.add_marker(), "Ctrl+M",
                         "A marker note at this frame: in the recording, the event log and "
                         "the LSL event stream"),
-            "record": a("Start/Stop Logging", self.file_panel.toggle_logging, "Ctrl+L",
+            "record": a("Start/Stop Logging", panels.file_panel.toggle_logging, "Ctrl+L",
                         "Record raw and/or filtered files (Session dock)"),
-            "plot": a("Plot selection", self.plot_selection, "Ctrl+P",
+            "plot": a("Plot selection", views.plot_selection, "Ctrl+P",
                       "A new plot of the selected table cells"),
-            "joints": a("Joint angles plot", self.open_joint_plot, "Ctrl+J"),
-            "view3d": a("New 3D view", self.open_3d_view, "Ctrl+3"),
-            "tile": a("Tile plots", self.tile_plots,
+            "joints": a("Joint angles plot", views.open_joint_plot, "Ctrl+J"),
+            "view3d": a("New 3D view", views.open_3d_view, "Ctrl+3"),
+            "tile": a("Tile plots", layouts.tile_plots,
                       tip="Every docked plot in view at once, in a grid under the table"),
-            "browser": a("Browser 3D view", self.open_browser_view),
-            "unit": a("Angles deg/rad", self._toggle_unit, "Ctrl+U"),
-            "step_back": a("Previous frame", lambda: self.step_frames(-1), "Ctrl+Left",
+            "browser": a("Browser 3D view", views.open_browser_view),
+            "unit": a("Angles deg/rad", commands.toggle_unit, "Ctrl+U"),
+            "step_back": a("Previous frame", lambda: mode.step_frames(-1), "Ctrl+Left",
                            "Playback, paused: one frame back"),
-            "step_fwd": a("Next frame", lambda: self.step_frames(1), "Ctrl+Right",
+            "step_fwd": a("Next frame", lambda: mode.step_frames(1), "Ctrl+Right",
                           "Playback, paused: one frame forward"),
-            "step_back10": a("Back 1 s", lambda: self.step_frames(-50), "Ctrl+Shift+Left"),
-            "step_fwd10": a("Forward 1 s", lambda: self.step_frames(50), "Ctrl+Shift+Right"),
-            "save_layout": a("Save layout as…", self.save_layout_dialog, "Ctrl+Shift+S"),
-            "quit": a("Close window", self.close, "Ctrl+Q"),
-            "sensor_angles": a("Sensor angles (uncorrected)", self._sensor_angles_toggled,
+            "step_back10": a("Back 1 s", lambda: mode.step_frames(-50), "Ctrl+Shift+Left"),
+            "step_fwd10": a("Forward 1 s", lambda: mode.step_frames(50), "Ctrl+Shift+Right"),
+            "save_layout": a("Save layout as…", layouts.save_layout_dialog, "Ctrl+Shift+S"),
+            "quit": a("Close window", self._window.close, "Ctrl+Q"),
+            "sensor_angles": a("Sensor angles (uncorrected)", lambda: commands.show_sensor_angles(
+                                   self.actions_by_name["sensor_angles"].isChecked()),
                                tip="Table and plots show the sensor angles, without Reset "
                                    "Zero (off: the segment angles after Reset Zero)"),
             "corrected": a("Reset Zero correction of the output angles",
-                           self._corrected_toggled, "V",
+                           lambda: commands.set_corrected_output(
+                               self.actions_by_name["corrected"].isChecked()), "V",
                            "The angles shown, recorded and streamed: segment angles after "
                            "Reset Zero (on) or the sensor angles (off); v in the table"),
-            "drift": a("Drift check…", self.open_drift_check,
+            "drift": a("Drift check…", mode.open_drift_check,
                        tip="Each segment's attitude change between the calibration pauses at "
                            "the start and the end of the recording (playback)"),
             "lsl": a("Stream to LSL", self._lsl_toggled,
@@ -98,86 +123,97 @@ class WindowActions:
         acts = self.actions_by_name
         acts["sensor_angles"].setCheckable(True)
         acts["corrected"].setCheckable(True)
-        processor = getattr(self.runner.session, "processor", None)
+        processor = getattr(runner.session, "processor", None)
         acts["corrected"].setChecked(bool(getattr(processor, "corrected_output", True)))
         # the original's v key, in the table (the 3D view keeps its own v: figure alignment)
-        self.removeAction(acts["corrected"])
+        self._window.removeAction(acts["corrected"])
         acts["corrected"].setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
-        self.table_tabs.addAction(acts["corrected"])
+        panels.table_tabs.addAction(acts["corrected"])
         acts["lsl"].setCheckable(True)
-        acts["lsl"].setChecked(self.runner.lsl_on)
-        self.actions_by_name["view3d"].setEnabled(self.view3d_button.isEnabled())
-        self.actions_by_name["browser"].setEnabled(self.browser_button.isEnabled())
+        acts["lsl"].setChecked(runner.lsl_on)
+        acts["view3d"].setEnabled(panels.view3d_button.isEnabled())
+        acts["browser"].setEnabled(panels.browser_button.isEnabled())
+
+    def _lsl_toggled(self) -> None:
+        action = self.actions_by_name["lsl"]
+        action.setChecked(self._commands.set_lsl(action.isChecked()))
 
     def _build_menu_bar(self) -> None:
-        a = self._action
         acts = self.actions_by_name
-        bar = self.menuBar()
+        bar = self._window.menuBar()
         menu = bar.addMenu("&File")
         for key in ("record", "quit"):
             menu.addAction(acts[key])
         menu = bar.addMenu("&Data")
         for key in ("data", "reset_zero", "marker", "corrected", "lsl"):
             menu.addAction(acts[key])
-        self._add_playback_actions(menu)
+        self._mode.add_playback_actions(menu, acts)
         menu = bar.addMenu("&View")
         for key in ("plot", "joints", "tile", "view3d", "browser", "unit", "sensor_angles"):
             menu.addAction(acts[key])
         menu.addSeparator()
-        for dock in self.docks.values():
+        for dock in self._panels.docks.values():
             menu.addAction(dock.toggleViewAction())
         self.layouts_menu = bar.addMenu("&Layouts")
         self.layouts_menu.aboutToShow.connect(self._fill_layouts_menu)
         self._fill_layouts_menu()
         help_menu = bar.addMenu("&Help")
-        help_menu.addAction(a("Keys and mouse…", self.show_keys, "F1"))
+        help_menu.addAction(self._action("Keys and mouse…", self.show_keys, "F1"))
 
     def _build_toolbar(self) -> None:
         acts = self.actions_by_name
-        toolbar = self.addToolBar("Session")
+        commands = self._commands
+        toolbar = self._window.addToolBar("Session")
         toolbar.setObjectName("toolbar")
         toolbar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
         self.toolbar = toolbar
-        icon = self.style().standardIcon
+        icon = self._window.style().standardIcon
         sp = QStyle.StandardPixmap
         # icons from Qt's standard set (a font may lack the media glyphs)
         self.start_action = toolbar.addAction(icon(sp.SP_MediaPlay), "Start",
-                                              lambda: self.set_data(True))
+                                              lambda: commands.set_data(True))
         self.start_action.setToolTip("Start Data (Ctrl+Space)")
         self.stop_action = toolbar.addAction(icon(sp.SP_MediaStop), "Stop",
-                                             lambda: self.set_data(False))
+                                             lambda: commands.set_data(False))
         self.stop_action.setToolTip("Stop Data (Ctrl+Space)")
         acts["reset_zero"].setIcon(icon(sp.SP_BrowserReload))
         toolbar.addAction(acts["reset_zero"])
         self.record_action = toolbar.addAction(record_icon(), "Record",
-                                               self.file_panel.toggle_logging)
+                                               self._panels.file_panel.toggle_logging)
         self.record_action.setToolTip("Start/Stop Logging (Ctrl+L)")
         toolbar.addAction(acts["lsl"])
         toolbar.addSeparator()
-        self.drop_area.setMinimumWidth(300)
-        toolbar.addWidget(self.drop_area)
-        self._update_toolbar()
+        drop_area = self._panels.drop_area
+        drop_area.setMinimumWidth(300)
+        toolbar.addWidget(drop_area)
+        self.update_toolbar()
 
     def _fill_layouts_menu(self) -> None:
         menu = self.layouts_menu
+        layouts = self._layouts
+        store = layouts.layout_store
         menu.clear()
         for name in DEFAULT_LAYOUTS:
-            if name not in self.layout_store.names():
-                menu.addAction(name.capitalize(), lambda n=name: self.apply_default_layout(n))
-        saved = self.layout_store.names()
+            if name not in store.names():
+                menu.addAction(name.capitalize(),
+                               lambda n=name: layouts.apply_default_layout(n))
+        saved = store.names()
         if saved:
             menu.addSeparator()
             for name in saved:
-                menu.addAction(name, lambda n=name: self.load_layout(n))
+                menu.addAction(name, lambda n=name: layouts.load_layout(n))
         menu.addSeparator()
         menu.addAction(self.actions_by_name["save_layout"])
 
-    def _update_toolbar(self) -> None:
-        on = self.runner.data_on
+    def update_toolbar(self) -> None:
+        """Start or Stop enabled (and Reset Zero with the data on), Record or Stop
+        recording."""
+        on = self._runner.data_on
         self.start_action.setEnabled(not on)
         self.stop_action.setEnabled(on)
         self.actions_by_name["reset_zero"].setEnabled(on)
-        self.record_action.setText("Stop recording" if self.file_panel.logging else "Record")
+        self.record_action.setText("Stop recording" if self._panels.file_panel.logging
+                                   else "Record")
 
     def keys_html(self) -> str:
         """The F1 page: the window's shortcuts (from its actions), the 3D view's and the
@@ -192,7 +228,7 @@ class WindowActions:
     def show_keys(self, available: QRect | None = None) -> KeysDialog:
         """The F1 page (no taller than the screen, ``available`` overriding its available
         geometry; it scrolls)."""
-        box = KeysDialog(self.keys_html(), self, available)
+        box = KeysDialog(self.keys_html(), self._window, available)
         box.open()
         self.keys_box = box
         return box

@@ -1,37 +1,66 @@
-"""The main window's session commands: Start/Stop Data, Reset Zero, the filter and its
-gains, the angle unit and which angles are shown. Mixed into
-:class:`bpms.gui.main_window.MainWindow`."""
+"""The main window's session commands: Start/Stop Data, Reset Zero, markers, the filter and
+its gains, LSL, the angle unit and which angles are shown.
+
+:class:`SessionCommands` is what the menus, toolbar and panels ask of the session; it holds
+no state of its own beyond the references it is given.
+"""
 
 from __future__ import annotations
 
-from bpms.gui.modes import ModeError
+from PyQt6.QtCore import QObject, pyqtSignal
+from PyQt6.QtWidgets import QMainWindow
+
+from bpms.gui.angle_readout import ContinuousAngles
+from bpms.gui.model import SessionModel
+from bpms.gui.modes import ModeError, SessionRunner
+from bpms.gui.window.panels import WindowPanels, listening_address
+from bpms.io.options import Options
 
 
-class SessionCommands:
-    """What the menus, toolbar and panels ask of the session."""
+class SessionCommands(QObject):
+    """The session's commands. ``window``: where messages show (its status bar) and the
+    parent of the marker dialog; ``readout``: the continuous angles shown (restarted when
+    other angles are shown). ``dataSwitched(on)`` after Start/Stop Data was asked (on: the
+    data is on now)."""
+
+    dataSwitched = pyqtSignal(bool)
+
+    def __init__(self, window: QMainWindow, runner: SessionRunner, model: SessionModel,
+                 options: Options, panels: WindowPanels, readout: ContinuousAngles) -> None:
+        super().__init__(window)
+        self._window = window
+        self.runner = runner
+        self.model = model
+        self.options = options
+        self._panels = panels
+        self._readout = readout
+
+    def _say(self, text: str, ms: int) -> None:
+        self._window.statusBar().showMessage(text, ms)
 
     def set_data(self, on: bool) -> None:
         """Start Data / Stop Data."""
         if on == self.runner.data_on:
             return
+        panels = self._panels
         if on:
             try:
                 session = self.runner.start_data()
             except ModeError as exc:
-                self.statusBar().showMessage(str(exc), 10000)
-                self.event_log.add(f"cannot start data: {exc}", "warning")
+                self._say(str(exc), 10000)
+                panels.event_log.add(f"cannot start data: {exc}", "warning")
                 return
             if session is not self.model.session:
                 self.model.attach(session)
-                self.health_panel.set_listening(self._listening())
+                panels.health_panel.set_listening(listening_address(self.runner))
             self.model.set_data_on(True)
-            self.event_log.add("data started")
+            panels.event_log.add("data started")
         else:
             self.runner.stop_data()
             self.model.set_data_on(False)
-            self.event_log.add("data stopped")
-        self.status_panel.set_streaming(self.runner.data_on)
-        self._update_toolbar()
+            panels.event_log.add("data stopped")
+        panels.status_panel.set_streaming(self.runner.data_on)
+        self.dataSwitched.emit(self.runner.data_on)
 
     def reset_zero(self, source: str = "manual") -> None:
         """Reset Zero at the next frame (stand in the calibration pose). The session's event
@@ -40,7 +69,7 @@ class SessionCommands:
         if self.runner.session is None or not self.runner.data_on:
             return
         self.runner.session.reset_zero(source)
-        self.statusBar().showMessage("Reset Zero requested", 3000)
+        self._say("Reset Zero requested", 3000)
 
     def add_marker(self, text: str | None = None) -> None:
         """A marker note at the next frame (in the recording, the event log and the LSL event
@@ -50,51 +79,47 @@ class SessionCommands:
         if text is None:
             from PyQt6.QtWidgets import QInputDialog
 
-            text, ok = QInputDialog.getText(self, "Marker", "Marker note:")
+            text, ok = QInputDialog.getText(self._window, "Marker", "Marker note:")
             if not ok:
                 return
         if text.strip():
             self.runner.session.marker(text.strip())
 
-    def _sensor_angles_toggled(self) -> None:
+    def show_sensor_angles(self, sensor: bool) -> None:
         """View ▸ Sensor angles (uncorrected): the table and the angle plots show ``euler``
-        (checked) or the output angles ``euler_output`` (unchecked, the default)."""
-        sensor = self.actions_by_name["sensor_angles"].isChecked()
-        self.table_model.set_show_output(not sensor)
-        self.readout.reset()  # other angles: their continuous readout starts again
-        self.statusBar().showMessage("angles shown: " + ("sensor angles (uncorrected)" if sensor
-                                     else "output angles (after Reset Zero)"), 3000)
+        (``sensor``) or the output angles ``euler_output`` (not, the default)."""
+        self._panels.table_model.set_show_output(not sensor)
+        self._readout.reset()  # other angles: their continuous readout starts again
+        self._say("angles shown: " + ("sensor angles (uncorrected)" if sensor
+                                      else "output angles (after Reset Zero)"), 3000)
 
-    def _corrected_toggled(self) -> None:
+    def set_corrected_output(self, on: bool) -> None:
         """The original's v key: the session's output angles corrected by Reset Zero or not
         (what is shown, recorded and streamed), from the next frame."""
-        on = self.actions_by_name["corrected"].isChecked()
         if self.runner.session is not None:  # the session's event says it, at its frame
             self.runner.session.set_corrected_output(on)
         self.options.pose.corrected_output = on  # a new session (UDP restart) follows
 
-    def _lsl_toggled(self) -> None:
-        """Stream to LSL on/off (SessionRunner.set_lsl); the reason when it cannot start."""
-        action = self.actions_by_name["lsl"]
-        on = action.isChecked()
+    def set_lsl(self, on: bool) -> bool:
+        """Stream to LSL on/off (SessionRunner.set_lsl), the reason when it cannot start;
+        whether it streams now."""
         why = self.runner.set_lsl(on)
         if why:
-            action.setChecked(False)
-            self.statusBar().showMessage(f"LSL: {why}", 10000)
-            self.event_log.add(f"LSL streaming not started: {why}", "warning")
-            return
-        action.setChecked(self.runner.lsl_on)
-        self.event_log.add("LSL streaming " + ("on" if self.runner.lsl_on else "off"))
+            self._say(f"LSL: {why}", 10000)
+            self._panels.event_log.add(f"LSL streaming not started: {why}", "warning")
+            return False
+        self._panels.event_log.add("LSL streaming " + ("on" if self.runner.lsl_on else "off"))
+        return self.runner.lsl_on
 
-    def _set_gains(self, gains: dict) -> None:
+    def set_gains(self, gains: dict) -> None:
         """A gain the panel accepted; the session checks it again (the panel logs the change,
         or the refusal with the range)."""
         if self.runner.session is not None:
             try:
                 self.runner.session.set_gains(**gains)
             except ValueError as exc:  # outside the valid range: refused, said why
-                self.statusBar().showMessage(str(exc), 8000)
-                self.gains_panel.refuse(str(exc))
+                self._say(str(exc), 8000)
+                self._panels.gains_panel.refuse(str(exc))
                 return
             for name, value in gains.items():
                 setattr(self.options.filter, name, value)
@@ -104,12 +129,14 @@ class SessionCommands:
         if self.runner.session is not None:
             self.runner.session.select_filter(algorithm)
         self.options.filter.algorithm = algorithm
-        self.statusBar().showMessage(f"filter: {algorithm}", 3000)  # (the event: the session)
+        self._say(f"filter: {algorithm}", 3000)  # (the event: the session)
 
     def set_angle_unit(self, unit: str) -> None:
-        self.table_model.set_angle_unit(unit)
-        self.joint_model.set_angle_unit(unit)
+        self._panels.table_model.set_angle_unit(unit)
+        self._panels.joint_model.set_angle_unit(unit)
         self.options.display.angle_unit = unit
 
-    def _toggle_unit(self) -> None:
-        self.unit_combo.setCurrentText("rad" if self.unit_combo.currentText() == "deg" else "deg")
+    def toggle_unit(self) -> None:
+        """deg ⇄ rad (through the unit box, which says it)."""
+        combo = self._panels.unit_combo
+        combo.setCurrentText("rad" if combo.currentText() == "deg" else "deg")

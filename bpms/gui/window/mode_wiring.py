@@ -1,70 +1,75 @@
-"""What depends on the session's mode: the playback panel and its frame steps, Data menu
-entries and drift check (file playback), the UDP server panel (suit, simulated suit), the
-listening address (UDP client) and the nominal rate. Mixed into
-:class:`bpms.gui.main_window.MainWindow`."""
+"""What depends on the session's mode: the playback panel's numbers and frame steps, the Data
+menu's playback entries and the drift check (file playback), the UDP server panel's numbers
+(suit, simulated suit) and the nominal rate.
+
+:class:`ModeControls` holds no state of its own; the panels it drives are
+:class:`~bpms.gui.window.panels.WindowPanels`' (``playback_panel``, ``udp_panel``).
+"""
 
 from __future__ import annotations
 
 from PyQt6.QtCore import Qt
-from PyQt6.QtWidgets import QMenu
+from PyQt6.QtGui import QAction
+from PyQt6.QtWidgets import QMainWindow, QMenu
 
-from bpms.gui.controls import PlaybackPanel, UdpServerPanel
+from bpms.gui.modes import SessionRunner
+from bpms.gui.window.commands import SessionCommands
+from bpms.gui.window.panels import WindowPanels
 from bpms.pipeline.session import LiveStatus
 
 
-class ModeWiring:
-    """``playback_panel`` (None unless a file plays), ``udp_panel`` (None unless a suit)."""
+def nominal_hz(runner: SessionRunner) -> float | None:
+    """The rate frames should arrive at, Hz: 50 live, 50 × the speed in playback, None when
+    a recording plays as fast as it can."""
+    replay = runner.replay
+    if replay is None:
+        return 50.0
+    return None if replay.speed is None else 50.0 * replay.speed
 
-    def _build_mode_panels(self) -> None:
-        runner = self.runner
-        self.playback_panel = PlaybackPanel(runner) if runner.replay is not None else None
-        if self.playback_panel is not None:  # a paused seek redraws the plots' whole window
-            self.playback_panel.window_frames = self.history.buffer.capacity
-        self.udp_panel = UdpServerPanel(runner) if runner.mode in ("suit", "sim") else None
 
-    def _add_playback_actions(self, menu: QMenu) -> None:
+class ModeControls:
+    """The mode's panels in ``window``: numbers at each status, the end of a recording, frame
+    steps, playback menu entries and the drift check."""
+
+    def __init__(self, window: QMainWindow, runner: SessionRunner, panels: WindowPanels,
+                 commands: SessionCommands) -> None:
+        self._window = window
+        self._runner = runner
+        self._panels = panels
+        self._commands = commands
+
+    def add_playback_actions(self, menu: QMenu, actions: dict[str, QAction]) -> None:
         """File playback: the frame steps and the drift check in the Data menu."""
-        if self.runner.replay is None:
+        if self._runner.replay is None:
             return
-        acts = self.actions_by_name
         menu.addSeparator()
         for key in ("step_back", "step_fwd", "step_back10", "step_fwd10"):
-            menu.addAction(acts[key])
+            menu.addAction(actions[key])
         menu.addSeparator()
-        menu.addAction(acts["drift"])
+        menu.addAction(actions["drift"])
         from bpms.gui.compare_panel import add_compare_action  # docs/compare.md
 
-        add_compare_action(self, menu)
+        add_compare_action(self._window, menu)
 
-    def _listening(self) -> str | None:
-        """The UDP client's listening address (host:port), else None."""
-        source = self.runner.session.source if self.runner.session is not None else None
-        udp = getattr(source, "udp", None)
-        return str(udp.listening) if udp is not None and hasattr(udp, "listening") else None
-
-    def _nominal_hz(self) -> float | None:
-        replay = self.runner.replay
-        if replay is None:
-            return 50.0
-        return None if replay.speed is None else 50.0 * replay.speed
-
-    def _show_mode_status(self, st: LiveStatus) -> None:
+    def show_status(self, st: LiveStatus) -> None:
         """The playback and UDP server panels' numbers; the end of a played recording stops
         the data."""
-        if self.playback_panel is not None:
-            self.playback_panel.show_status(st)
-            if self.runner.replay is not None and self.runner.replay.ended \
-                    and self.runner.data_on:
-                self.set_data(False)
-                self.statusBar().showMessage("end of the recording", 5000)
-                self.event_log.add("end of the recording")
-        if self.udp_panel is not None:
-            self.udp_panel.show_status(st)
+        playback, udp = self._panels.playback_panel, self._panels.udp_panel
+        runner = self._runner
+        if playback is not None:
+            playback.show_status(st)
+            if runner.replay is not None and runner.replay.ended and runner.data_on:
+                self._commands.set_data(False)
+                self._window.statusBar().showMessage("end of the recording", 5000)
+                self._panels.event_log.add("end of the recording")
+        if udp is not None:
+            udp.show_status(st)
 
     def step_frames(self, n: int) -> None:
         """Playback, paused: move ``n`` frames (the frame is shown in every view)."""
-        if self.playback_panel is not None and not self.runner.replay.playing:
-            self.playback_panel.step(n)
+        playback = self._panels.playback_panel
+        if playback is not None and not self._runner.replay.playing:
+            playback.step(n)
 
     def open_drift_check(self):
         """A dock with the drift check of the recording being played (computed in the
@@ -72,11 +77,11 @@ class ModeWiring:
         recording is played."""
         from bpms.gui.drift_panel import drift_dock
 
-        if self.runner.replay is None or not self.runner.config.path:
+        runner = self._runner
+        if runner.replay is None or not runner.config.path:
             return None
-        dock, panel = drift_dock(self)
-        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
-        runner = self.runner
+        dock, panel = drift_dock(self._window)
+        self._window.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
         panel.start(runner.config.path, runner.playback_calibration, runner.playback_options,
                     runner.options.filter.algorithm)
         return panel
