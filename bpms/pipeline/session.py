@@ -375,6 +375,7 @@ class LiveSession:
             processing_backlog=self._proc_queue.qsize(), recording=self._recording,
             forwarding=[f"{h}:{p}" for h, p in fwd.targets] if fwd else [],
             forwarded=fstats.sent if fstats else 0,
+            forwarded_poses=fstats.poses_sent if fstats else 0,
             forward_errors=fstats.errors if fstats else 0,
             forward_refused=fstats.refused if fstats else 0,
             latency_p99_ms=1e3 * lat[int(0.99 * (len(lat) - 1))] if lat else 0.0,
