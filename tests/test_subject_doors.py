@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from test_lab_streams import decode_mvn
-from waiting import receive_until_exit
+from waiting import receive_until_exit, wait_until
 
 from bpms.analysis.bvh import CM_PER_M
 from bpms.cli import main
 from bpms.filter.body_model import POINT_NAMES
 from bpms.filter.door import process_file
-from bpms.firmware.sim.body import SubjectDimensions
+from bpms.firmware.sim.body import SKELETON, SubjectDimensions
 from bpms.firmware.sim.motion import Still, Walk
 from bpms.firmware.sim.sensors import SensorModel
 from bpms.firmware.sim.session import simulate
@@ -120,3 +120,42 @@ def test_walked_path_steps_with_the_subjects_legs(tmp_path):
     travel = np.linalg.norm(rec.truth.pelvis_position[-1, :2] - rec.truth.pelvis_position[0, :2])
     assert abs(np.linalg.norm(tall.sum(axis=0)) - travel) < abs(
         np.linalg.norm(plain.sum(axis=0)) - travel)
+
+
+def _segment_lengths(points: np.ndarray) -> dict[str, float]:
+    """Segment length (m) by the simulator's length names, from ``[21, 3]`` points."""
+    index = {n: i for i, n in enumerate(POINT_NAMES)}
+    return {length: float(np.linalg.norm(points[index[name]] - points[index[parent]]))
+            for name, parent, _, _, length in SKELETON}
+
+
+def test_3d_views_draw_the_subjects_lengths(tmp_path):
+    """The samples a replay session (GUI playback, ``bpms replay``) hands the 3D views carry
+    the profile's lengths, and the views draw them in every mode: the pose after Reset Zero,
+    the ``v`` figure of the filter DCMs and the grey calibration pose before Reset Zero
+    (these two used the factory's lengths)."""
+    from bpms.filter.door import open_for_processing
+    from bpms.gui.view3d_geometry import calibration_pose, pose_points
+    from bpms.io.recordings import open_replay
+    from bpms.io.replay import ReplaySource
+    from bpms.pipeline.session import LiveSession
+
+    raw = simulate(seed=2, duration_s=2.0, subject=TALL).save_raw(tmp_path / "r.bpmsraw",
+                                                                    subject_id="S9")
+    opened = open_for_processing(raw, for_replay=True)
+    recording = open_replay(raw)
+    session = LiveSession(ReplaySource(recording, speed=None,
+                                       events=opened.replay_events(recording.events)),
+                          opened.processor.options, opened.processor)
+    sub = session.subscribe(maxlen=len(recording), lossless=True)
+    session.start()
+    try:
+        assert wait_until(lambda: session.status().processed == len(recording), 30)
+    finally:
+        session.stop()
+    sample = sub.drain()[-1]
+    want = TALL.lengths()
+    for points in (pose_points(sample, True), pose_points(sample, False),
+                   calibration_pose(sample.body)):
+        assert _segment_lengths(points) == pytest.approx(want, abs=1e-9)
+    assert _segment_lengths(calibration_pose(None))["thigh"] == pytest.approx(0.43)
