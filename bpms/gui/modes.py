@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from bpms.io.calib_file import CalibrationTable
@@ -65,16 +65,19 @@ class ModeConfig:
     path: str = ""
     sim_seed: int = 0
     recording_dir: str | None = None
+    #: more of the simulated subject (``simulate()``'s ``posture``, ``functional``,
+    #: ``mounting_error_deg``, ``subject``: docs/simulated-suit.md); none: the standard trial
+    sim_options: dict = field(default_factory=dict)
 
 
 class SimulatedSuit:
     """``bpms.firmware.sim``'s arbiter served on a pty in this process (real time, 50 Hz)."""
 
-    def __init__(self, seed: int = 0) -> None:
+    def __init__(self, seed: int = 0, **options: object) -> None:
         from bpms.firmware.sim.arbiter import Arbiter, MotionSource
         from bpms.firmware.sim.server import local_server
 
-        self.arbiter = Arbiter(MotionSource.simulated(seed=seed), seed=seed)
+        self.arbiter = Arbiter(MotionSource.simulated(seed=seed, **options), seed=seed)
         self.server = local_server(self.arbiter).start()  # a pty, or TCP where there is none
         self.path: str = self.server.address
 
@@ -206,7 +209,7 @@ class SessionRunner:
         else:
             port = cfg.port or None
             if cfg.mode == "sim":
-                self.sim = SimulatedSuit(cfg.sim_seed)
+                self.sim = SimulatedSuit(cfg.sim_seed, **cfg.sim_options)
                 port = self.sim.path
             serial = self.options.serial
             serial.baud = cfg.baud

@@ -16,6 +16,7 @@ from PyQt6.QtWidgets import (
 )
 
 from bpms.gui.layouts import DEFAULT_LAYOUTS
+from bpms.gui.pose_calibration_panel import open_pose_calibration
 from bpms.gui.screen_fit import fit_dialog
 from bpms.gui.view3d_keys import PLOT_BINDINGS, VIEW3D_BINDINGS, help_html
 
@@ -119,6 +120,7 @@ class WindowActions:
         menu = bar.addMenu("&Data")
         for key in ("data", "reset_zero", "marker", "corrected", "lsl"):
             menu.addAction(acts[key])
+        menu.addAction("Pose calibration…", lambda: open_pose_calibration(self))
         self._add_playback_actions(menu)
         menu = bar.addMenu("&View")
         for key in ("plot", "joints", "tile", "view3d", "browser", "unit", "sensor_angles"):
