@@ -127,3 +127,13 @@ def test_functional_calibration_start_stop_and_report(qtbot, tmp_path, functiona
     assert len(after) > 100
     err = _rms_deg(after, rec.truth.joint_angles[[s.index for s in after]])
     assert err.max() < 3.0, dict(zip(JOINT_ANGLE_NAMES, err.round(2), strict=True))
+
+
+def test_gui_refuses_a_bad_simulated_posture_in_one_line(capsys):
+    """``bpms gui --sim --calibration-posture suit`` runs the simulated subject in the suit
+    posture (ModeConfig.sim_options, as above); a posture it does not know: exit 2, one line."""
+    from bpms.cli import main
+
+    assert main(["gui", "--sim", "--calibration-posture", "bent"]) == 2
+    err = capsys.readouterr().err
+    assert "posture 'bent'" in err and "Traceback" not in err and len(err.splitlines()) == 1
