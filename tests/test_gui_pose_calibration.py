@@ -137,3 +137,6 @@ def test_gui_refuses_a_bad_simulated_posture_in_one_line(capsys):
     assert main(["gui", "--sim", "--calibration-posture", "bent"]) == 2
     err = capsys.readouterr().err
     assert "posture 'bent'" in err and "Traceback" not in err and len(err.splitlines()) == 1
+    assert main(["gui", "--sim", "--subject", "height=1.8"]) == 2  # docs/subject.md
+    err = capsys.readouterr().err
+    assert "id is needed" in err and "Traceback" not in err and len(err.splitlines()) == 1

@@ -159,3 +159,37 @@ def test_3d_views_draw_the_subjects_lengths(tmp_path):
                    calibration_pose(sample.body)):
         assert _segment_lengths(points) == pytest.approx(want, abs=1e-9)
     assert _segment_lengths(calibration_pose(None))["thigh"] == pytest.approx(0.43)
+
+
+def test_gui_live_session_uses_the_profile(qtbot, tmp_path):
+    """``bpms gui --subject`` (ModeConfig.subject) on the simulated 1.90 m subject: the live
+    samples (table, plots, 3D views) have its lengths, the recordings' header stores the
+    profile, and the user's options keep their own lengths; a bad profile is refused before
+    any source opens."""
+    from bpms.gui.layouts import LayoutStore
+    from bpms.gui.main_window import MainWindow
+    from bpms.gui.modes import ModeConfig, ModeError, SessionRunner
+    from bpms.gui.view3d_geometry import pose_points
+    from bpms.io.options import Options
+
+    options = Options()
+    runner = SessionRunner(ModeConfig(mode="sim", sim_options={"subject": TALL},
+                                      subject=_profile(TALL), recording_dir=str(tmp_path)),
+                           options)
+    runner.prepare()
+    window = MainWindow(runner, layout_store=LayoutStore(tmp_path / "layouts"),
+                        restore_last=False)
+    qtbot.addWidget(window)
+    session = runner.session
+    assert session.header_extra["subject"]["id"] == "S9" and options.body.thigh == 0.43
+    window.status_panel.data_button.click()  # Start Data
+    qtbot.waitUntil(lambda: window.model.latest is not None
+                    and np.isfinite(window.model.latest.joint_positions).all(), timeout=20000)
+    sample = window.model.latest
+    for aligned in (True, False):
+        assert _segment_lengths(pose_points(sample, aligned)) == pytest.approx(
+            TALL.lengths(), abs=1e-9)
+    bad = SessionRunner(ModeConfig(mode="sim", subject="height=1.8"), Options())
+    with pytest.raises(ModeError, match="id is needed"):
+        bad.prepare()
+    assert bad.sim is None

@@ -25,6 +25,10 @@ def register(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
                    help="simulated IMUs' mounting misalignment, ° rms per axis (default 3)")
     p.add_argument("--functional", action="store_true",
                    help="the simulated subject begins with the functional-calibration movements")
+    p.add_argument("--subject", default=None, metavar="PROFILE",
+                   help="the subject's profile for the live body model and the recordings' "
+                        "headers: 'id=S01,height=1.80,mass=75,thigh=0.46' or a TOML file "
+                        "(docs/subject.md)")
     p.add_argument("--options", metavar="options.toml", help="options file to load")
     p.add_argument("--calibration", metavar="Calib.cfg", help="calibration file to load")
     p.add_argument("--recording-dir", metavar="DIR",
@@ -39,6 +43,13 @@ def run(args: argparse.Namespace) -> int:
 
     # the simulated subject's options, checked before anything opens (CliError: one line)
     sim_options = {k: v for k, v in subject_kwargs(args).items() if v not in (None, {}, False)}
+    if args.subject:
+        from bpms.io.subject import SubjectProfile
+
+        try:
+            SubjectProfile.parse(args.subject)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
     problem = display_problem()
     if problem:
         raise CliError(problem)
@@ -48,4 +59,4 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"the desktop app cannot start: {exc}") from None
     return app.run(options_path=args.options, calibration_path=args.calibration,
                    simulated=args.sim, recording_dir=args.recording_dir, seed=args.seed,
-                   sim_options=sim_options)
+                   sim_options=sim_options, subject=args.subject)

@@ -264,7 +264,8 @@ class StartupWindow(QWidget):
                           group=self.group_edit.text().strip(),
                           path=self.file_edit.text().strip(), sim_seed=self.seed_spin.value(),
                           recording_dir=self.recording_dir,
-                          sim_options=dict(getattr(self, "sim_options", {})))
+                          sim_options=dict(getattr(self, "sim_options", {})),
+                          subject=str(getattr(self, "subject", "") or ""))
 
     # -- files -----------------------------------------------------------------------------
     def _show_files(self) -> None:
