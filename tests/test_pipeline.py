@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import time
@@ -124,6 +125,11 @@ def test_bpms_replay_command_feeds_a_udp_client(recording_path):
     assert proc.returncode == 0, err
     assert len(frames) == 800 and "replaying 800 frames" in out
     assert [round(f.suit_time / 0.02) for f in frames] == list(range(800))
+    # the last status line counts the POSE datagrams apart: one per frame, the 800 RAW
+    # frames and the ZERO messages beside them
+    last = re.findall(r"sent\s+(\d+) \(poses (\d+), raw/zero (\d+)\)", out)[-1]
+    sent, poses, others = map(int, last)
+    assert poses == 800 and others > 800 and sent == poses + others
 
 
 @pytest.mark.parametrize("content", [b"", b"not a recording at all"])

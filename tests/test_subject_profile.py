@@ -116,3 +116,12 @@ def test_record_refuses_a_bad_subject_in_one_line():
                           "height=1.8"], capture_output=True, text=True, timeout=60)
     assert run.returncode == 2 and "id is needed" in run.stderr
     assert "Traceback" not in run.stderr
+
+
+def test_a_profile_text_longer_than_a_file_name_is_read_as_text():
+    """Every length given (≈ 300 characters): no file name the system takes, read as text
+    (it raised OSError 'File name too long' from the file test, a traceback in bpms record)."""
+    dims = SubjectDimensions.of_height(1.90)
+    text = ",".join(["id=S9", "height=1.9", *(f"{k}={v!r}" for k, v in dims.lengths().items())])
+    assert len(text) > 255
+    assert SubjectProfile.parse(text).lengths() == pytest.approx(dims.lengths())

@@ -13,10 +13,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bpms.analysis.textout import TextWriter, write_rows
+
+if TYPE_CHECKING:
+    from bpms.filter.pose import Zero
 
 #: IMU id → OpenSim body (Rajagopal 2015 / gait2392 names) + "_imu".
 OPENSIM_IMUS: dict[int, str] = {
@@ -89,6 +93,37 @@ def calibration_window(settle_frames: int, window_frames: int, n: int) -> tuple[
     Reset Zero (``settle`` frames after the start, ``window`` frames long; docs/body-model.md)."""
     lo = min(n, max(0, settle_frames))
     return lo, min(n, lo + max(1, window_frames))
+
+
+def pose_calibration_window(data: dict, n: int) -> tuple[int, int, Zero]:
+    """``(lo, hi, zero)`` for a pose calibration's ``reset_zero`` event (``--pose-calibration
+    posture|functional``, docs/pose-calibration.md, its ``data``): the frame range ``[lo, hi)``
+    of its still window in a recording of ``n`` frames, and the zero it adopts. The event takes
+    effect the frame after that window, so the window's orientations are made again with
+    :func:`calibration_quaternions`. Raises ValueError when the event lacks them."""
+    from bpms.filter.pose import Zero, zero_values
+
+    values = zero_values(data)
+    try:
+        first, last = (int(k) for k in data["still"])
+    except (KeyError, TypeError, ValueError):
+        values = None
+    if values is None:
+        raise ValueError("the pose calibration's event has no still window or zero")
+    lo = min(n, max(0, first))
+    return lo, min(n, max(lo + 1, last + 1)), Zero(values[0], values[1], last + 1,
+                                                   str(data.get("source", "")))
+
+
+def calibration_quaternions(R: np.ndarray, zero: Zero) -> np.ndarray:
+    """``[N, 18, 4]`` (w, x, y, z): the segment orientations of the filter's DCMs
+    ``R[N, 18, 3, 3]`` with ``zero`` in force instead of the zero that was (the processor's own
+    :func:`bpms.filter.pose.segment_orientations` and :class:`bpms.filter.result.Result`)."""
+    from bpms.filter.pose import segment_orientations
+    from bpms.filter.result import Result
+
+    C = segment_orientations(R, zero)
+    return Result(t=np.zeros(len(R)), R=R, C=C).segment_quaternions
 
 
 #: The OpenSim model whose coordinate names the .mot uses (its knee flexion is positive).

@@ -104,7 +104,9 @@ def run(args: argparse.Namespace) -> int:
             from bpms.analysis.opensim import (
                 JointAnglesMotWriter,
                 OrientationsWriter,
+                calibration_quaternions,
                 calibration_window,
+                pose_calibration_window,
             )
 
             whole, calib = (OrientationsWriter(p, 1.0 / dt, args.head_neck, meta=stamp.items())
@@ -112,6 +114,13 @@ def run(args: argparse.Namespace) -> int:
             mot = JointAnglesMotWriter(targets[2], stamp.convention, stamp.items())
             writers += [whole, calib, mot]
             lo, hi = calibration_window(proc.pose.settle, proc.pose.window, opened.n_frames)
+            calib_zero = None
+            if opened.pose_event is not None:  # posture / functional: its window and zero
+                try:
+                    lo, hi, calib_zero = pose_calibration_window(opened.pose_event[1].data,
+                                                                 opened.n_frames)
+                except ValueError as exc:
+                    raise CliError(f"{args.raw_file}: {exc}") from None
             for chunk in stream("export", opened, args.reset_at):
                 res = chunk.result
                 q = res.segment_quaternions
@@ -119,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
                 mot.write(res.t, res.joint_angles)
                 a, b = max(lo - chunk.start, 0), min(hi - chunk.start, len(res))
                 if a < b:
-                    calib.write(res.t[a:b], q[a:b])
+                    calib.write(res.t[a:b], q[a:b] if calib_zero is None else
+                                calibration_quaternions(res.R[a:b], calib_zero))
                 n += len(res)
             span = f"{stream_time(lo, dt):.2f}–{stream_time(hi, dt):.2f} s"
             written += [f"{targets[0]} ({whole.rows} rows)",

@@ -139,7 +139,9 @@ def run(args: argparse.Namespace) -> int:
                 done = True
             if now - last >= 1.0 or done:
                 print(f"t {source.position_s:7.1f} s  frames {status.frames:7d}  "
-                      f"processed {status.processed:7d}  sent {status.forwarded:7d}  "
+                      f"processed {status.processed:7d}  sent {status.forwarded:7d} "
+                      f"(poses {status.forwarded_poses}, raw/zero "
+                      f"{status.forwarded - status.forwarded_poses})  "
                       f"send errors {status.forward_errors}  "
                       f"no listener {status.forward_refused}", flush=True)
                 last = now

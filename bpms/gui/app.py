@@ -32,8 +32,11 @@ def display_problem(env: Mapping[str, str] | None = None) -> str | None:
 
 
 def run(*, options_path: str | None = None, calibration_path: str | None = None,
-        simulated: bool = False, recording_dir: str | None = None, seed: int = 0) -> int:
-    """Run the app until its last window closes. Returns the exit status."""
+        simulated: bool = False, recording_dir: str | None = None, seed: int = 0,
+        sim_options: dict | None = None, subject: str | None = None) -> int:
+    """Run the app until its last window closes. Returns the exit status. ``sim_options``:
+    the simulated subject's, ``subject`` the subject's profile of the live sessions
+    (:class:`bpms.gui.modes.ModeConfig`)."""
     from PyQt6.QtCore import QTimer
     from PyQt6.QtWidgets import QApplication
 
@@ -48,6 +51,8 @@ def run(*, options_path: str | None = None, calibration_path: str | None = None,
     calibration = load_calibration(calibration_path) if calibration_path else None
     startup = StartupWindow(options, calibration, recording_dir)
     startup.seed_spin.setValue(seed)
+    startup.sim_options = dict(sim_options or {})
+    startup.subject = subject or ""
     if options is not None and options.problems:
         startup.load_options_file(options_path)  # shows the warning dialog
     if calibration is not None and calibration.problems:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from bpms.io.calib_file import CalibrationTable
@@ -65,16 +65,22 @@ class ModeConfig:
     path: str = ""
     sim_seed: int = 0
     recording_dir: str | None = None
+    #: more of the simulated subject (``simulate()``'s ``posture``, ``functional``,
+    #: ``mounting_error_deg``, ``subject``: docs/simulated-suit.md); none: the standard trial
+    sim_options: dict = field(default_factory=dict)
+    #: the subject's profile (docs/subject.md: ``id=S01,height=1.80,...`` or a TOML file) for a
+    #: live session's body model and its recordings' headers; "" none (file mode: the header's)
+    subject: str = ""
 
 
 class SimulatedSuit:
     """``bpms.firmware.sim``'s arbiter served on a pty in this process (real time, 50 Hz)."""
 
-    def __init__(self, seed: int = 0) -> None:
+    def __init__(self, seed: int = 0, **options: object) -> None:
         from bpms.firmware.sim.arbiter import Arbiter, MotionSource
         from bpms.firmware.sim.server import local_server
 
-        self.arbiter = Arbiter(MotionSource.simulated(seed=seed), seed=seed)
+        self.arbiter = Arbiter(MotionSource.simulated(seed=seed, **options), seed=seed)
         self.server = local_server(self.arbiter).start()  # a pty, or TCP where there is none
         self.path: str = self.server.address
 
@@ -130,11 +136,17 @@ class SessionRunner:
         from bpms.filter.processor import BodyPoseProcessor
         from bpms.pipeline.session import LiveSession
 
+        profile, options = self._profile() if processor is None else None, self.options
+        if profile is not None:  # live: the subject's own lengths (docs/subject.md), in a
+            # copy: the user's options keep theirs; the other sections are shared
+            options = dataclasses.replace(options, body=profile.body_options())
         processor = processor or BodyPoseProcessor(calibration=self.calibration,
-                                                   options=self.options)
-        session = LiveSession(source, self.options, processor,
+                                                   options=options)
+        session = LiveSession(source, options, processor,
                               recording_dir=self.config.recording_dir,
                               notes=f"BPMS GUI, {MODE_LABELS[self.mode]}")
+        if profile is not None:  # stored in the raw recordings' headers (docs/subject.md)
+            session.header_extra["subject"] = profile.to_header()
         if self._lsl is not None or self.options.lsl.enabled:  # i16: LSL follows the session
             self.set_lsl(False)
             self.session = session
@@ -170,9 +182,21 @@ class SessionRunner:
     def lsl_on(self) -> bool:
         return self._lsl is not None
 
+    def _profile(self):
+        """The subject's profile of :attr:`ModeConfig.subject`, else None. Raises ModeError."""
+        if not self.config.subject:
+            return None
+        from bpms.io.subject import SubjectProfile
+
+        try:
+            return SubjectProfile.parse(self.config.subject)
+        except ValueError as exc:
+            raise ModeError(str(exc)) from None
+
     def prepare(self) -> LiveSession:
         """Open the source (blocking: run it off the GUI thread). Raises ModeError."""
         cfg = self.config
+        self._profile()  # a bad profile is said before any source opens
         if cfg.mode == "file":
             if not cfg.path:
                 raise ModeError("choose a raw recording to play")
@@ -206,7 +230,7 @@ class SessionRunner:
         else:
             port = cfg.port or None
             if cfg.mode == "sim":
-                self.sim = SimulatedSuit(cfg.sim_seed)
+                self.sim = SimulatedSuit(cfg.sim_seed, **cfg.sim_options)
                 port = self.sim.path
             serial = self.options.serial
             serial.baud = cfg.baud

@@ -263,7 +263,9 @@ class StartupWindow(QWidget):
                           baud=self.baud_spin.value(), listen=self.listen_edit.text().strip(),
                           group=self.group_edit.text().strip(),
                           path=self.file_edit.text().strip(), sim_seed=self.seed_spin.value(),
-                          recording_dir=self.recording_dir)
+                          recording_dir=self.recording_dir,
+                          sim_options=dict(getattr(self, "sim_options", {})),
+                          subject=str(getattr(self, "subject", "") or ""))
 
     # -- files -----------------------------------------------------------------------------
     def _show_files(self) -> None:

@@ -7,9 +7,12 @@ display y = west, display z = up, a 180° rotation about north (the frame stays 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from bpms.filter.body_model import BODY_POINTS, POINT_INDEX, SEGMENTS, joint_positions
+from bpms.io.options import BodyOptions
 
 #: NED → display (z up): x stays, y and z flip.
 NED_TO_DISPLAY = np.diag([1.0, -1.0, -1.0])
@@ -43,6 +46,26 @@ AXIS_IMUS = np.array(sorted(_IMU_SEGMENT))
 AXIS_SEGMENTS = np.array([_IMU_SEGMENT[i] for i in AXIS_IMUS])
 #: The calibration pose (every segment aligned with the body), shown grey before Reset Zero.
 CALIBRATION_POSE = joint_positions(np.broadcast_to(np.eye(3), (18, 3, 3)))
+
+
+def calibration_pose(body: BodyOptions | None = None) -> np.ndarray:
+    """``[21, 3]`` NED metres: the calibration pose with the segment lengths ``body`` (a
+    sample's :attr:`~bpms.pipeline.sample.PoseSample.body`: the subject's, docs/subject.md;
+    None: the factory's, :data:`CALIBRATION_POSE`)."""
+    if body is None:
+        return CALIBRATION_POSE
+    return joint_positions(np.broadcast_to(np.eye(3), (18, 3, 3)), body)
+
+
+def pose_points(sample: Any, aligned: bool = True) -> np.ndarray | None:
+    """``[21, 3]`` NED metres the 3D views draw for ``sample`` (a PoseSample; None: nothing
+    yet): its joint positions after Reset Zero (``aligned``), else the figure of the filter
+    DCMs as they are (the ``v`` key), with the same segment lengths, the sample's own."""
+    if sample is None:
+        return None
+    if aligned:
+        return sample.joint_positions
+    return joint_positions(np.asarray(sample.R), getattr(sample, "body", None))
 
 
 def to_display(points_ned: np.ndarray) -> np.ndarray:

@@ -19,13 +19,14 @@ from PyQt6.QtCore import Qt, pyqtSignal
 from PyQt6.QtGui import QKeyEvent, QVector3D
 from PyQt6.QtWidgets import QWidget
 
-from bpms.filter.body_model import POINT_INDEX, joint_positions
+from bpms.filter.body_model import POINT_INDEX
 from bpms.gui import avatar
 from bpms.gui.view3d_geometry import (
-    CALIBRATION_POSE,
+    calibration_pose,
     camera_axes,
     frame_camera,
     imu_axes_lines,
+    pose_points,
     reach_points,
     to_display,
 )
@@ -87,6 +88,7 @@ def make_gl_view() -> QWidget:
         def __init__(self) -> None:
             super().__init__()
             self.last_sample: PoseSample | None = None
+            self.lengths = None  # the segment lengths of the last sample (docs/subject.md)
             self._programs: dict[object, object] = {}
             self.show_axes = False
             self.aligned = True  # v: False shows the figure without Reset Zero
@@ -120,13 +122,11 @@ def make_gl_view() -> QWidget:
         # -- drawing ---------------------------------------------------------------------
         def show_pose(self, sample: PoseSample | None) -> None:
             C = None if sample is None else sample.C
-            if sample is not None and not self.aligned:
-                pos = joint_positions(np.asarray(sample.R))
-            else:
-                pos = None if sample is None else sample.joint_positions
+            pos = pose_points(sample, self.aligned)  # the sample's own segment lengths
+            self.lengths = getattr(sample, "body", None) or self.lengths
             was_waiting = self.waiting
             self.waiting = pos is None or not np.isfinite(pos).any()
-            points = to_display(CALIBRATION_POSE if self.waiting else pos)
+            points = to_display(calibration_pose(self.lengths) if self.waiting else pos)
             self.last_points = points
             self.last_sample = sample
             if was_waiting and not self.waiting and self.framed:
@@ -173,7 +173,7 @@ def make_gl_view() -> QWidget:
             """Centre and distance that show the whole figure at the current angles, field of
             view and shape of the view."""
             points = reach_points(self.last_points if self.last_points is not None
-                                  else to_display(CALIBRATION_POSE))
+                                  else to_display(calibration_pose(self.lengths)))
             aspect = self.width() / max(1, self.height())
             centre, distance = frame_camera(points, self.opts["elevation"],
                                             self.opts["azimuth"], self.opts["fov"], aspect)

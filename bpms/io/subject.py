@@ -102,7 +102,11 @@ class SubjectProfile:
         """``"id=S01,height=1.80,mass=75,thigh=0.46"`` or the path of a TOML file with the same
         keys (``id``, ``height`` m, ``mass`` kg, segment names m). Raises ValueError."""
         path = Path(text)
-        if path.suffix.lower() == ".toml" or path.is_file():
+        try:  # a long KEY=VALUE text is no file name the system takes (ENAMETOOLONG)
+            is_file = path.suffix.lower() == ".toml" or path.is_file()
+        except (OSError, ValueError):
+            is_file = False
+        if is_file:
             import tomllib
 
             try:

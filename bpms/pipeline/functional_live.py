@@ -36,19 +36,27 @@ class FunctionalCollector:
     def needed(self) -> int:
         return self.still + self.moves
 
+    def finish(self) -> bool:
+        """End the movements with the frames in so far (the GUI's Stop): the calibration runs
+        at the next :meth:`add`. False when no movement frame is in yet (the still window
+        not over): nothing to calibrate with."""
+        if self.frames <= self.still:
+            return False
+        self.moves = self.frames - self.still
+        return True
+
     def add(self, R: np.ndarray, raw: np.ndarray, errors: np.ndarray, calibration
             ) -> tuple[np.ndarray, float, FunctionalReport, dict] | None:
         """``R[N, 18, 3, 3]`` the batch's DCMs, ``raw[N, 18, 9]`` its counts and ``errors
         [N, 18, 3]`` its error bits, ``calibration`` the processor's
         :class:`bpms.filter.calibration.SensorCalibration`."""
-        take = min(len(R), self.needed - self.frames)
-        if take <= 0:
-            return None
-        acc, gyr = sensor_values(calibration, raw[:take], errors[:take])
-        self._R.append(np.array(R[:take]))
-        self._acc.append(acc)
-        self._gyr.append(gyr)
-        self.frames += take
+        take = max(min(len(R), self.needed - self.frames), 0)
+        if take:
+            acc, gyr = sensor_values(calibration, raw[:take], errors[:take])
+            self._R.append(np.array(R[:take]))
+            self._acc.append(acc)
+            self._gyr.append(gyr)
+            self.frames += take
         if self.frames < self.needed:
             return None
         R_all = np.concatenate(self._R)

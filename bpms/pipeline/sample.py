@@ -10,6 +10,7 @@ import numpy as np
 
 if TYPE_CHECKING:  # the filter (numba) loads with the first session, not with the GUI window
     from bpms.filter.result import Result
+    from bpms.io.options import BodyOptions
 
 
 class _Row:
@@ -137,6 +138,13 @@ class PoseSample:
             raise TypeError(f"PoseSample has no number {', '.join(sorted(unknown))}")
         other._given = {**self._given, **given}
         return other
+
+    @property
+    def body(self) -> BodyOptions | None:
+        """The segment lengths :attr:`joint_positions` were made with (the session's body
+        model: the options', or the subject's profile, docs/subject.md); None when the
+        sample was given its numbers explicitly."""
+        return None if self._result is None else self._result.body
 
     def __repr__(self) -> str:
         return f"PoseSample(index={self.index}, host_time={self.host_time:.3f})"

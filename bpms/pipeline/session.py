@@ -102,6 +102,7 @@ class LiveSession:
         self._posture: dict | None = None  # a declared posture waiting for its capture
         self._adopting: tuple[str, dict] | None = None  # a zero adopted: (source, its data)
         self._functional = None  # a live functional calibration collecting its frames
+        self.functional_report = None  # the last functional calibration's quality (a report)
         self._namer = RecordingNamer(recording_dir or self.options.logging.directory,
                                      self.options.logging.name)
         self._fanout: Fanout[PoseSample] = Fanout()
@@ -218,12 +219,27 @@ class LiveSession:
         collector = FunctionalCollector(round(still_s / dt), round(seconds / dt), dt)
         self._commands.put(lambda: setattr(self, "_functional", collector))
 
+    def finish_functional(self) -> None:
+        """End the functional calibration's movements now (the GUI's Stop): it is made from
+        the frames so far at the next frame; stopped within its still window, it is dropped."""
+        def finish() -> None:
+            if self._functional is not None and not self._functional.finish():
+                self._functional = None
+                self.note("functional calibration cancelled: stopped before the movements")
+        self._commands.put(finish)
+
+    @property
+    def functional_progress(self) -> tuple[int, int] | None:
+        """(frames collected, frames wanted) of a functional calibration under way, else None."""
+        collector = self._functional
+        return None if collector is None else (collector.frames, collector.needed)
+
     def _collect_functional(self, result, raw, errors) -> None:
         done = self._functional.add(result.R, raw, errors, self.processor.sensor_calibration)
         if done is None:
             return
         R0, yaw0, report, data = done
-        self._functional = None
+        self._functional, self.functional_report = None, report
         self.processor.pose.adopt(R0, yaw0, "functional", data["window"])
         self._adopting = ("functional", {k: v for k, v in data.items()
                                          if k not in ("R0", "yaw0", "source")})
@@ -373,6 +389,7 @@ class LiveSession:
             processing_backlog=self._proc_queue.qsize(), recording=self._recording,
             forwarding=[f"{h}:{p}" for h, p in fwd.targets] if fwd else [],
             forwarded=fstats.sent if fstats else 0,
+            forwarded_poses=fstats.poses_sent if fstats else 0,
             forward_errors=fstats.errors if fstats else 0,
             forward_refused=fstats.refused if fstats else 0,
             latency_p99_ms=1e3 * lat[int(0.99 * (len(lat) - 1))] if lat else 0.0,

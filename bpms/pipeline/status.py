@@ -37,7 +37,8 @@ class LiveStatus:
     processing_backlog: int  # frames waiting for the processing thread
     recording: RecordingStatus | None
     forwarding: list[str] = field(default_factory=list)
-    forwarded: int = 0
+    forwarded: int = 0  # datagrams sent (RAW frames, POSE, ZERO), one per target
+    forwarded_poses: int = 0  # those of ``forwarded`` that are POSE datagrams
     forward_errors: int = 0
     forward_refused: int = 0  # datagrams a target refused: nobody listening there (not errors)
     latency_p99_ms: float = 0.0

@@ -18,6 +18,7 @@ from PyQt6.QtWidgets import (
 
 from bpms.gui.layouts import DEFAULT_LAYOUTS
 from bpms.gui.modes import SessionRunner
+from bpms.gui.pose_calibration_panel import open_pose_calibration
 from bpms.gui.screen_fit import fit_dialog
 from bpms.gui.view3d_keys import PLOT_BINDINGS, VIEW3D_BINDINGS, help_html
 from bpms.gui.window.commands import SessionCommands
@@ -147,6 +148,7 @@ class WindowMenus:
         menu = bar.addMenu("&Data")
         for key in ("data", "reset_zero", "marker", "corrected", "lsl"):
             menu.addAction(acts[key])
+        menu.addAction("Pose calibration…", lambda: open_pose_calibration(self._window))
         self._mode.add_playback_actions(menu, acts)
         menu = bar.addMenu("&View")
         for key in ("plot", "joints", "tile", "view3d", "browser", "unit", "sensor_angles"):

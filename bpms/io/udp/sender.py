@@ -72,7 +72,8 @@ class ForwarderStats:
     """Counters of a :class:`UdpForwarder`. ``sent``, ``errors`` and ``refused`` count
     datagrams (one per target and message); ``frames`` / ``poses`` count messages handed to
     ``send_*``. ``refused``: the target said nobody listens there (ECONNREFUSED), not an
-    error of this computer; ``errors``: every other failed send."""
+    error of this computer; ``errors``: every other failed send. ``poses_sent``: those of
+    ``sent`` that are POSE datagrams (the rest are RAW frames and ZERO messages)."""
 
     frames: int = 0
     poses: int = 0
@@ -80,6 +81,7 @@ class ForwarderStats:
     errors: int = 0
     last_error: str = ""
     refused: int = 0
+    poses_sent: int = 0
 
 
 class _Target:
@@ -195,7 +197,8 @@ class UdpForwarder(Closing):
             s = self._stats
             self._stats = ForwarderStats(
                 s.frames + (mtype == MessageType.RAW_FRAME), s.poses + (mtype == MessageType.POSE),
-                s.sent + sent, s.errors + errors, last_error, s.refused + refused)
+                s.sent + sent, s.errors + errors, last_error, s.refused + refused,
+                s.poses_sent + (sent if mtype == MessageType.POSE else 0))
             return sent
 
     def _send_one(self, target: _Target, datagram: bytes) -> None:
