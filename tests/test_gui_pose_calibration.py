@@ -68,7 +68,7 @@ def test_declared_posture_on_the_live_simulated_suit(qtbot, tmp_path):
     assert "unknown joint angle" in panel.status
     panel.preset_combo.setCurrentText("suit")
     assert "elbow_r.flexion=15" in panel.angles_edit.text()
-    window.status_panel.data_button.click()  # Start Data
+    window.panels.status_panel.data_button.click()  # Start Data
     # the subject stands still in the posture for the script's first 3 s; the automatic Reset
     # Zero (the neutral pose assumed) comes at 1 s
     qtbot.waitUntil(lambda: session.status().processed >= 70, timeout=20000)
@@ -109,7 +109,7 @@ def test_functional_calibration_start_stop_and_report(qtbot, tmp_path, functiona
     panel = _menu_dialog(window).panel
     panel.start_button.click()  # no data yet: it says so and waits
     assert "start the data first" in panel.status and panel.start_button.isEnabled()
-    window.status_panel.data_button.click()  # play (1×): the subject stands still 3 s
+    window.panels.status_panel.data_button.click()  # play (1×): the subject stands still 3 s
     qtbot.waitUntil(lambda: window.runner.data_on, timeout=5000)
     panel.seconds_spin.setValue(60.0)
     panel.start_button.click()

@@ -182,7 +182,7 @@ def test_gui_live_session_uses_the_profile(qtbot, tmp_path):
     qtbot.addWidget(window)
     session = runner.session
     assert session.header_extra["subject"]["id"] == "S9" and options.body.thigh == 0.43
-    window.status_panel.data_button.click()  # Start Data
+    window.panels.status_panel.data_button.click()  # Start Data
     qtbot.waitUntil(lambda: window.model.latest is not None
                     and np.isfinite(window.model.latest.joint_positions).all(), timeout=20000)
     sample = window.model.latest

@@ -101,11 +101,13 @@ def pose_calibration_window(data: dict, n: int) -> tuple[int, int, Zero]:
     of its still window in a recording of ``n`` frames, and the zero it adopts. The event takes
     effect the frame after that window, so the window's orientations are made again with
     :func:`calibration_quaternions`. Raises ValueError when the event lacks them."""
-    from bpms.filter.pose import Zero, zero_values
+    from bpms.filter.pose import Zero
+    from bpms.io.event_types import ResetZero
 
-    values = zero_values(data)
-    try:
-        first, last = (int(k) for k in data["still"])
+    try:  # the one reader of a reset_zero event's data
+        change = ResetZero.from_data(data)
+        values = change.zero
+        first, last = (int(k) for k in change.details["still"])
     except (KeyError, TypeError, ValueError):
         values = None
     if values is None:
