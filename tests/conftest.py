@@ -68,3 +68,18 @@ def _no_modal_question_blocks(monkeypatch):
 
     monkeypatch.setattr(widgets.QMessageBox, "question", staticmethod(question))
     yield
+
+
+@pytest.fixture(scope="session")
+def deadline_scale() -> float:
+    """The factor every waiting deadline is multiplied by on this machine (tests/deadlines.py:
+    the load per core, or BPMS_TEST_DEADLINE_SCALE). Printed in the run's header."""
+    from deadlines import deadline_scale as scale
+
+    return scale()
+
+
+def pytest_report_header(config):
+    from deadlines import deadline_scale as scale
+
+    return f"bpms: deadlines scaled x{scale():.2f} (tests/deadlines.py)"

@@ -5,10 +5,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+from deadlines import deadline_scale
+
 
 def wait_until(predicate: Callable[[], bool], timeout: float = 20.0) -> bool:
-    """Poll ``predicate`` every 20 ms until it is true (True) or ``timeout`` s pass (False)."""
-    end = time.monotonic() + timeout
+    """Poll ``predicate`` every 20 ms until it is true (True) or ``timeout`` s pass (False).
+    ``timeout`` is the deadline on a quiet machine: it is scaled by the machine's load
+    (tests/deadlines.py)."""
+    end = time.monotonic() + timeout * deadline_scale()
     while time.monotonic() < end:
         if predicate():
             return True
@@ -24,6 +28,7 @@ def receive_until_exit(sock, proc, silence: float = 30.0, quiet: float = 0.5) ->
     The socket is polled in short steps, so the end of the sender is seen within ~50 ms: a long
     blocking ``recv`` would otherwise wait its whole timeout after the last datagram."""
     out: list[bytes] = []
+    silence *= deadline_scale()
     sock.settimeout(0.05)
     last = time.monotonic()
     exited_at = None
