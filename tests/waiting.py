@@ -20,6 +20,20 @@ def wait_until(predicate: Callable[[], bool], timeout: float = 20.0) -> bool:
     return False
 
 
+def inside(thread, function: str) -> bool:
+    """True while ``thread`` is running ``function`` (a Python function of that name is on
+    its stack): a test can wait until a reader thread has entered its blocking read instead
+    of sleeping and hoping it has."""
+    import sys
+
+    frame = sys._current_frames().get(thread.ident)
+    while frame is not None:
+        if frame.f_code.co_name == function:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def receive_until_exit(sock, proc, silence: float = 30.0, quiet: float = 0.5) -> list[bytes]:
     """Every datagram ``sock`` receives until the sender process ``proc`` has exited and the
     socket then stayed quiet for ``quiet`` s. While ``proc`` runs, ``silence`` s without a
