@@ -12,13 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from deadlines import deadline_scale, scaled
 from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.firmware.sim.server import PtyServer, TcpServer
 from bpms.io.rawfile import read_raw
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = pytest.mark.timeout(120 * deadline_scale())
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -98,7 +99,7 @@ class Cli:
 
     def stop(self) -> tuple[int, str]:
         self.proc.send_signal(signal.SIGINT)
-        self.proc.wait(30)
+        self.proc.wait(scaled(30))
         self._thread.join(10)
         return self.proc.returncode, self.proc.stderr.read()
 
