@@ -13,9 +13,9 @@ import tty
 from pathlib import Path
 
 import pytest
-from deadlines import deadline_scale, scaled
+from deadlines import scaled
 
-pytestmark = pytest.mark.timeout(90 * deadline_scale())
+pytestmark = pytest.mark.timeout(90)
 
 ROOT = Path(__file__).resolve().parents[1]
 #: how long the monitor waits for a simulated suit's reply: the default 1 s on a quiet

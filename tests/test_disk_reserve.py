@@ -14,12 +14,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from deadlines import deadline_scale, scaled
+from deadlines import scaled
 
 from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.rawfile import read_raw
 
-pytestmark = pytest.mark.timeout(120 * deadline_scale())
+pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[1]
 RECORD = 8 + 340  # bytes of one raw record (docs/raw-format.md)
 

@@ -12,14 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from deadlines import deadline_scale, scaled
+from deadlines import scaled
 from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.firmware.sim.server import PtyServer, TcpServer
 from bpms.io.rawfile import read_raw
 
-pytestmark = pytest.mark.timeout(120 * deadline_scale())
+pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[1]
 
 
