@@ -126,3 +126,43 @@ def test_the_window_length_is_honoured():
     for i in range(1, 101):
         meter.mark(1, now=1.0 + i * PERIOD_S)
     assert meter.rate_hz(now=3.0) == pytest.approx(50.0, rel=0.03)
+
+
+def test_the_defaults_a_5_s_window_and_one_frame_a_mark():
+    """The session's meter is RateMeter() and marks each read: a burst 5.5 s old is out of
+    its window; mark() counts one frame."""
+    meter = RateMeter()
+    meter.mark(100, now=0.0)  # a stale burst, 5.5 s before the reading
+    for i in range(1, 256):
+        meter.mark(now=0.5 + i * PERIOD_S)  # 50 Hz from 0.52 s to 5.6 s
+    # by hand: the window [0.6, 5.6] holds frames 5..255 (251 frames) over 5 s → 50 Hz
+    assert meter.rate_hz(now=5.6) == pytest.approx(250 / 5.0, rel=1e-9)
+
+
+def test_one_burst_alone_is_no_rate_yet():
+    """Frames that all arrived at one instant, read at that instant: no span, 0 Hz (not a
+    division by zero, not a made-up rate)."""
+    meter = RateMeter()
+    meter.mark(12, now=3.0)
+    assert meter.rate_hz(now=3.0) == 0.0
+
+
+def test_the_span_runs_from_the_oldest_frame_to_now():
+    """Two frames 1 s apart read 2 s after the second: 1 interval over 3 s."""
+    meter = RateMeter()
+    meter.mark(now=10.0)
+    meter.mark(now=11.0)
+    assert meter.rate_hz(now=13.0) == pytest.approx(1 / 3.0, rel=1e-12)
+
+
+def test_the_host_clock_by_default():
+    """Without ``now`` the meter reads the host's monotonic clock (as the session calls it)."""
+    import time
+
+    meter = RateMeter()
+    start = time.monotonic()
+    meter.mark(now=start - 1.0)
+    meter.mark()
+    rate = meter.rate_hz()
+    elapsed = time.monotonic() - start
+    assert 1 / (1.0 + elapsed) <= rate <= 1.0 + 1e-9
