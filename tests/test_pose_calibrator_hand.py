@@ -134,3 +134,67 @@ def test_capture_frames_count_from_the_origin_and_adopt_keeps_missing_imus():
     np.testing.assert_allclose(adopted.R0[5], rot_z(0.05), atol=1e-12)  # kept
     np.testing.assert_allclose(adopted.R0[4], rot_z(0.2), atol=1e-12)
     assert cal.state_text(dt=0.01) == "network at 10.12 s"
+
+
+def test_a_manual_capture_before_the_still_window_cancels_the_automatic_one():
+    """Reset Zero pressed while the subject still moves: it stands; no automatic capture comes
+    after it (in one batch as frame by frame)."""
+    for schedule in ([N], [60, N - 60], [1] * N):
+        cal = _run(schedule, {0: {}}) if schedule == [N] else _run(schedule, {60: {}})
+        kinds = [z.source for z in cal.captures]
+        assert "automatic" not in kinds, (schedule[:2], kinds)
+        assert kinds[-1] == "manual"
+        assert not cal.auto_pending
+
+
+def test_re_analysis_captures_at_the_frames_given():
+    """``apply(R, zero_at=...)`` (bpms filter --reset-zero at …): a capture at each frame index
+    inside the batch, beside one pressed before it; indices outside the batch are ignored."""
+    R = _stream()[STILL_FROM:STILL_FROM + 40]
+    cal = PoseCalibrator(auto=False)
+    cal.request("manual", window=1)
+    cal.apply(R, zero_at=[0, 39, 40, -1])
+    assert [(z.source, z.frame) for z in cal.captures] == [
+        ("manual", 0), ("re-analysis", 0), ("re-analysis", 39)]
+    assert [z.window for z in cal.captures] == [1, 1, 25]  # frame 0: only itself back then
+
+
+@pytest.mark.parametrize("window", [1, 2, 3])
+def test_short_windows_across_live_frames(window):
+    """A window of 1, 2 or 3 frames, frame by frame: the capture averages exactly the last
+    ``window`` frames (worked out here), with the frames before the press remembered."""
+    R = np.stack([np.broadcast_to(rot_z(0.01 * k), (18, 3, 3)) for k in range(12)])
+    cal = PoseCalibrator(window=window, auto=False)
+    for k in range(12):
+        if k == 10:
+            cal.request()
+        cal.apply(R[k:k + 1])
+    (zero,) = cal.captures
+    assert (zero.frame, zero.window, zero.source) == (10, window, "manual")
+    yaws = [0.01 * k for k in range(11 - window, 11)]
+    mean = math.atan2(sum(map(math.sin, yaws)), sum(map(math.cos, yaws)))
+    assert math.atan2(zero.R0[0, 1, 0], zero.R0[0, 0, 0]) == pytest.approx(mean, abs=1e-12)
+    cal.request(window=1)
+    cal.apply(R[11:12])
+    assert cal.captures[-1].window == 1
+
+
+def test_adopted_zero_keeps_its_motion_and_the_heading_rule():
+    cal = PoseCalibrator(auto=False, heading="mean")
+    cal.apply(_stream()[STILL_FROM:STILL_FROM + 3])
+    R0 = np.stack([rot_z(0.2)] * 18).tolist()
+    R0[5] = [[None] * 3] * 3  # no data for IMU 5, as a network zero may carry
+    cal.adopt(R0, 0.2, motion=(3.5, 7), window=25)
+    cal.apply(_stream()[STILL_FROM + 3:STILL_FROM + 4])
+    zero = cal.captures[-1]
+    assert (zero.motion_deg, zero.motion_imu, zero.waited, zero.heading, zero.window) == \
+        (3.5, 7, 0, "mean", 25)
+    assert np.isnan(zero.R0[5]).all()  # no earlier zero to keep it from
+
+
+def test_waiting_text_shows_the_motion_in_degrees():
+    cal = PoseCalibrator(provisional=False)
+    cal.apply(_stream()[:300])
+    deg, imu = cal.waiting
+    assert cal.state_text() == f"waiting for a still pose (moved {deg:.1f}° on IMU {imu})"
+    assert f"{deg:.1f}" != f"{float(imu):.1f}"

@@ -22,6 +22,7 @@ from bpms.filter.pose import (
     zero_values,
 )
 from bpms.filter.rotations import euler_to_dcm, rot_x, rot_z
+from bpms.io.options import BodyOptions
 
 HIP = 6  # SPEC §1: IMU 6 is the hip (pelvis)
 
@@ -41,6 +42,10 @@ def test_average_of_rotations_by_hand():
     np.testing.assert_allclose(mean[np.arange(18) != 9], np.broadcast_to(np.eye(3), (17, 3, 3)),
                                atol=1e-12)
     assert np.isnan(mean[9]).all()
+    # rotations not symmetric about the identity: rot_z(0.2) and rot_z(0.4) average to
+    # rot_z(0.3) whatever a NaN frame beside them holds
+    two = np.stack([rot_z(0.2), rot_z(0.4), np.full((3, 3), np.nan)])
+    np.testing.assert_allclose(average_dcm(two), rot_z(0.3), atol=1e-12)
     # three frames, one of them counted once: rot_z(0.3) twice and rot_z(0.0) once → a
     # rotation about z by less than 0.3 (the chordal mean), still a rotation about z
     three = average_dcm(np.stack([rot_z(0.3), rot_z(0.3), np.eye(3)]))
@@ -98,12 +103,21 @@ def test_capture_keeps_the_previous_where_data_are_missing():
         (99, "automatic", 5, "hip", 0)
     assert zero.motion_deg == pytest.approx(0.0, abs=1e-6) and zero.motion_imu >= 0
     alone = capture_zero(window)  # no previous: heading 0
-    assert alone.yaw0 == 0.0 and np.isnan(alone.R0[HIP]).all()
+    assert alone.yaw0 == 0.0 and np.isnan(alone.R0[HIP]).all() and alone.frame == 0
+    # a previous capture without hip data either: its heading stands
+    no_hip = Zero(np.full((18, 3, 3), np.nan), 0.4, frame=10)
+    assert capture_zero(window, no_hip).yaw0 == 0.4
+    # the heading from another IMU, or from the mean of all
+    other = _still(np.stack([rot_z(0.02 * i) for i in range(18)]), 3)
+    assert capture_zero(other, hip=3).yaw0 == pytest.approx(0.06)
+    mean = capture_zero(other, heading="mean")
+    assert mean.heading == "mean" and mean.yaw0 == pytest.approx(0.17)
 
 
 def test_a_capture_stored_in_a_recording_reads_back():
     R0 = np.stack([rot_z(0.05 * i) for i in range(18)])
     zero = Zero(R0, 0.3, 7, "manual", 25, 6.25, 11, 3, "mean")
+    assert Zero(R0, 0.3, 7, motion_deg=6.23456).event_data()["motion_deg"] == 6.235
     data = zero.event_data()
     assert data == {"source": "manual", "window": 25, "R0": R0, "yaw0": 0.3,
                     "heading": "mean", "motion_deg": 6.25, "motion_imu": 11, "moved": True,
@@ -113,6 +127,11 @@ def test_a_capture_stored_in_a_recording_reads_back():
     np.testing.assert_array_equal(back[0], R0)
     assert back[1] == 0.3
     assert zero_values({"R0": R0.tolist()}) is None
+    # an IMU without data is stored as nulls and reads back as NaN
+    holes = R0.tolist()
+    holes[2] = [[None] * 3] * 3
+    back = zero_values({"R0": holes, "yaw0": 0.3})
+    assert back is not None and back[0].dtype == np.float64 and np.isnan(back[0][2]).all()
     assert zero_values({"R0": [[1.0]], "yaw0": 0.0}) is None
     assert zero_values({"R0": R0.tolist(), "yaw0": float("nan")}) is None
     assert zero_values({"R0": R0.tolist(), "yaw0": "north"}) is None
@@ -123,6 +142,8 @@ def test_outputs_default_to_isb_with_the_feet_on_the_ground():
     C[4] = rot_x(0.5)  # something to tell the conventions apart
     C[0] = euler_to_dcm(0.3, 0.2, 0.1)
     angles, points = body_outputs(C)
+    longer = body_outputs(C, BodyOptions(thigh=0.53))[1]
+    assert longer[:, 2].min() == pytest.approx(points[:, 2].min() - 0.10, abs=1e-9)
     np.testing.assert_array_equal(angles, joint_angles(C, "isb"))
     feet = [POINT_NAMES.index(n) for n in FOOT_POINTS]
     assert points[feet, 2].max() == pytest.approx(0.0, abs=1e-12)  # the lowest foot at z = 0
@@ -134,3 +155,5 @@ def test_pose_calibrator_defaults_half_a_second():
     each at 50 Hz)."""
     calibrator = PoseCalibrator()
     assert (calibrator.window, calibrator.settle) == (25, 25)
+    assert (PoseCalibrator(window=1, settle=0).window, PoseCalibrator(settle=0).settle) == (1, 0)
+    assert (PoseCalibrator(window=-3).window, PoseCalibrator(settle=-3).settle) == (1, 0)

@@ -18,6 +18,7 @@ from bpms.filter.rotations import (
     euler_to_dcm,
     quaternion_to_dcm,
     rot_x,
+    rotation_vector,
 )
 from bpms.io.names import JOINT_ANGLE_NAMES
 
@@ -108,3 +109,39 @@ def test_hinges_fully_straight_and_fully_folded_are_finite():
     hinge = joint_angles(folded)[:, :4]
     assert np.isfinite(hinge).all()
     np.testing.assert_allclose(hinge, math.pi, atol=2e-7)
+
+
+def _axis_angle(axis, angle: float) -> np.ndarray:
+    """Rodrigues' formula written out: R = I + sin θ K + (1 − cos θ) K²."""
+    x, y, z = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+@pytest.mark.parametrize(("axis", "angle"), [((1, 0, 0), 0.3), ((0, 1, 0), -0.7),
+                                             ((0, 0, 1), 2.0), ((1, 2, 2), 1.0),
+                                             ((2, -1, 2), 3.1), ((0, 0, 1), 1e-14)])
+def test_rotation_vector_is_axis_times_angle(axis, angle):
+    """The rotation vector (gait events' angular rate, the heading error) of a rotation built
+    by hand about ``axis`` by ``angle``: the unit axis × the angle."""
+    unit = np.asarray(axis, float) / np.linalg.norm(axis)
+    np.testing.assert_allclose(rotation_vector(_axis_angle(axis, angle)), unit * angle,
+                               atol=1e-12, rtol=1e-9)
+    batch = rotation_vector(np.stack([_axis_angle(axis, angle), np.eye(3)]))
+    np.testing.assert_allclose(batch, [unit * angle, [0.0, 0.0, 0.0]], atol=1e-12, rtol=1e-9)
+
+
+def test_a_straight_hinge_in_any_orientation_is_finite():
+    """Two segments whose long axes are parallel but whose matrices differ (turned about the
+    long axis): flexion 0 within rounding, never NaN from a cosine a rounding step above 1."""
+    rng = np.random.default_rng(12)
+    angles = rng.uniform(-math.pi, math.pi, (2000, 3))
+    R = euler_to_dcm(angles[:, 0], angles[:, 1], angles[:, 2])
+    C = np.broadcast_to(R[:, None], (2000, 18, 3, 3)).copy()
+    twist = rng.uniform(-math.pi, math.pi, 2000)
+    for distal in (5, 11, 2, 14):
+        axis = np.asarray(SEGMENT_AXIS[distal], float)
+        C[:, distal] = R @ np.stack([_axis_angle(axis, t) for t in twist])
+    hinge = joint_angles(C)[:, :4]
+    assert np.isfinite(hinge).all()
+    np.testing.assert_allclose(hinge, 0.0, atol=1e-6)
