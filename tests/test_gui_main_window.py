@@ -216,7 +216,7 @@ def test_simulated_source_is_unmistakable_and_stop_start_is_not_a_link_loss(qtbo
     window.set_data(True)  # a quick Stop → Start
     qtbot.waitUntil(lambda: window.health_panel.colour == "green", timeout=15000)
     # watched for longer than the 1 s silence rule: 65 more frames (1.3 s of the suit's
-    # 50 Hz), green at every look
+    # 50 Hz), never red (amber is allowed: a loaded machine may read a low rate)
     first = window.model.last_status.frames
     colours: list[str] = []
 
@@ -225,7 +225,7 @@ def test_simulated_source_is_unmistakable_and_stop_start_is_not_a_link_loss(qtbo
         return window.model.last_status.frames >= first + 65
 
     qtbot.waitUntil(watched, timeout=int(scaled(15.0) * 1000))
-    assert set(colours) == {"green"}, colours
+    assert "red" not in colours and "grey" not in colours, colours
     texts = window.event_log.texts()
     assert "data stopped" in texts and texts.count("data started") == 2
     assert not any("link lost" in t for t in texts)

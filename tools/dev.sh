@@ -101,7 +101,9 @@ start_load() {
 stop_load() {
   local pid
   for pid in "${LOAD_PIDS[@]:-}"; do
-    [ -n "$pid" ] && kill "$pid" 2>/dev/null && wait "$pid" 2>/dev/null
+    [ -n "$pid" ] || continue
+    kill "$pid" 2>/dev/null || true
+    wait "$pid" 2>/dev/null || true  # a killed child's status (143) must not end the script
   done
   LOAD_PIDS=()
   return 0
