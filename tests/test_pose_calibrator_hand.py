@@ -198,3 +198,21 @@ def test_waiting_text_shows_the_motion_in_degrees():
     deg, imu = cal.waiting
     assert cal.state_text() == f"waiting for a still pose (moved {deg:.1f}° on IMU {imu})"
     assert f"{deg:.1f}" != f"{float(imu):.1f}"
+
+
+def test_missing_imus_keep_their_zero_and_waits_count_from_the_origin():
+    """A second capture in a window where IMU 9 has no data keeps IMU 9's first zero; an
+    automatic capture's wait counts from the stream's first frame, whatever the origin."""
+    still = np.stack([rot_z(0.01 * i) for i in range(18)])
+    cal = PoseCalibrator(provisional=False)
+    cal.restart(origin=1000)
+    cal.apply(np.broadcast_to(still, (60, 18, 3, 3)))
+    (auto,) = cal.captures
+    assert (auto.frame, auto.waited) == (1049, 0)
+    moved = np.broadcast_to(np.stack([rot_z(0.3)] * 18), (30, 18, 3, 3)).copy()
+    moved[:, 9] = np.nan
+    cal.request(window=1)  # over the new frame alone
+    cal.apply(moved)
+    second = cal.captures[-1]
+    np.testing.assert_allclose(second.R0[9], rot_z(0.09), atol=1e-12)  # the first's
+    np.testing.assert_allclose(second.R0[8], rot_z(0.3), atol=1e-12)

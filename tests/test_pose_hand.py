@@ -86,7 +86,7 @@ def test_heading_by_hand():
     assert body_heading(R0, "mean") == pytest.approx(0.85, abs=1e-12)
     R0[HIP] = np.nan
     assert body_heading(R0) is None
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="heading reference must be one of"):
         body_heading(R0, "north")
 
 
