@@ -61,7 +61,10 @@ class ReferenceDetector:
         self.skew, self.gate = skew_s, acc_gate_g
         self.rest_gyr, self.rest_acc, self.rest_time = rest_gyr, rest_acc_g, rest_time_s
         self.learn_s, self.recover = rest_learn_s, recover_s
-        k = (lambda tau: 1.0 - math.exp(-dt / tau))
+
+        def k(tau: float) -> float:  # the gain of a first-order low-pass of time constant tau
+            return 1.0 - math.exp(-dt / tau)
+
         self.km, self.ka, self.kg = k(tau_mag_s), k(tau_acc_s), k(tau_gravity_s)
         self.kh, self.kb, self.kmean = k(tau_heading_s), k(bias_tau_s), k(1.0)
         self.aligned = False
