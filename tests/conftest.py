@@ -68,3 +68,35 @@ def _no_modal_question_blocks(monkeypatch):
 
     monkeypatch.setattr(widgets.QMessageBox, "question", staticmethod(question))
     yield
+
+
+@pytest.fixture(scope="session")
+def deadline_scale() -> float:
+    """The factor every waiting deadline is multiplied by on this machine (tests/deadlines.py:
+    the load per core, or BPMS_TEST_DEADLINE_SCALE). Printed in the run's header."""
+    from deadlines import deadline_scale as scale
+
+    return scale()
+
+
+def pytest_report_header(config):
+    from deadlines import deadline_scale as scale
+
+    return f"bpms: deadlines scaled x{scale():.2f} (tests/deadlines.py)"
+
+
+def pytest_collection_modifyitems(config, items):
+    """Every test's pytest-timeout limit (its ``timeout`` mark, else the ini value) scaled
+    like its deadlines (tests/deadlines.py): a test that waits longer on a loaded machine
+    must not be cut off by a limit meant for a quiet one."""
+    from deadlines import deadline_scale as scale
+
+    factor = scale()
+    if factor <= 1.0:
+        return
+    default = float(config.getini("timeout") or 0)
+    for item in items:
+        mark = item.get_closest_marker("timeout")
+        limit = float(mark.args[0]) if mark is not None and mark.args else default
+        if limit > 0:
+            item.add_marker(pytest.mark.timeout(limit * factor), append=False)

@@ -13,10 +13,14 @@ import tty
 from pathlib import Path
 
 import pytest
+from deadlines import scaled
 
 pytestmark = pytest.mark.timeout(90)
 
 ROOT = Path(__file__).resolve().parents[1]
+#: how long the monitor waits for a simulated suit's reply: the default 1 s on a quiet
+#: machine, longer on a loaded one (the simulated suit is another Python process to start)
+REPLY = ("--timeout", f"{scaled(1.0):.2f}")
 STATUS = re.compile(
     r"^t +(?P<t>[\d.]+) s  rate +(?P<rate>[\d.]+) Hz  frames +(?P<frames>\d+)  "
     r"resyncs +(?P<resyncs>\d+)  discarded +(?P<discarded>\d+) B  error bits +(?P<errors>\d+)  "
@@ -31,7 +35,7 @@ def start_sim(*args: str) -> tuple[subprocess.Popen, str]:
     """``bpms sim ...`` in the background; returns it and its first output line."""
     proc = subprocess.Popen(bpms("sim", *args), cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    ready, _, _ = select.select([proc.stdout], [], [], 30.0)
+    ready, _, _ = select.select([proc.stdout], [], [], scaled(30.0))
     if not ready:
         proc.kill()
         pytest.fail("bpms sim printed nothing within 30 s")
@@ -57,7 +61,7 @@ def test_monitor_against_bpms_sim_on_a_pty():
     sim, path = start_sim("--pty")
     try:
         assert re.fullmatch(r"/dev/pts/\d+", path), path
-        mon = subprocess.run(bpms("monitor", path, "--seconds", "3"), cwd=ROOT,
+        mon = subprocess.run(bpms("monitor", path, "--seconds", "3", *REPLY), cwd=ROOT,
                              capture_output=True, text=True, timeout=30)
     finally:
         code, err = stop_sim(sim)
@@ -80,7 +84,7 @@ def test_monitor_counts_faults_over_tcp_in_fast_mode():
     sim, url = start_sim("--tcp", "0", "--fast", "--drop-rate", "0.05", "--error-rate", "0.001")
     try:
         assert re.fullmatch(r"socket://127\.0\.0\.1:\d+", url), url
-        mon = subprocess.run(bpms("monitor", url, "--seconds", "1.5"), cwd=ROOT,
+        mon = subprocess.run(bpms("monitor", url, "--seconds", "1.5", *REPLY), cwd=ROOT,
                              capture_output=True, text=True, timeout=30)
     finally:
         code, _ = stop_sim(sim)
@@ -100,7 +104,7 @@ def test_monitor_without_a_suit_never_passes_off_the_simulated_one():
 
 
 def test_monitor_sim_says_simulated_on_every_line():
-    mon = subprocess.run(bpms("monitor", "--sim", "--seconds", "2.5"), cwd=ROOT,
+    mon = subprocess.run(bpms("monitor", "--sim", "--seconds", "2.5", *REPLY), cwd=ROOT,
                          capture_output=True, text=True, timeout=60)
     assert mon.returncode == 0, mon.stderr
     lines = mon.stdout.splitlines()

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from deadlines import scaled
 
 from bpms.io.filtered_file.reader import read_filtered
 from bpms.io.rawfile import read_raw
@@ -26,7 +27,7 @@ RECORD = 8 + 340  # bytes of one raw record (docs/raw-format.md)
 def record(folder: Path, options: Path, *extra: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "bpms", "record", "--sim", "--filtered",
                            "-o", str(folder), "--name", "disk", "--options", str(options),
-                           *extra], cwd=ROOT, capture_output=True, text=True, timeout=100)
+                           *extra], cwd=ROOT, capture_output=True, text=True, timeout=scaled(100))
 
 
 def record_until_write_error(folder: Path, options: Path) -> tuple[int, str, str]:
@@ -44,7 +45,7 @@ def record_until_write_error(folder: Path, options: Path) -> tuple[int, str, str
                 break
     finally:
         proc.send_signal(signal.SIGINT)
-        rest, err = proc.communicate(timeout=30)
+        rest, err = proc.communicate(timeout=scaled(30))
     return proc.returncode, "".join(out) + rest, err
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from deadlines import scaled
 from waiting import wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -112,7 +113,7 @@ def test_the_block_runs(key, tmp_path, monkeypatch):
     script.write_text(run.preamble + code, encoding="utf-8")
     if run.subprocess:
         done = subprocess.run([sys.executable, str(script)], cwd=folder, capture_output=True,
-                              text=True, timeout=120)
+                              text=True, timeout=scaled(120))
         assert done.returncode == 0, done.stderr
         return
     monkeypatch.chdir(folder)
@@ -152,7 +153,7 @@ def test_the_udp_reader_script_reads_bpms_replay(tmp_path):
         port = int(re.fullmatch(r"listening on UDP port (\d+)", out.lines[0]).group(1))
         replay = subprocess.run([sys.executable, "-m", "bpms", "replay", str(ARM), "--udp",
                                  f"127.0.0.1:{port}", "--speed", "4"], cwd=ROOT,
-                                capture_output=True, text=True, timeout=120)
+                                capture_output=True, text=True, timeout=scaled(120))
         assert replay.returncode == 0, replay.stderr
         from bpms.io.recordings import open_recording
 
@@ -166,7 +167,7 @@ def test_the_udp_reader_script_reads_bpms_replay(tmp_path):
                    30)
     finally:
         reader.terminate()
-        reader.wait(10)
+        reader.wait(scaled(10))
     lines = out.lines
     assert not [ln for ln in lines if ln.startswith("gap or reorder")]
     raw_lines = [ln for ln in lines if " raw right leg " in ln]
@@ -211,10 +212,10 @@ def test_the_lsl_inlet_script_reads_bpms_replay(tmp_path):
                                "--loop"], cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE, text=True)
     try:
-        out, err = inlet.communicate(timeout=90)
+        out, err = inlet.communicate(timeout=scaled(90))
     finally:
         replay.terminate()
-        replay.wait(20)
+        replay.wait(scaled(20))
     assert inlet.returncode == 0, err
     lines = out.splitlines()
     assert lines[0].startswith("convention: isb")

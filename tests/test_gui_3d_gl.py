@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from deadlines import scaled
 
 SCRIPT = Path(__file__).parent / "gl" / "run_3d_windows.py"
 XVFB = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24"]
@@ -31,7 +32,7 @@ def run(tmp_path_factory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("gl3d")
     env = {**os.environ, "QT_QPA_PLATFORM": "xcb"}
     proc = subprocess.run([*XVFB, sys.executable, str(SCRIPT), str(out)], env=env,
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=scaled(120))
     if proc.returncode == 3:
         pytest.skip(f"no OpenGL under Xvfb here: {proc.stdout.strip()}")
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -63,6 +64,7 @@ def test_the_figure_is_drawn_after_reset_zero(run):
 
 def test_keys_move_the_camera_and_r_resets_it(run):
     out, results = run
+    assert results["all_shown"], "the recording was not shown whole before the keys"
     for w, shots in enumerate(results["windows"]):
         assert shots["x"]["camera"] == [0.0, 0.0]
         assert shots["y"]["camera"] == [0.0, 90.0]
@@ -102,7 +104,7 @@ def docked(tmp_path_factory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("gldocked")
     env = {**os.environ, "QT_QPA_PLATFORM": "xcb"}
     proc = subprocess.run([*XVFB, sys.executable, str(DOCKED), str(out)], env=env,
-                          capture_output=True, text=True, timeout=180)
+                          capture_output=True, text=True, timeout=scaled(180))
     if proc.returncode == 3:
         pytest.skip(f"no OpenGL under Xvfb here: {proc.stdout.strip()}")
     assert proc.returncode == 0, proc.stdout + proc.stderr

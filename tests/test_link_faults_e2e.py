@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from deadlines import scaled
 from waiting import wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
@@ -98,7 +99,7 @@ class Cli:
 
     def stop(self) -> tuple[int, str]:
         self.proc.send_signal(signal.SIGINT)
-        self.proc.wait(30)
+        self.proc.wait(scaled(30))
         self._thread.join(10)
         return self.proc.returncode, self.proc.stderr.read()
 

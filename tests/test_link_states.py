@@ -9,6 +9,7 @@ import time
 import pytest
 from fake_suit import STALE, FakeClock, ScriptedSuit, sample
 from pty_suit import suit_pty
+from waiting import inside, wait_until
 
 from bpms.firmware.sim.arbiter import Arbiter, MotionSource
 from bpms.io.link_states import TRANSITIONS, LinkEvent, LinkState, TransitionError, next_state
@@ -198,7 +199,7 @@ def test_close_from_another_thread_wakes_a_blocking_read():
 
         thread = threading.Thread(target=reader, daemon=True)
         thread.start()
-        time.sleep(0.3)  # let it block in select (no result depends on this)
+        assert wait_until(lambda: inside(thread, "read"), 10)  # blocked in its read
         t0 = time.monotonic()
         source.close()
         assert done.wait(5.0)

@@ -13,6 +13,7 @@ import threading
 
 import numpy as np
 import pytest
+from deadlines import scaled
 from pty_suit import suit_pty
 from waiting import wait_until
 
@@ -117,7 +118,7 @@ def test_record_cli_survives_kill_9(tmp_path):
     size = raw.stat().st_size
     assert wait_until(lambda: raw.stat().st_size > size, 30)  # at least one more flush
     proc.send_signal(signal.SIGKILL)
-    proc.communicate(timeout=10)
+    proc.communicate(timeout=scaled(10))
     recording = read_raw(raw)
     assert len(recording) >= 100
     assert recording.decode().raw.shape == (len(recording), 18, 9)
@@ -142,7 +143,7 @@ def test_record_cli_ctrl_c_closes_cleanly(tmp_path):
                       or proc.poll() is not None, 60)
     assert proc.poll() is None
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=20)
+    _, err = proc.communicate(timeout=scaled(20))
     reader.join(timeout=10)
     out = "".join(out_lines)
     assert proc.returncode == 0, err
@@ -158,7 +159,7 @@ def test_record_cli_ctrl_c_closes_cleanly(tmp_path):
 
 def test_record_cli_port_that_does_not_exist(tmp_path):
     proc = bpms("record", "/dev/does-not-exist", "-o", str(tmp_path))
-    _, err = proc.communicate(timeout=30)
+    _, err = proc.communicate(timeout=scaled(30))
     assert proc.returncode == 2
     assert "cannot open /dev/does-not-exist" in err and "Traceback" not in err
     assert err.count("\n") == 1

@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from udp_docs_reader import docs_reader
+from waiting import inside, wait_until
 
 from bpms.filter.joints import JOINT_ANGLE_NAMES
 from bpms.filter.rotations import euler_to_dcm
@@ -507,7 +508,7 @@ def test_close_unblocks_a_blocked_reader():
     result = []
     reader = threading.Thread(target=lambda: result.append(src.read(timeout=60)))
     reader.start()
-    time.sleep(0.1)
+    assert wait_until(lambda: inside(reader, "read"), 10)  # the reader is in its read
     src.close()
     reader.join(timeout=5)
     assert not reader.is_alive() and result == [None]

@@ -3,7 +3,9 @@
 #
 #   bash tools/dev.sh app     set everything up and start BPMS on the simulated suit
 #                             (a real suit is used instead when one answers)
-#   bash tools/dev.sh test    set everything up and run the whole test suite
+#   bash tools/dev.sh test    set everything up and run the whole test suite, in a random
+#                             order fixed by a seed (BPMS_TEST_SEED, default 46; printed)
+#   bash tools/dev.sh test --load 2   the same with 2 CPU-bound processes running beside it
 #   bash tools/dev.sh setup   only set up (virtualenv in .venv, Python and Debian packages)
 #
 # Everything that is missing is installed: a virtualenv with the package and its dev extra,
@@ -85,16 +87,62 @@ build_firmware() {
   make --no-print-directory -s -C bpms/firmware -j2 "${targets[@]}" >/dev/null
 }
 
+start_load() {
+  # $1 CPU-bound processes beside the suite (a busy CI machine); stopped by stop_load, by id.
+  local n=$1 k
+  LOAD_PIDS=()
+  for ((k = 0; k < n; k++)); do
+    "$PY" -c "while True: pass" &
+    LOAD_PIDS+=("$!")
+  done
+  log "load: $n CPU-bound processes beside the suite (pids ${LOAD_PIDS[*]})"
+}
+
+stop_load() {
+  local pid
+  for pid in "${LOAD_PIDS[@]:-}"; do
+    [ -n "$pid" ] || continue
+    kill "$pid" 2>/dev/null || true
+    wait "$pid" 2>/dev/null || true  # a killed child's status (143) must not end the script
+  done
+  LOAD_PIDS=()
+  return 0
+}
+
 run_tests() {
+  # Options before pytest's own:
+  #   --load N   run N CPU-bound processes beside the suite (also: BPMS_TEST_LOAD=N); the
+  #              tests' deadlines scale with the machine's load (tests/deadlines.py)
+  # The test files and tests run in a random order fixed by a seed (pytest-randomly): the
+  # same order every run unless BPMS_TEST_SEED is set (a number, or "random" for a new one).
+  local load=${BPMS_TEST_LOAD:-0}
+  while [ $# -gt 0 ]; do
+    case "$1" in
+      --load) load=${2:?--load needs a number}; shift 2 ;;
+      --load=*) load=${1#--load=}; shift ;;
+      *) break ;;
+    esac
+  done
+  case "$load" in ''|*[!0-9]*) log "--load wants a whole number, not '$load'"; return 2 ;; esac
+  local seed=${BPMS_TEST_SEED:-46}
+  if [ "$seed" = random ]; then seed=$((RANDOM * 32768 + RANDOM)); fi
   log "ruff check"
   "$VENV/bin/ruff" check bpms tests bench tools
   build_firmware
-  log "pytest"
+  log "pytest: random order, seed $seed (repeat with BPMS_TEST_SEED=$seed)"
   local rc=0
   # Modules load from cached bytecode, as installed (the tests start many `python -m bpms`
   # children); a crash in a child prints its Python stack.
   unset PYTHONDONTWRITEBYTECODE
-  HYPOTHESIS_PROFILE=ci PYTHONFAULTHANDLER=1 "$PY" -m pytest -q "$@" || rc=$?
+  LOAD_PIDS=()
+  if [ "$load" -gt 0 ]; then
+    trap stop_load EXIT INT TERM
+    start_load "$load"
+  fi
+  BPMS_TEST_LOAD=$load HYPOTHESIS_PROFILE=ci PYTHONFAULTHANDLER=1 \
+    "$PY" -m pytest -q -p randomly --randomly-seed="$seed" "$@" || rc=$?
+  stop_load
+  log "pytest: seed was $seed, load $load"
   if [ "$rc" -eq 5 ]; then
     log "pytest collected no tests"
     return 1

@@ -300,10 +300,12 @@ class LiveSession:
 
             try:
                 groups, kind = filtered_layout()
+                # the header `bpms filter` writes from the raw file beside it: the same bytes
+                source = {"source": raw_path.name} if raw else {}
                 writer = FilteredWriter(filtered_path, degrees=degrees, groups=groups,
                                         euler=kind, convention=filtered_convention(
                                             self.processor.options.joints.convention),
-                                        meta=heading_header(self.processor.options))
+                                        meta={**source, **heading_header(self.processor.options)})
             except OSError as exc:
                 self.note(f"filtered recording not started: cannot create {filtered_path}: {exc}")
             else:
