@@ -19,7 +19,6 @@ from bpms.filter.pose import (
     body_outputs,
     capture_zero,
     window_motion,
-    zero_values,
 )
 from bpms.filter.rotations import euler_to_dcm, rot_x, rot_z
 from bpms.io.options import BodyOptions
@@ -115,26 +114,37 @@ def test_capture_keeps_the_previous_where_data_are_missing():
 
 
 def test_a_capture_stored_in_a_recording_reads_back():
+    import json
+
+    from bpms.io.event_types import ResetZero
+
     R0 = np.stack([rot_z(0.05 * i) for i in range(18)])
     zero = Zero(R0, 0.3, 7, "manual", 25, 6.25, 11, 3, "mean")
-    assert Zero(R0, 0.3, 7, motion_deg=6.23456).event_data()["motion_deg"] == 6.235
-    data = zero.event_data()
-    assert data == {"source": "manual", "window": 25, "R0": R0, "yaw0": 0.3,
+    assert Zero(R0, 0.3, 7, motion_deg=6.23456).change().to_data()["motion_deg"] == 6.235
+    data = zero.change().to_data()
+    np.testing.assert_array_equal(data.pop("R0"), R0)
+    assert data == {"source": "manual", "window": 25, "yaw0": 0.3,
                     "heading": "mean", "motion_deg": 6.25, "motion_imu": 11, "moved": True,
                     "waited": 3}
-    back = zero_values({**data, "R0": R0.tolist()})
+
+    def stored(values: dict) -> ResetZero:  # through the recording's JSON text
+        return ResetZero.from_data(json.loads(json.dumps(values)))
+
+    back = stored({**data, "R0": R0.tolist()}).zero
     assert back is not None
     np.testing.assert_array_equal(back[0], R0)
     assert back[1] == 0.3
-    assert zero_values({"R0": R0.tolist()}) is None
+    assert stored({"R0": R0.tolist()}).zero is None
     # an IMU without data is stored as nulls and reads back as NaN
     holes = R0.tolist()
     holes[2] = [[None] * 3] * 3
-    back = zero_values({"R0": holes, "yaw0": 0.3})
+    back = stored({"R0": holes, "yaw0": 0.3}).zero
     assert back is not None and back[0].dtype == np.float64 and np.isnan(back[0][2]).all()
-    assert zero_values({"R0": [[1.0]], "yaw0": 0.0}) is None
-    assert zero_values({"R0": R0.tolist(), "yaw0": float("nan")}) is None
-    assert zero_values({"R0": R0.tolist(), "yaw0": "north"}) is None
+    for bad in ({"R0": [[1.0]], "yaw0": 0.0}, {"R0": R0.tolist(), "yaw0": "north"}):
+        with pytest.raises(ValueError):
+            stored(bad)
+    with pytest.raises(ValueError):
+        ResetZero.from_data({"R0": R0.tolist(), "yaw0": float("nan")})
 
 
 def test_outputs_default_to_isb_with_the_feet_on_the_ground():
