@@ -91,7 +91,7 @@ def test_the_panel_shows_and_changes_the_processors_gains_live(qtbot, tmp_path):
         window.close()
 
 
-def _keeps_its_own_copy(self, settings):
+def _keeps_its_own_copy(self, settings, pending=0):
     """Planted: the panel shows its own value, set when it sends, never the session's."""
     if settings is None:
         return

@@ -176,10 +176,12 @@ class GainsPanel(QGroupBox):
         self.show_settings(options)
         self.show_settings_of(options.algorithm)
 
-    def show_settings(self, settings: FilterOptions | None) -> None:
+    def show_settings(self, settings: FilterOptions | None, pending: int = 0) -> None:
         """Show the filter and settings in force (the session's report); a field being
-        edited keeps its text until it is sent."""
-        if settings is None:
+        edited keeps its text until it is sent. ``pending``: changes the session has not
+        applied yet (``LiveStatus.settings_pending``): its values are about to change, the
+        panel waits for them."""
+        if settings is None or pending:
             return
         self.in_force = settings
         if self.filter_combo.currentText() != settings.algorithm:

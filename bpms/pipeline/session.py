@@ -385,7 +385,7 @@ class LiveSession:
         fstats = fwd.stats if fwd is not None else None
         with self._lock:
             lat = sorted(self._latencies[-500:])
-        events = self.events.lines()
+        events, pending = self.events.lines(), self.settings.pending  # (before the values)
         proc = self.processor
         return LiveStatus(
             source=self.source.status(), running=self.running, rate_hz=self._rate.rate_hz(),
@@ -404,7 +404,7 @@ class LiveSession:
             reset_zero=proc.pose.state_text(proc.options.filter.dt),
             calibration_source=proc.calibration_source, options_source=proc.options_source,
             filter_name=proc.options.filter.algorithm, filter_settings=proc.options.filter,
-            event_warnings=self.events.warning_lines())
+            settings_pending=pending, event_warnings=self.events.warning_lines())
 
     # -- threads ----------------------------------------------------------------------------
     def _acquire(self) -> None:

@@ -127,7 +127,8 @@ class SessionCommands(QObject):
         session = self.runner.session
         if session is not None:
             session.change(change)  # applied now when no frame runs, else before the next
-            self._panels.gains_panel.show_settings(session.status().filter_settings)
+            st = session.status()
+            self._panels.gains_panel.show_settings(st.filter_settings, st.settings_pending)
 
     def set_angle_unit(self, unit: str) -> None:
         self._panels.table_model.set_angle_unit(unit)
