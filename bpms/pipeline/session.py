@@ -252,12 +252,10 @@ class LiveSession:
 
     def change(self, change: Change) -> None:
         """Apply a typed change (:mod:`bpms.io.event_types`, checked when made) before the
-        next frame: queued for the processing thread, or applied now when none runs. The
-        processor owns the values in force (``LiveStatus.filter_settings`` reports them)."""
+        next frame: queued for the processing thread, the only one touching the processor,
+        which owns the values in force (``LiveStatus.filter_settings`` reports them once
+        applied; ``settings_pending`` counts the changes queued until then)."""
         self.settings.put(change)
-        if not self.running:
-            for event in self.settings.apply(self.processor, self.note):
-                self.events.at_next_frame(event)
 
     def set_gains(self, **gains: float) -> None:
         """A :class:`Gains` change (OptionRangeError, naming the range, here when refused)."""

@@ -126,7 +126,7 @@ class SessionCommands(QObject):
     def _send(self, change: Gains | FilterChoice) -> None:
         session = self.runner.session
         if session is not None:
-            session.change(change)  # applied now when no frame runs, else before the next
+            session.change(change)  # applied before the next frame
             st = session.status()
             self._panels.gains_panel.show_settings(st.filter_settings, st.settings_pending)
 
