@@ -160,3 +160,24 @@ def test_in_playback_the_panel_follows_the_recordings_gains(qtbot, tmp_path, gai
         qtbot.waitUntil(lambda: panel.edits["kp_yaw"].text() == "0.3", timeout=5000)
     finally:
         window.close()
+
+
+def test_a_restarted_udp_stream_keeps_the_gains_in_force(qtbot, tmp_path):
+    """The UDP client's Stop/Start Data makes a new session: it starts from the values the
+    old session's processor ran with (the one owner), not from the app's starting options."""
+    window = _window(qtbot, tmp_path, ModeConfig(mode="udp", listen="127.0.0.1:0",
+                                                 recording_dir=str(tmp_path)))
+    try:
+        window.commands.set_data(True)
+        first = window.runner.session
+        _type(window.panels.gains_panel, "kp_yaw", "0.5")
+        qtbot.waitUntil(lambda: first.processor.options.filter.kp_yaw == 0.5, timeout=5000)
+        window.commands.set_data(False)
+        window.commands.set_data(True)
+        second = window.runner.session
+        assert second is not first and second.processor.options.filter.kp_yaw == 0.5
+        assert window.options.filter.kp_yaw == Options().filter.kp_yaw  # no second copy
+        qtbot.waitUntil(lambda: window.panels.gains_panel.edits["kp_yaw"].text() == "0.5",
+                        timeout=5000)
+    finally:
+        window.close()
