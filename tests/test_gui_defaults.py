@@ -131,9 +131,11 @@ def test_gains_panel_shows_the_selected_filters_own_settings(qtbot, tmp_path):
     assert "observer_k_incl" in visible() and "kp_yaw" not in visible()
     panel.filter_combo.setCurrentText("vqf")
     assert visible() == {"vqf_tau_acc_s", "vqf_tau_mag_s"}
-    # a value outside the range typed through the API path is refused with the range named
-    window.commands.set_gains({"kp_rollpitch": 2.0})
-    assert "[0, 0.18]" in window.statusBar().currentMessage()
+    # a value outside the range is refused by the Gains event's check, the range named
+    panel.filter_combo.setCurrentText("mahony")
+    panel.edits["kp_rollpitch"].setText("2")
+    panel.edits["kp_rollpitch"].editingFinished.emit()
+    assert "[0, 0.18]" in panel.message.text()
     window.close()
 
 

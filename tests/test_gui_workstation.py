@@ -430,13 +430,18 @@ def test_an_out_of_range_gain_is_refused_and_logged(qtbot, tmp_path, recording):
     edit.setText("5")
     edit.editingFinished.emit()
     assert edit.text() == old and "[0, 0.18]" in panel.message.text()
-    assert window.options.filter.kp_rollpitch == float(old)
+    processor = window.runner.session.processor  # the one owner of the values in force
+    assert processor.options.filter.kp_rollpitch == float(old)
     last = window.panels.event_log.entries[-1]
     assert last[1] == "warning" and "[0, 0.18]" in last[2] and "5" in last[2]
     edit.setText("0.1")
     edit.editingFinished.emit()
-    assert window.options.filter.kp_rollpitch == 0.1
-    assert window.panels.event_log.entries[-1][2] == f"filter gain kp_rollpitch: {old} → 0.1"
+    # queued for the processor (which takes it before its next frame), shown meanwhile
+    assert window.runner.session.status().settings_pending == 1 and edit.text() == "0.1"
+    window.commands.set_data(True)
+    qtbot.waitUntil(lambda: processor.options.filter.kp_rollpitch == 0.1, timeout=5000)
+    window.commands.set_data(False)
+    assert f"filter gain kp_rollpitch: {old} → 0.1" in window.panels.event_log.texts()
     window.close()
 
 

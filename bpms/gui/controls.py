@@ -27,8 +27,9 @@ from bpms.gui.modes import SessionRunner
 from bpms.gui.playback_panel import SPEEDS, ZERO_CHOICES, PlaybackPanel
 from bpms.gui.safety import BackgroundTask, debounce, guard_wheel, set_enabled_keeping_focus
 from bpms.gui.widgets import button, label, row
+from bpms.io.event_types import FilterChoice, Gains
 from bpms.io.filtered_file.reader import is_number
-from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, check_option, option_range
+from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, option_range
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp.addresses import UdpConfigError
 
@@ -121,15 +122,20 @@ class GainsPanel(QGroupBox):
     run time (applied from the next frame on). Only the chosen filter's settings are shown,
     each with its valid range beside it (``bpms.io.options.VALID_RANGES``).
 
-    A value is applied when Enter is pressed or the field is left. One outside its range (or
-    not a number) is refused: the field goes back to the value in force and the message, with
-    the range, is shown under the fields and sent as ``logged(text, "warning")``; an accepted
-    change is sent as ``gainsChanged({name: value})`` and ``logged("filter gain …: old →
-    new", "info")`` (the main window writes both to the event log).
+    The panel owns no value: it shows the filter settings in force that the session reports
+    (:meth:`show_settings`, from ``LiveStatus.filter_settings`` at each display tick: the
+    processor's own, so a recording's gain events show as they are played). A value is sent
+    when Enter is pressed or the field is left, as a typed :class:`bpms.io.event_types.Gains`
+    (``gainsChanged(Gains)``; a filter picked: ``filterChanged(FilterChoice)``), and the
+    event's own check is the only one: a value it refuses (outside its range, not a number)
+    is not sent, the field goes back to the value in force and the check's message is shown
+    under the fields and sent as ``logged(text, "warning")``; a change sent is logged as
+    ``logged("filter gain …: old → new", "info")`` (the main window writes both to the event
+    log).
     """
 
-    gainsChanged = pyqtSignal(dict)
-    filterChanged = pyqtSignal(str)
+    gainsChanged = pyqtSignal(object)
+    filterChanged = pyqtSignal(object)
     logged = pyqtSignal(str, str)
 
     def __init__(self, options: FilterOptions, parent: QWidget | None = None) -> None:
@@ -139,22 +145,19 @@ class GainsPanel(QGroupBox):
         fields = {f.name: f for f in dataclasses.fields(FilterOptions)}
         self.filter_combo = QComboBox()
         self.filter_combo.addItems(list(fields["algorithm"].metadata["choices"]))
-        self.filter_combo.setCurrentText(options.algorithm)
         self.filter_combo.setToolTip("mahony: the original DCM filter; observer and "
                                      "vqf keep the attitude right under body acceleration "
                                      "(docs/filters.md)")
-        self.filter_combo.currentTextChanged.connect(self.filterChanged.emit)
-        self.filter_combo.currentTextChanged.connect(self.show_settings_of)
+        self.filter_combo.currentTextChanged.connect(self._filter_picked)
         guard_wheel(self.filter_combo)
         form.addRow("filter", self.filter_combo)
-        self.values: dict[str, float] = {}
         self.edits: dict[str, QLineEdit] = {}
         self.rows: dict[str, QWidget] = {}
         self.labels: dict[str, QLabel] = {}
         names = dict.fromkeys(n for names in ALGORITHM_SETTINGS.values() for n in names)
         for name in names:  # one field per setting, also when two filters share it
             rng = option_range("filter", name)
-            edit = QLineEdit(f"{getattr(options, name):g}")
+            edit = QLineEdit()
             edit.setToolTip(f"{fields[name].metadata.get('help', '')}; valid "
                             f"{rng.describe() if rng else 'any'}")
             edit.editingFinished.connect(lambda n=name: self.apply(n))
@@ -163,14 +166,33 @@ class GainsPanel(QGroupBox):
             line.setContentsMargins(0, 0, 0, 0)
             line.addWidget(edit, 1)
             line.addWidget(label(rng.describe() if rng else "", wrap=False, style="color: #666"))
-            self.values[name] = float(getattr(options, name))
             self.edits[name], self.rows[name] = edit, field
             self.labels[name] = QLabel(_short_name(name))
             form.addRow(self.labels[name], field)
         self.message = label(style="color: #b00")
         form.addRow(self.message)
-        self._refused = ""
+        #: the settings in force as the session last reported them (replaced, never edited)
+        self.in_force = options
+        self.show_settings(options)
         self.show_settings_of(options.algorithm)
+
+    def show_settings(self, settings: FilterOptions | None, pending: int = 0) -> None:
+        """Show the filter and settings in force (the session's report); a field being
+        edited keeps its text until it is sent. ``pending``: changes the session has not
+        applied yet (``LiveStatus.settings_pending``): its values are about to change, the
+        panel waits for them."""
+        if settings is None or pending:
+            return
+        self.in_force = settings
+        if self.filter_combo.currentText() != settings.algorithm:
+            self.filter_combo.blockSignals(True)
+            self.filter_combo.setCurrentText(settings.algorithm)
+            self.filter_combo.blockSignals(False)
+            self.show_settings_of(settings.algorithm)
+        for name, edit in self.edits.items():
+            text = f"{getattr(settings, name):g}"
+            if not edit.isModified() and edit.text() != text:
+                edit.setText(text)
 
     def show_settings_of(self, algorithm: str) -> None:
         """Show only ``algorithm``'s own settings."""
@@ -184,40 +206,43 @@ class GainsPanel(QGroupBox):
         """The settings whose fields are shown (those of the chosen filter)."""
         return [n for n, field in self.rows.items() if not field.isHidden()]
 
+    def _filter_picked(self, algorithm: str) -> None:
+        self.show_settings_of(algorithm)
+        try:
+            change = FilterChoice(algorithm)
+        except ValueError as exc:  # (the combo offers only valid names)
+            self._refuse_filter(str(exc))
+            return
+        self.filterChanged.emit(change)
+
+    def _refuse_filter(self, why: str) -> None:
+        self.filter_combo.blockSignals(True)
+        self.filter_combo.setCurrentText(self.in_force.algorithm)
+        self.filter_combo.blockSignals(False)
+        self.show_settings_of(self.in_force.algorithm)
+        self.message.setText(f"refused {why}")
+        self.logged.emit(self.message.text(), "warning")
+
     def apply(self, name: str) -> bool:
-        """Check the field of ``name`` and apply it (False: refused, the message says why)."""
+        """Send the field of ``name`` as a :class:`Gains` (False: refused by its check, the
+        message says why)."""
         edit = self.edits[name]
         text = edit.text().strip()
-        old = self.values[name]
-        rng = option_range("filter", name)
-        valid = f"valid {rng.describe()}" if rng is not None else "any number"
-        try:
-            value = check_option("filter", name, float(text))
-        except ValueError as exc:
-            why = str(exc).split(" (")[0] if is_number(text) else \
-                f"filter.{name}: {text!r} is not a number"
-            shown = "" if rng is not None and rng.describe() in why else f"; {valid}"
-            return self._refuse(name, f"refused {why}{shown}; kept {old:g}")
-        edit.setText(f"{value:g}")
-        if value == old:
+        old = getattr(self.in_force, name)
+        edit.setModified(False)  # the field shows the session's value again from now on
+        if text == f"{old:g}":
             return True
-        self._refused = ""
-        self.values[name] = value
-        self.gainsChanged.emit({name: value})  # the receiver may refuse(): the session said no
-        if self._refused:
-            self.values[name] = old
-            return self._refuse(name, f"refused filter.{name} = {value:g}: {self._refused}; "
-                                      f"kept {old:g}")
+        try:
+            change = Gains({name: float(text) if is_number(text) else text})
+        except ValueError as exc:  # the event's own check: its message, the value in force
+            return self._refuse(name, f"refused {exc}; kept {old:g}")
         self.message.setText("")
-        self.logged.emit(f"filter gain {name}: {old:g} → {value:g}", "info")
+        self.gainsChanged.emit(change)  # the session applies it before the next frame
+        self.logged.emit(f"filter gain {name}: {old:g} → {change.values[name]:g}", "info")
         return True
 
-    def refuse(self, why: str) -> None:
-        """Called by a ``gainsChanged`` receiver whose session refused the value."""
-        self._refused = why or "refused"
-
     def _refuse(self, name: str, message: str) -> bool:
-        self.edits[name].setText(f"{self.values[name]:g}")
+        self.edits[name].setText(f"{getattr(self.in_force, name):g}")
         self.message.setText(message)
         self.logged.emit(message, "warning")
         return False

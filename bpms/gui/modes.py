@@ -140,6 +140,9 @@ class SessionRunner:
         if profile is not None:  # live: the subject's own lengths (docs/subject.md), in a
             # copy: the user's options keep theirs; the other sections are shared
             options = dataclasses.replace(options, body=profile.body_options())
+        if processor is None and self.session is not None:  # a new stream (UDP restarted):
+            # the filter settings in force go on (their one owner: the session's processor)
+            options = dataclasses.replace(options, filter=self.session.processor.options.filter)
         processor = processor or BodyPoseProcessor(calibration=self.calibration,
                                                    options=options)
         session = LiveSession(source, options, processor,

@@ -12,10 +12,9 @@ Threads and queues (docs/pipeline.md has the picture):
   pose over UDP and publishes a :class:`PoseSample` to every subscriber's bounded mailbox (a
   slow subscriber loses its oldest samples, counted; it never blocks anything).
 
-Commands (Reset Zero, gains, logging, forwarding) may come from any thread; the ones that touch
-the processor are queued and run in the processing thread between two frames. Every notable
-event goes through one source, :attr:`LiveSession.events` (:mod:`bpms.pipeline.events`), to the
-raw recording, the event log and the LSL event stream.
+Commands (Reset Zero, gains, logging) may come from any thread; those touching the processor
+run in the processing thread between two frames. Every notable event goes through one source,
+:attr:`LiveSession.events` (:mod:`bpms.pipeline.events`), to the recording, log and LSL.
 """
 
 from __future__ import annotations
@@ -33,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bpms.io.event_types import Alignment, FilterChoice, Filters, Gains, Logging, Text
+from bpms.io.event_types import Alignment, Change, FilterChoice, Filters, Gains, Logging, Text
 from bpms.io.events import FrameEvent, FrameSource
 from bpms.io.filtered_file.writer import FilteredWriter
 from bpms.io.frames import decode_frames
@@ -251,22 +250,24 @@ class LiveSession:
         the LSL event stream."""
         self.events.at_next_frame(SessionEvent.of(Text(str(text))))
 
+    def change(self, change: Change) -> None:
+        """Apply a typed change (:mod:`bpms.io.event_types`, checked when made) before the
+        next frame: queued for the processing thread, the only one touching the processor,
+        which owns the values in force (``LiveStatus.filter_settings`` reports them once
+        applied; ``settings_pending`` counts the changes queued until then)."""
+        self.settings.put(change)
+
     def set_gains(self, **gains: float) -> None:
-        """Change filter settings from the next frame on (see BodyPoseProcessor.set_gains).
-        Raises OptionRangeError (a ValueError naming the range) here, in the caller's thread,
-        for a value outside its valid range."""
-        self.settings.set_gains(**gains)
+        """A :class:`Gains` change (OptionRangeError, naming the range, here when refused)."""
+        self.change(Gains(gains))
 
     def select_filter(self, algorithm: str) -> None:
-        """Switch the attitude filter of all 18 IMUs (``FilterOptions.algorithm`` choices) at
-        the next frame; Reset Zero and each filter's own values are kept. A failure (e.g. vqf
-        not installed) is an event."""
-        self.settings.select_filter(algorithm)
+        """A :class:`FilterChoice` for all 18 IMUs (Reset Zero and their values kept)."""
+        self.change(FilterChoice(algorithm))
 
     def set_corrected_output(self, on: bool | None = None) -> None:
-        """Per-IMU output angles corrected by Reset Zero (True), the sensor angles (False), or
-        toggle (None, the original's ``v`` key), from the next frame."""
-        self.settings.set_corrected_output(on)
+        """Output angles corrected by Reset Zero (True) or not (False); None toggles."""
+        self.change(Alignment(on))
 
     def start_logging(self, raw: bool = True, filtered: bool = True, name: str | None = None,
                       degrees: bool = False) -> RecordingStatus:
@@ -382,7 +383,7 @@ class LiveSession:
         fstats = fwd.stats if fwd is not None else None
         with self._lock:
             lat = sorted(self._latencies[-500:])
-        events = self.events.lines()
+        events, pending = self.events.lines(), self.settings.pending  # (before the values)
         proc = self.processor
         return LiveStatus(
             source=self.source.status(), running=self.running, rate_hz=self._rate.rate_hz(),
@@ -400,8 +401,8 @@ class LiveSession:
             display_skipped=self._fanout.dropped, holes_marked=self.health.holes_marked,
             reset_zero=proc.pose.state_text(proc.options.filter.dt),
             calibration_source=proc.calibration_source, options_source=proc.options_source,
-            filter_name=proc.options.filter.algorithm,
-            event_warnings=self.events.warning_lines())
+            filter_name=proc.options.filter.algorithm, filter_settings=proc.options.filter,
+            settings_pending=pending, event_warnings=self.events.warning_lines())
 
     # -- threads ----------------------------------------------------------------------------
     def _acquire(self) -> None:

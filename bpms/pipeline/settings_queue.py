@@ -17,6 +17,7 @@ switching filter and back keeps run-time gains.
 from __future__ import annotations
 
 import queue
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -29,10 +30,21 @@ class SettingsQueue:
 
     def __init__(self) -> None:
         self._queue: queue.SimpleQueue[Change] = queue.SimpleQueue()
+        self._lock = threading.Lock()
+        self._queued = 0  # changes put (any thread, under the lock)
+        self._applied = 0  # changes taken and applied (the one consumer only)
+
+    @property
+    def pending(self) -> int:
+        """Changes queued and not applied yet (until then the processor's values in force
+        are about to change)."""
+        return self._queued - self._applied
 
     def put(self, change: Change) -> None:
         """Queue a typed change (already checked when it was made)."""
-        self._queue.put(change)
+        with self._lock:
+            self._queued += 1
+            self._queue.put(change)
 
     def set_gains(self, **gains: float) -> None:
         """Queue filter settings by their ``[filter]`` names (``kp_rollpitch``,
@@ -66,6 +78,7 @@ class SettingsQueue:
         while not self._queue.empty():  # (checked first: no exception per frame; one consumer)
             change = self._queue.get_nowait()
             applied = processor.apply_event(change, on_error)
+            self._applied += 1  # (after it is applied: pending until then)
             if applied is not None and not isinstance(change, ResetZero):
                 done.append(applied)
         return done

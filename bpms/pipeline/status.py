@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bpms.io.events import SourceStatus
+from bpms.io.options import FilterOptions
 from bpms.pipeline.health import health_text
 
 
@@ -55,6 +56,11 @@ class LiveStatus:
     calibration_source: str = ""
     options_source: str = ""
     filter_name: str = ""
+    #: The filter and its settings in force, the processor's own (``options.filter``: it
+    #: replaces the object at each change, never edits it), what the GUI's panel shows.
+    filter_settings: FilterOptions | None = None
+    #: changes queued and not yet applied (``filter_settings`` may be about to change)
+    settings_pending: int = 0
     event_warnings: list[str] = field(default_factory=list)  # those of ``events`` that warn
 
     def health_line(self) -> str:

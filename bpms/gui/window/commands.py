@@ -1,5 +1,6 @@
 """The main window's session commands: Start/Stop Data, Reset Zero, markers, the filter and
-its gains, LSL, the angle unit and which angles are shown.
+its gains (typed events for the session, which owns the values in force), LSL, the angle
+unit and which angles are shown.
 
 :class:`SessionCommands` is what the menus, toolbar and panels ask of the session; it holds
 no state of its own beyond the references it is given.
@@ -14,6 +15,7 @@ from bpms.gui.angle_readout import ContinuousAngles
 from bpms.gui.model import SessionModel
 from bpms.gui.modes import ModeError, SessionRunner
 from bpms.gui.window.panels import WindowPanels, listening_address
+from bpms.io.event_types import FilterChoice, Gains
 from bpms.io.options import Options
 
 
@@ -111,25 +113,22 @@ class SessionCommands(QObject):
         self._panels.event_log.add("LSL streaming " + ("on" if self.runner.lsl_on else "off"))
         return self.runner.lsl_on
 
-    def set_gains(self, gains: dict) -> None:
-        """A gain the panel accepted; the session checks it again (the panel logs the change,
-        or the refusal with the range)."""
-        if self.runner.session is not None:
-            try:
-                self.runner.session.set_gains(**gains)
-            except ValueError as exc:  # outside the valid range: refused, said why
-                self._say(str(exc), 8000)
-                self._panels.gains_panel.refuse(str(exc))
-                return
-            for name, value in gains.items():
-                setattr(self.options.filter, name, value)
+    def set_gains(self, change: Gains) -> None:
+        """A :class:`Gains` the panel made (checked when made: the one check) for the
+        session, which owns the values in force; the panel then shows what it reports."""
+        self._send(change)
 
-    def select_filter(self, algorithm: str) -> None:
-        """Switch the attitude filter of all 18 IMUs (Reset Zero is kept)."""
-        if self.runner.session is not None:
-            self.runner.session.select_filter(algorithm)
-        self.options.filter.algorithm = algorithm
-        self._say(f"filter: {algorithm}", 3000)  # (the event: the session)
+    def select_filter(self, change: FilterChoice) -> None:
+        """A :class:`FilterChoice`: all 18 IMUs switch filter (Reset Zero is kept)."""
+        self._send(change)
+        self._say(f"filter: {change.algorithm}", 3000)  # (the event: the session)
+
+    def _send(self, change: Gains | FilterChoice) -> None:
+        session = self.runner.session
+        if session is not None:
+            session.change(change)  # applied before the next frame
+            st = session.status()
+            self._panels.gains_panel.show_settings(st.filter_settings, st.settings_pending)
 
     def set_angle_unit(self, unit: str) -> None:
         self._panels.table_model.set_angle_unit(unit)

@@ -166,11 +166,9 @@ class WindowPanels:
         return session_box
 
     def _build_filter_box(self) -> QWidget:
-        # playback: the recording's own filter and values (its processor's), not the app's
-        processor = getattr(self._runner.session, "processor", None)
-        shown = processor.options.filter if self._runner.replay is not None \
-            and processor is not None else self._options.filter
-        self.gains_panel = GainsPanel(shown)
+        # the values in force, the session's processor's (playback: the recording's own);
+        # from then on the panel shows what the session's status reports
+        self.gains_panel = GainsPanel(self._runner.session.processor.options.filter)
         filter_box = QWidget()
         filter_layout = QVBoxLayout(filter_box)
         filter_layout.addWidget(self.gains_panel)

@@ -113,6 +113,8 @@ class StatusDisplay:
             panels.status_panel.show_status(st, health.state if self._runner.data_on
                                             else None)
             panels.file_panel.show_status(st)
+        # the processor's values in force (once the changes queued are applied)
+        panels.gains_panel.show_settings(st.filter_settings, st.settings_pending)
         log.merge_session_events(st.events, st.event_warnings)
         self._watch_counters(st)
         self._watch_recording(st)
