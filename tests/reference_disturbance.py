@@ -78,6 +78,7 @@ class ReferenceDetector:
         self.acc_ms = self.acc_mean = 0.0
         self.mag_up = self.acc_up = self.ok_t = 0.0
         self.mag_flag = False
+        self.recoveries = 0  # times ĥ was taken from the field after recover_s (a branch count)
 
     def outputs(self, acc_flag=None):
         r = self.ready
@@ -198,6 +199,7 @@ class ReferenceDetector:
                 if self.ok_t >= self.recover and xn > 0.0:
                     h = list(x)
                     self.ok_t = 0.0
+                    self.recoveries += 1
             elif xn > 0.0:
                 self.ok_t = 0.0
                 h = [h[k] + self.kh * (x[k] - h[k]) for k in range(3)]

@@ -43,11 +43,23 @@ def inputs():
     acc[500:540, 9] *= 1.8  # shaken
     acc[560:565, 10] = 0.0  # a zero accelerometer reading
     mag[580:590, 11] = 0.0  # a zero field
+    # the horizontal field turned by 40° for good, its norm and dip unchanged (a steel frame
+    # nearby): flagged, norm and dip back at once, so after recover_s ĥ is taken from the field
+    for i in (0, 14, 17):
+        mag[650:, i] = _turn(mag[650:, i], acc[650:, i], np.radians(40.0))
     return acc, mag, gyr, errors, cal.gravity
+
+
+def _turn(v, axis, angle):
+    """Vectors ``v`` [N, 3] turned by ``angle`` (rad) about ``axis`` [N, 3] (Rodrigues)."""
+    k = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    c, s = np.cos(angle), np.sin(angle)
+    return v * c + np.cross(k, v) * s + k * (k * v).sum(-1, keepdims=True) * (1.0 - c)
 
 
 def _reference(acc, mag, gyr, errors, gravity, recover_s=20.0):
     out = {f: np.empty((len(acc), 18)) for f in FIELDS}
+    out["recoveries"] = np.zeros(18, int)
     for i in range(18):
         det = ReferenceDetector(float(gravity[i]), 0.02, recover_s=recover_s)
         for t in range(len(acc)):
@@ -55,6 +67,7 @@ def _reference(acc, mag, gyr, errors, gravity, recover_s=20.0):
                          tuple(errors[t, i].tolist()))
             for f in FIELDS:
                 out[f][t, i] = o[f]
+        out["recoveries"][i] = det.recoveries
     return out
 
 
@@ -72,6 +85,9 @@ def test_kernel_equals_the_reference(inputs, recover_s):
     want = _reference(acc, mag, gyr, errors, gravity, recover_s)
     assert want["mag"].any() and want["acc"].any()  # both flags were raised
     assert np.isfinite(want["mag_dev"][-1]).all()  # the field was learnt on every IMU
+    # the recovery branch (ĥ from the field after recover_s flagged with norm and dip back)
+    # is reached with the 1 s recovery, never with the default 20 s on an 18 s recording
+    assert (want["recoveries"].sum() > 0) == (recover_s < 5.0), want["recoveries"]
     settings = DisturbanceSettings(recover_s=recover_s)
     got = DisturbanceTracker(gravity, 0.02, settings).update(acc, mag, gyr, errors)
     _compare(got, want)

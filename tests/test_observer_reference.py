@@ -1,0 +1,133 @@
+"""The quaternion observer's numba kernel (bpms/filter/observer.py) against its slow, readable
+scalar reference (tests/reference_observer.py), in both settings (``observer`` and
+``adaptive``), in every regime of its step (issue 46.3), on the simulated suit's calibrated
+data: accelerations below 0.5 g and above 1.5 g (free fall, heel strikes, a 3 g landing), a
+missing magnetometer (a zero field), a failed sensor (its last good value held; an IMU with no
+good value yet stays uninitialised), saturated gyroscopes (±32767 counts), a disturbed field
+replaced by a steady new one after ``mag_new_time``, a still sensor (the adaptive setting's
+bias at rest), a heading trust below 1 and a reset.
+
+Tolerance 1e-9: both compute the same formulas in double precision; they differ only in the
+order of rounding (the reference turns vectors through quaternions, aligns with another
+matrix → quaternion formula), a few 1e-16 a sample, which the correction keeps from growing."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bpms.filter.algorithms import ObserverBank
+from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
+from bpms.filter.observer import ADAPTIVE, Observer, ObserverGains
+from bpms.firmware.sim.session import simulate
+from tests.reference_observer import ReferenceObserver
+
+N = 700
+TOL = 1e-9
+#: |f| / g factors from frame 200 to 260, one per IMU (free fall, < 0.5 g, > 1.5 g, 3 g).
+ACC_FACTORS = [0.0, 0.2, 0.45, 0.5, 0.55, 0.8, 0.95, 1.05, 1.2, 1.45, 1.5, 1.55, 1.7, 2.0,
+               2.5, 3.0, 1.0, 0.3]
+STILL_IMU, NEW_FIELD_IMU, RESET_IMU = 17, 9, 2
+
+
+@pytest.fixture(scope="module")
+def inputs():
+    """(f m/s², m, ω rad/s, errors, resets, trust) with each regime planted in its frames."""
+    rec = simulate(duration_s=N * 0.02, seed=11)
+    cal = SensorCalibration.from_table(rec.calibration)
+    acc, mag, gyr = (v.copy() for v in cal.calibrate(rec.raw))
+    gyro_full = 32767 * GYRO_RAD_S_PER_COUNT
+    # a sensor lying still for 8 s on a table: a constant reading, gyro bias 0.01 rad/s
+    acc[:400, STILL_IMU] = acc[0, STILL_IMU]
+    mag[:400, STILL_IMU] = mag[0, STILL_IMU]
+    gyr[:400, STILL_IMU] = [0.01, -0.02, 0.015]
+    acc[200:260] *= np.array(ACC_FACTORS)[None, :, None]
+    acc[300:303] *= 2.2  # heel strikes on every IMU
+    acc[330:333] *= 0.1
+    mag[100:, NEW_FIELD_IMU] *= 1.2  # a field 20 % stronger for good: rejected, then accepted
+    mag[380:440, 0:6] = 0.0  # a missing magnetometer: a zero field
+    gyr[460:466, 7] = gyro_full  # saturated gyroscopes (both signs)
+    gyr[470:473, 12] = [-gyro_full, gyro_full, -gyro_full]
+    errors = np.zeros((N, 18, 3), bool)
+    errors[0:15, 3, 1] = True  # no good magnetometer yet: IMU 3 waits to initialise
+    errors[520:540, 4, 0] = True  # failed accelerometer
+    errors[550:556, 5, 2] = True  # failed gyroscope
+    errors[560:600, 6, 1] = True  # failed magnetometer
+    errors[610:612, 8] = True  # everything failed
+    acc[errors[..., 0]] = 30000.0  # what a failed read may carry
+    mag[errors[..., 1]] = -5000.0
+    gyr[errors[..., 2]] = 99.0
+    resets = np.zeros((N, 18), bool)
+    resets[450, RESET_IMU] = True
+    trust = np.ones((N, 18))
+    trust[:, 10] = 0.0  # heading corrections off (the 6D mode)
+    trust[100:500, 11] = np.linspace(1.0, 0.0, 400)
+    f, m, g = ObserverBank(cal.gravity).physical(acc, mag, gyr)  # units only
+    return f, m, g, errors, resets, trust
+
+
+def _reference(f, m, g, errors, resets, trust, gains: ObserverGains):
+    """q, R, bias, acc ``[N, 18, …]`` (NaN until initialised) and the 18 references; a
+    flagged sensor's last good value is held in front of the reference (SPEC §2)."""
+    n = len(f)
+    out = {"q": np.full((n, 18, 4), np.nan), "R": np.full((n, 18, 3, 3), np.nan),
+           "bias": np.full((n, 18, 3), np.nan), "acc": np.full((n, 18, 3), np.nan)}
+    refs = []
+    settings = {k: v for k, v in vars(gains).items()}
+    for i in range(18):
+        ref = ReferenceObserver(**settings)
+        held: list[list[float] | None] = [None, None, None]
+        for k in range(n):
+            if resets[k, i]:
+                ref.initialised = False
+            for s, v in enumerate((f, m, g)):
+                if not errors[k, i, s]:
+                    held[s] = v[k, i].tolist()
+            if not ref.initialised and errors[k, i].any():
+                continue  # an IMU aligns on a sample with every sensor good
+            ref.update(*held, trust=float(trust[k, i]))
+            out["q"][k, i] = ref.q
+            out["R"][k, i] = ref.R
+            out["bias"][k, i] = ref.b
+            out["acc"][k, i] = ref.acc
+        refs.append(ref)
+    return out, refs
+
+
+@pytest.mark.parametrize("setting", ["observer", "adaptive"])
+def test_every_regime_matches_the_scalar_reference(inputs, setting):
+    f, m, g, errors, resets, trust = inputs
+    gains = ObserverGains(**(ADAPTIVE if setting == "adaptive" else {}))
+    got = Observer(18, gains).process(f, m, g, errors, resets, keep=("q", "bias", "acc"),
+                                      trust=trust)
+    want, refs = _reference(f, m, g, errors, resets, trust, gains)
+    for name in ("q", "R", "bias", "acc"):
+        a, b = getattr(got, name), want[name]
+        assert np.array_equal(np.isnan(a), np.isnan(b)), f"{name}: NaN where not expected"
+        err = np.nanmax(np.abs(a - b))
+        assert err < TOL, f"{name} differs from the reference by {err:g}"
+    # the regimes were reached
+    fn = np.linalg.norm(f[230], axis=-1) / 9.81
+    assert (fn < 0.5).sum() >= 4 and (fn > 1.5).sum() >= 6
+    assert np.isnan(got.q[:15, 3]).all() and np.isfinite(got.q[15:, 3]).all()
+    assert np.abs(g[460:466, 7]).max() > 30.0
+    assert refs[NEW_FIELD_IMU].new_field_accepted
+    assert refs[STILL_IMU].rest_regime_reached == (setting == "adaptive")
+    if setting == "adaptive":  # the bias at rest is what the still gyro reads
+        np.testing.assert_allclose(got.bias[399, STILL_IMU], [0.01, -0.02, 0.015], atol=1e-3)
+
+
+def test_a_missing_field_and_a_disturbed_one_get_no_heading_correction(inputs):
+    """The zero field (IMUs 0–5, frames 380–440) is flagged disturbed in both; the attitude
+    then turns about the vertical by the gyro alone."""
+    f, m, g = inputs[:3]
+    ref = ReferenceObserver()
+    kernel = Observer(1)
+    for k in range(440):
+        ref.update(f[k, 0].tolist(), m[k, 0].tolist(), g[k, 0].tolist())
+    kernel.process(f[:440, :1], m[:440, :1], g[:440, :1])
+    assert ref.disturbed and bool(kernel.state.mag_dist[0])
+    np.testing.assert_allclose(kernel.state.q[0], ref.q, atol=TOL)
+    assert math.isclose(np.linalg.norm(ref.q), 1.0, abs_tol=1e-12)
