@@ -1,3 +1,3 @@
 """BPMS Suite: software for the Body Pose Measurement System inertial motion-capture garment."""
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

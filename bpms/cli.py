@@ -87,6 +87,17 @@ def _plain_help(parser: argparse.ArgumentParser) -> None:
                 _plain_help(sub)
 
 
+class _VersionAction(argparse.Action):
+    """``bpms --version``: ``bpms 0.2.0``, from a git checkout ``bpms 0.2.0 (commit …)``
+    (:func:`bpms.analysis.stamp.bpms_version`, asked only when the option is given)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from bpms.analysis.stamp import bpms_version
+
+        print(f"bpms {bpms_version()}")
+        parser.exit()
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse's parser, except that a bad option value is one line (``bpms replay: error:
     argument --speed: 'nan' is not a finite number``), without the usage before it: the
@@ -112,7 +123,8 @@ def build_parser(only: str | None = None, *, overview: bool = False) -> argparse
         epilog=f"'bpms COMMAND --help' explains a command.\n{docs_hint()}",
         formatter_class=argparse.RawDescriptionHelpFormatter,  # the path stays on one line
     )
-    parser.add_argument("--version", action="version", version=f"bpms {bpms.__version__}")
+    parser.add_argument("--version", action=_VersionAction, nargs=0,
+                        help="show the version (with the commit when run from a git checkout)")
     parser.add_argument("-v", "--verbose", action="count", default=0,
                         help="more log output (-v info, -vv debug)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -99,3 +99,22 @@ def test_every_extra_is_in_the_readme_table():
     table = set(re.findall(r"^\| `(\w+)` \|", readme, re.M))
     extras = set(PYPROJECT["project"]["optional-dependencies"]) - {"dev"}
     assert extras <= table, extras - table
+
+
+def test_bpms_version_from_a_checkout_names_its_commit():
+    """Issue 43.5: a build from a checkout names its commit (the installed copy and the bundle
+    print the bare version: tests/test_install_from_index.py, tests/test_bundle.py)."""
+    import subprocess
+    import sys
+
+    if not (ROOT / ".git").exists():
+        import pytest
+
+        pytest.skip("not a git checkout")
+    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short=12", "HEAD"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    done = subprocess.run([sys.executable, "-m", "bpms", "--version"], capture_output=True,
+                          text=True, cwd=ROOT, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert re.fullmatch(rf"bpms {re.escape(bpms.__version__)} \(commit {head}(\+dirty)?\)",
+                        done.stdout.strip()), done.stdout

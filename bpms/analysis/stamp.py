@@ -99,7 +99,7 @@ def recording_stamp(opened, zero_at_s=()) -> Stamp:
 
 @functools.lru_cache(maxsize=1)
 def bpms_version() -> str:
-    """``0.1.0``, or ``0.1.0 (commit 1a2b3c4d5e6f)`` (``+dirty`` with uncommitted changes)
+    """``0.2.0``, or ``0.2.0 (commit 1a2b3c4d5e6f)`` (``+dirty`` with uncommitted changes)
     when bpms runs from a git checkout and git answers within 5 s."""
     import bpms
 
