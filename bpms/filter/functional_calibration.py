@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpms.filter.pose import average_dcm
+from bpms.filter.pose import HIP_IMU, average_dcm
 from bpms.filter.rotations import rot_z
 
 G = 9.81  # m/s² per g
@@ -275,7 +275,7 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
         y = np.mean(right_world, axis=0)
     else:  # no knee flexions: the hip IMU's own heading, as Reset Zero
         report.heading = "hip IMU (knee flexions missing)"
-        y = R_still[6] @ np.array([0.0, 1.0, 0.0])
+        y = R_still[HIP_IMU] @ np.array([0.0, 1.0, 0.0])
     yaw0 = float(np.arctan2(-y[0], y[1]))
     y_world = np.array([-np.sin(yaw0), np.cos(yaw0), 0.0])
     for imu in UPRIGHT:
