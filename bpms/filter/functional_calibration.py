@@ -38,10 +38,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bpms.filter.calibration import STANDARD_GRAVITY
 from bpms.filter.pose import HIP_IMU, average_dcm
 from bpms.filter.rotations import rot_z
 
-G = 9.81  # m/s² per g
+G = STANDARD_GRAVITY  # m/s² per g
 #: (name, proximal IMU, distal IMU, the distal segment's swing sense: +1 forward, -1 back)
 HINGES = (("elbow_r", 4, 5, 1.0), ("elbow_l", 10, 11, 1.0),
           ("knee_r", 0, 2, -1.0), ("knee_l", 12, 14, -1.0))
