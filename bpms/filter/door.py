@@ -413,7 +413,8 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
     file = None
     first_time = math.nan
     slots: RawFrames | RawRecording | None = None
-    if read_head(path) == MAGIC and for_replay:
+    native = read_head(path) == MAGIC
+    if native and for_replay:
         kind = "raw"
         slots = RawFrames(path)
         file, header, n = slots.file, slots.header, len(slots)
@@ -421,7 +422,7 @@ def open_for_processing(path: str | Path, calibration: str | Path | CalibrationT
             raise RawFileError(no_frame_message(path, n))
         first = int(np.setdiff1d(np.arange(min(n, len(slots.damaged) + 1)), slots.damaged)[0])
         first_time = float(slots.read(first, first + 1)[0][0])
-    elif read_head(path) == MAGIC:
+    elif native:
         kind = "raw"
         file = RawFile(path)
         header = file.header

@@ -38,10 +38,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpms.filter.pose import average_dcm
+from bpms.filter.calibration import STANDARD_GRAVITY
+from bpms.filter.pose import HIP_IMU, average_dcm
 from bpms.filter.rotations import rot_z
 
-G = 9.81  # m/s² per g
+G = STANDARD_GRAVITY  # m/s² per g
 #: (name, proximal IMU, distal IMU, the distal segment's swing sense: +1 forward, -1 back)
 HINGES = (("elbow_r", 4, 5, 1.0), ("elbow_l", 10, 11, 1.0),
           ("knee_r", 0, 2, -1.0), ("knee_l", 12, 14, -1.0))
@@ -275,7 +276,7 @@ def functional_calibration(R: np.ndarray, acc_g: np.ndarray, gyr: np.ndarray,
         y = np.mean(right_world, axis=0)
     else:  # no knee flexions: the hip IMU's own heading, as Reset Zero
         report.heading = "hip IMU (knee flexions missing)"
-        y = R_still[6] @ np.array([0.0, 1.0, 0.0])
+        y = R_still[HIP_IMU] @ np.array([0.0, 1.0, 0.0])
     yaw0 = float(np.arctan2(-y[0], y[1]))
     y_world = np.array([-np.sin(yaw0), np.cos(yaw0), 0.0])
     for imu in UPRIGHT:

@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from bpms.filter.joints import ISB_SIGNS
-from bpms.filter.rotations import dcm_to_euler, euler_to_dcm, rot_y, rot_z
+from bpms.filter.pose import HIP_IMU, body_heading
+from bpms.filter.rotations import euler_to_dcm, rot_y, rot_z
 from bpms.io.frames import N_IMUS
 from bpms.io.names import JOINT_ANGLE_NAMES
 
@@ -38,7 +39,7 @@ POSTURES: dict[str, dict[str, float]] = {
              "ankle_r.flexion": 5.0, "ankle_l.flexion": 5.0},
 }
 
-HIP, SPINE, NECK, HEAD = 6, 8, 7, 17
+HIP, SPINE, NECK, HEAD = HIP_IMU, 8, 7, 17
 #: (side, shoulder girdle, arm, forearm, hand) and (side, thigh, shank, foot), IMU ids.
 ARMS = (("r", 15, 4, 5, 3), ("l", 16, 10, 11, 9))
 LEGS = (("r", 0, 2, 1), ("l", 12, 14, 13))
@@ -108,17 +109,12 @@ def posture_segments(posture: dict[str, float]) -> np.ndarray:
 
 
 def posture_heading(R0: np.ndarray, P: np.ndarray, reference: str = "mean") -> float:
-    """ψ0 (rad) from the window's DCMs ``R0[18, 3, 3]`` and the posture ``P``: the circular
-    mean of the yaws of ``R0_i P_iᵀ`` over the IMUs with data (``"mean"``), or the hip's
-    (``"hip"``). 0 when none has data."""
-    heading = R0 @ np.swapaxes(P, -1, -2)
-    finite = np.isfinite(heading).all(axis=(-1, -2))
-    if reference == "hip":
-        finite = finite & (np.arange(N_IMUS) == HIP)
-    if not finite.any():
-        return 0.0
-    yaws = dcm_to_euler(heading[finite])[:, 2]
-    return float(np.arctan2(np.sin(yaws).sum(), np.cos(yaws).sum()))
+    """ψ0 (rad) from the window's DCMs ``R0[18, 3, 3]`` and the posture ``P``: the body's
+    heading (:func:`bpms.filter.pose.body_heading`) of ``R0_i P_iᵀ``, the circular mean of
+    their yaws over the IMUs with data (``"mean"``), or the hip's (``"hip"``). 0 when none
+    has data."""
+    heading = body_heading(R0 @ np.swapaxes(P, -1, -2), reference)
+    return 0.0 if heading is None else heading
 
 
 def posture_zero(R0: np.ndarray, posture: dict[str, float], reference: str = "mean"

@@ -128,8 +128,7 @@ class ResetZero(Change):
             data["adopt"] = True
         if self.fallback:
             data["fallback"] = True
-        for key in ("sender_source", "window", "R0", "yaw0", "heading", "motion_deg",
-                    "motion_imu", "moved", "waited"):
+        for key in self.KEYS[3:]:  # (after source, adopt and fallback)
             value = getattr(self, key)
             if value is not None:
                 data[key] = value

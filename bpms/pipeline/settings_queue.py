@@ -21,7 +21,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from bpms.io.event_types import Alignment, Change, FilterChoice, Gains, ResetZero
+from bpms.io.event_types import Change, ResetZero
 from bpms.io.session_events import SessionEvent
 
 
@@ -46,25 +46,9 @@ class SettingsQueue:
             self._queued += 1
             self._queue.put(change)
 
-    def set_gains(self, **gains: float) -> None:
-        """Queue filter settings by their ``[filter]`` names (``kp_rollpitch``,
-        ``observer_k_incl``, ``vqf_tau_acc_s``, ``dt``...). Raises OptionRangeError (a
-        ValueError naming the range) for a value outside, queueing nothing."""
-        self.put(Gains(gains))
-
-    def select_filter(self, algorithm: str) -> None:
-        """Queue a switch of all 18 IMUs' attitude filter (a ``[filter] algorithm`` choice;
-        another name raises OptionRangeError)."""
-        self.put(FilterChoice(algorithm))
-
     def reset_zero(self, source: str = "manual") -> None:
         """Queue a Reset Zero capture (``source``: who asked, e.g. ``3d-view``)."""
         self.put(ResetZero(source))
-
-    def set_corrected_output(self, on: bool | None = None) -> None:
-        """Queue the corrected-output switch: True (segment angles), False (sensor angles),
-        None toggles (the original's ``v`` key)."""
-        self.put(Alignment(on))
 
     def apply(self, processor: Any, on_error: Callable[[str], None] | None = None
               ) -> list[SessionEvent]:
