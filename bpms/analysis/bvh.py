@@ -100,9 +100,6 @@ def motion_rows(C: np.ndarray, pelvis: np.ndarray, order: list[tuple[int, int]])
     return np.concatenate(columns, axis=1)
 
 
-_FRAMES_FIELD = 12  # digits reserved for the frame count, patched when the file is closed
-
-
 class BvhWriter(TextWriter):
     """A BVH file written block by block (constant memory): the frame count is patched in
     when the file is closed."""
@@ -113,8 +110,8 @@ class BvhWriter(TextWriter):
         super().__init__(path)
         self.frames = 0
         self._file.write("\n".join(lines) + "\nMOTION\n")
-        self._count_at = self._file.tell()
-        self._file.write(f"Frames: {0:<{_FRAMES_FIELD}d}\nFrame Time: {frame_time_s:.6f}\n")
+        self._reserve_count("Frames: ")
+        self._file.write(f"\nFrame Time: {frame_time_s:.6f}\n")
 
     def write(self, C: np.ndarray, pelvis: np.ndarray) -> None:
         """Frames ``C[N, 18, 3, 3]`` (segment → NED) and ``pelvis[N, 3]`` (m, NED)."""
@@ -123,8 +120,6 @@ class BvhWriter(TextWriter):
         self.frames += len(C)
 
     def close(self) -> None:
-        if self._file.closed:
-            return
-        self._file.seek(self._count_at)
-        self._file.write(f"Frames: {self.frames:<{_FRAMES_FIELD}d}")
+        if not self._file.closed:
+            self._patch_count(self.frames)
         super().close()

@@ -13,7 +13,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from bpms.analysis.mocap_import import MocapFormatError
+from bpms.analysis.mocap_import import MocapExport, MocapFormatError
 
 STUDY_TABLE = "batch_compare.csv"
 MAP_NAME = "compare.map"
@@ -21,8 +21,8 @@ SEGMENT_COLUMNS = ("samples", "gaps", "rmse_total", "rmse_inclination", "rmse_he
                    "max_total", "trend_total", "pause_change")
 
 
-def find_optical(raw: str | Path) -> Path | None:
-    """The optical export beside recording ``raw`` (see the module's text), or None."""
+def find_optical(raw: str | Path) -> MocapExport | None:
+    """The optical export beside recording ``raw`` (see the module's text), read, or None."""
     from bpms.analysis.compare import read_optical
     from bpms.analysis.compare_map import CompareError
 
@@ -32,10 +32,9 @@ def find_optical(raw: str | Path) -> Path | None:
             path = raw.with_name(stem + suffix)
             if path.is_file() and path != raw:
                 try:
-                    read_optical(path)
+                    return read_optical(path)
                 except (CompareError, MocapFormatError):
                     continue  # e.g. a filtered CSV of the same name
-                return path
     return None
 
 
@@ -44,7 +43,7 @@ def compare_beside(raw: str | Path, stem: Path, options: str | None, reset_zero,
     """Compare ``raw`` with the optical file beside it; write ``<stem>_compare.csv``, ``.md``
     and ``_series.csv``; return the paths written. A missing optical file or one that cannot
     be compared is a line in ``problems``, not a failure of the recording."""
-    from bpms.analysis.compare import CompareError, compare, load_recording, read_optical
+    from bpms.analysis.compare import CompareError, compare, load_recording
     from bpms.analysis.compare_report import markdown, write_csv, write_series_csv
     from bpms.filter.door import open_for_processing
 
@@ -56,7 +55,7 @@ def compare_beside(raw: str | Path, stem: Path, options: str | None, reset_zero,
     try:
         opened = open_for_processing(raw, None, options, reset_zero=reset_zero)
         rec = load_recording(raw, opened)
-        result = compare(rec, read_optical(optical), mapping if mapping.is_file() else None,
+        result = compare(rec, optical, mapping if mapping.is_file() else None,
                          recording_name=str(raw))
     except (CompareError, MocapFormatError, ValueError, OSError) as exc:
         problems.append(f"compare: {exc}".splitlines()[0])

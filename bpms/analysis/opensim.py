@@ -130,7 +130,6 @@ def calibration_quaternions(R: np.ndarray, zero: Zero) -> np.ndarray:
 
 #: The OpenSim model whose coordinate names the .mot uses (its knee flexion is positive).
 MOT_MODEL = "Rajagopal et al. 2016 full-body model (Rajagopal2015.osim)"
-_ROWS_FIELD = 12  # digits reserved for nRows, patched when the file is closed
 
 
 class JointAnglesMotWriter(TextWriter):
@@ -150,8 +149,8 @@ class JointAnglesMotWriter(TextWriter):
         self.columns = list(OPENSIM_COORDINATES)
         self.rows = 0
         self._file.write("joint_angles\nversion=1\n")
-        self._rows_at = self._file.tell()
-        self._file.write(f"nRows={0:<{_ROWS_FIELD}d}\nnColumns={len(self.columns) + 1}\n"
+        self._reserve_count("nRows=")
+        self._file.write(f"\nnColumns={len(self.columns) + 1}\n"
                          f"inDegrees=yes\nmodel={MOT_MODEL}\n")
         for key, value in meta:
             self._file.write(f"{key}={str(value).replace(chr(10), ' ')}\n")
@@ -169,8 +168,6 @@ class JointAnglesMotWriter(TextWriter):
         self.rows += len(data)
 
     def close(self) -> None:
-        if self._file.closed:
-            return
-        self._file.seek(self._rows_at)
-        self._file.write(f"nRows={self.rows:<{_ROWS_FIELD}d}")
+        if not self._file.closed:
+            self._patch_count(self.rows)
         super().close()

@@ -29,36 +29,49 @@ class StrikeFinder:
     the shank gyroscopes when the recording's accelerometer range clips the threshold,
     :func:`bpms.analysis.gait_events.accel_detector_usable`), found chunk by chunk in constant
     memory: :meth:`add` each :class:`bpms.filter.door.Chunk` of a raw recording, then
-    :meth:`track`. ``detector``: ``auto``, ``accel`` or ``gyro``."""
+    :meth:`track`. ``detector``: ``auto``, ``accel`` or ``gyro``; ``threshold_g``,
+    ``min_interval_s``, ``declination_deg``: overrides of the options' ``[track]`` (None: the
+    options'); ``include_hips``: feet measured from the pelvis centre."""
 
-    def __init__(self, processor, header: dict | None, detector: str = "auto") -> None:
+    def __init__(self, processor, header: dict | None, detector: str = "auto", *,
+                 threshold_g: float | None = None, min_interval_s: float | None = None,
+                 declination_deg: float | None = None, include_hips: bool = False) -> None:
         from bpms.analysis.gait_events import accel_detector_usable, accel_range_g
 
         self.proc = processor
         opts = processor.options.track
+        self.threshold_g = opts.heel_strike_g if threshold_g is None else threshold_g
+        self.min_interval_s = (opts.min_step_interval_s if min_interval_s is None
+                               else min_interval_s)
+        self.declination_deg = (opts.declination_deg if declination_deg is None
+                                else declination_deg)
+        self.range_g = accel_range_g(header)
         if detector == "auto":
-            usable = accel_detector_usable(accel_range_g(header), opts.heel_strike_g)
+            usable = accel_detector_usable(self.range_g, self.threshold_g)
             detector = "accel" if usable else "gyro"
         self.detector = detector
         self.gravity = processor.sensor_calibration.gravity
         self._acc: TrackAccumulator | GyroTrackAccumulator = (
-            GyroTrackAccumulator(opts.min_step_interval_s, opts.declination_deg)
+            GyroTrackAccumulator(self.min_interval_s, self.declination_deg, include_hips)
             if detector == "gyro" else
-            TrackAccumulator(opts.heel_strike_g, opts.min_step_interval_s,
-                             opts.declination_deg))
+            TrackAccumulator(self.threshold_g, self.min_interval_s, self.declination_deg,
+                             include_hips))
 
-    def add(self, chunk) -> None:
-        """The next chunk (``chunk.raw`` counts and ``chunk.result``)."""
+    def add(self, chunk, window: np.ndarray | None = None) -> None:
+        """The next chunk (``chunk.raw`` counts and ``chunk.result``); ``window[N]`` bool:
+        the frames searched (None: all), the others read as no impact."""
         from bpms.analysis.gait_events import SHANK_IMUS, lateral_gyro_rate
 
         res = chunk.result
         acc, _, gyr = self.proc.calibrate(chunk.raw)
-        if self.detector == "gyro":
+        if self.detector == "gyro":  # per side: the shank's swing rate, else the foot's |a| in g
             per_side = {side: lateral_gyro_rate(res.C[:, i], res.R[:, i], gyr[:, i])
                         for side, i in SHANK_IMUS.items()}
         else:
             per_side = {side: np.linalg.norm(acc[:, i], axis=-1) / self.gravity[i]
                         for side, i in FOOT_IMUS.items()}
+        if window is not None:
+            per_side = {side: np.where(window, x, 0.0) for side, x in per_side.items()}
         self._acc.add(res.t, per_side, res.joint_positions)
 
     def track(self) -> Track:

@@ -13,6 +13,7 @@ from bpms.io.text_rows import RowFormat
 from bpms.progress import stderr_progress
 
 CHUNK_ROWS = 10_000
+COUNT_DIGITS = 12  # room for a count patched in when a file is closed
 
 
 def write_rows(f: TextIO, data: np.ndarray, fmt: str | Sequence[str], delimiter: str = ",",
@@ -39,6 +40,17 @@ class TextWriter(Closing):
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self._file = open(path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+
+    def _reserve_count(self, label: str) -> None:
+        """Write ``label`` and room for a count (:data:`COUNT_DIGITS`, left-aligned, padded
+        with spaces) that :meth:`_patch_count` fills in once the count is known."""
+        self._count_label, self._count_at = label, self._file.tell()
+        self._file.write(f"{label}{0:<{COUNT_DIGITS}d}")
+
+    def _patch_count(self, n: int) -> None:
+        """Write ``n`` into the room :meth:`_reserve_count` left (the file stays open)."""
+        self._file.seek(self._count_at)
+        self._file.write(f"{self._count_label}{n:<{COUNT_DIGITS}d}")
 
     def close(self) -> None:
         self._file.close()

@@ -96,8 +96,9 @@ def run(args: argparse.Namespace) -> int:
         resolve_map(export, args.map)  # a bad map or a missing body before the long part
         opened = open_recording_for("compare", args.raw_file, args.calibration, args.options,
                                     args.filter_name, args.heading, args.reset_zero)
+        shown = set(opened.problems)  # printed by open_recording_for
         rec = load_recording(args.raw_file, opened)
-        warn("compare", opened.problems)
+        warn("compare", [p for p in opened.problems if p not in shown])
         result = compare(rec, export, args.map, offset_s=args.offset, align=args.align,
                          window=args.window, given=given, recording_name=str(args.raw_file))
     except CompareError as exc:

@@ -89,8 +89,7 @@ def run(args: argparse.Namespace) -> int:
                 res = chunk.result
                 if writer is None:
                     groups, kind = filtered_layout(res, args.joints,
-                                                   getattr(args, "flags", True),
-                                                   getattr(args, "estimates", False))
+                                                   args.flags, args.estimates)
                     writer = FilteredWriter(out_path, degrees=args.degrees, groups=groups,
                                             euler=kind, convention=filtered_convention(
                                                 res.convention),

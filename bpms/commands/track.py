@@ -48,13 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpms.analysis.gait_events import (
-        SHANK_IMUS,
-        accel_detector_usable,
-        accel_range_g,
-        lateral_gyro_rate,
-    )
-    from bpms.analysis.track import FOOT_IMUS, GyroTrackAccumulator, TrackAccumulator
+    from bpms.analysis.root_path import StrikeFinder
     from bpms.commands._analysis import open_recording_for, stream
 
     opened = open_recording_for("track", args.raw_file, args.calibration, args.options,
@@ -62,37 +56,19 @@ def run(args: argparse.Namespace) -> int:
     if not opened.has_raw:
         raise CliError(f"{args.raw_file}: heel strikes need the foot accelerometers: give the "
                        "raw recording, not a filtered file")
-    proc = opened.processor
-    opts = proc.options.track
-    threshold = opts.heel_strike_g if args.threshold_g is None else args.threshold_g
-    interval = opts.min_step_interval_s if args.min_interval is None else args.min_interval
-    declination = opts.declination_deg if args.declination is None else args.declination
-    gravity = proc.sensor_calibration.gravity
-    range_g = accel_range_g(opened.header)
-    detector = args.detector
-    if detector == "auto":
-        detector = "accel" if accel_detector_usable(range_g, threshold) else "gyro"
-    if detector == "gyro":
-        acc_track = GyroTrackAccumulator(interval, declination, args.include_hips)
-    else:
-        acc_track = TrackAccumulator(threshold, interval, declination, args.include_hips)
+    finder = StrikeFinder(opened.processor, opened.header, args.detector,
+                          threshold_g=args.threshold_g, min_interval_s=args.min_interval,
+                          declination_deg=args.declination, include_hips=args.include_hips)
     for chunk in stream("track", opened):
-        res = chunk.result
-        acc, _, gyr = proc.calibrate(chunk.raw)
-        window = np.ones(len(res), dtype=bool)
+        t = chunk.result.t
+        window = np.ones(len(t), dtype=bool)
         if args.t0 is not None:
-            window &= res.t >= args.t0
+            window &= t >= args.t0
         if args.t1 is not None:
-            window &= res.t <= args.t1
-        if detector == "gyro":  # per side: the shank's swing rate, else the foot's |a| in g
-            per_side = {side: np.where(window, lateral_gyro_rate(res.C[:, i], res.R[:, i],
-                                                                 gyr[:, i]), 0.0)
-                        for side, i in SHANK_IMUS.items()}
-        else:
-            per_side = {side: np.where(window, np.linalg.norm(acc[:, i], axis=-1) / gravity[i],
-                                       0.0) for side, i in FOOT_IMUS.items()}
-        acc_track.add(res.t, per_side, res.joint_positions)
-    track = acc_track.track()
+            window &= t <= args.t1
+        finder.add(chunk, window)
+    detector = finder.detector
+    track = finder.track()
     peak_col = "swing_peak_rad_s" if detector == "gyro" else "peak_g"
     out = Path(args.output) if args.output else Path(args.raw_file).with_suffix("")
     out = refuse_special_output(out if out.suffix == ".csv"
@@ -113,9 +89,10 @@ def run(args: argparse.Namespace) -> int:
             figure = track_figure(track, out.with_suffix(".png"), Path(args.raw_file).name)
     except OSError as exc:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}") from exc
-    how = (f"gyroscope detector, recording at ±{range_g:g} g" if detector == "gyro"
-           else f"threshold {threshold:.2f} g")
-    print(f"{len(track.times)} heel strikes ({how}, ≥ {interval:.2f} s "
-          f"apart), path {track.length_m:.2f} m, declination {declination:.1f}° → {out}"
+    how = (f"gyroscope detector, recording at ±{finder.range_g:g} g" if detector == "gyro"
+           else f"threshold {finder.threshold_g:.2f} g")
+    print(f"{len(track.times)} heel strikes ({how}, ≥ {finder.min_interval_s:.2f} s "
+          f"apart), path {track.length_m:.2f} m, declination {finder.declination_deg:.1f}° "
+          f"→ {out}"
           + (f", {figure}" if figure else ""), file=sys.stderr)
     return 0
