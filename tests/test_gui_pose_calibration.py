@@ -35,7 +35,7 @@ def _menu_dialog(window: MainWindow) -> PoseCalibrationDialog:
     """Data ▸ Pose calibration… as the user finds it."""
     data = next(a.menu() for a in window.menuBar().actions() if a.text() == "&Data")
     next(a for a in data.actions() if a.text() == "Pose calibration…").trigger()
-    return window.pose_calibration_dialog
+    return window.menus.pose_calibration_dialog
 
 
 def _rms_deg(samples, truth: np.ndarray) -> np.ndarray:
@@ -60,7 +60,7 @@ def test_declared_posture_on_the_live_simulated_suit(qtbot, tmp_path):
     events = session.events.subscribe()
     dialog = _menu_dialog(window)
     panel = dialog.panel
-    assert dialog.isVisible() and window.pose_calibration_dialog is dialog
+    assert dialog.isVisible() and window.menus.pose_calibration_dialog is dialog
     # joint angles typed in: a bad name is refused in one line, nothing is asked of the session
     panel.preset_combo.setCurrentText(CUSTOM)
     panel.angles_edit.setText("elbow_x.flexion=15")

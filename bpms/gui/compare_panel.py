@@ -141,7 +141,7 @@ def open_comparison(window, optical: str | None = None) -> ComparePanel | None:
     dock, panel = compare_dock(window)
     window.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
     panel.start(runner.config.path, optical, runner.playback_calibration,
-                runner.playback_options, runner.session.processor.options.filter.algorithm)
+                runner.playback_options, runner.playback_filter)
     return panel
 
 

@@ -29,7 +29,7 @@ from bpms.gui.safety import BackgroundTask, debounce, guard_wheel, set_enabled_k
 from bpms.gui.widgets import button, label, row
 from bpms.io.event_types import FilterChoice, Gains
 from bpms.io.filtered_file.reader import is_number
-from bpms.io.options import ALGORITHM_SETTINGS, FilterOptions, option_range
+from bpms.io.options import ALGORITHM_SETTINGS, ALGORITHMS, FilterOptions, option_range
 from bpms.io.rawfile import RecordingError
 from bpms.io.udp.addresses import UdpConfigError
 
@@ -144,7 +144,7 @@ class GainsPanel(QGroupBox):
         form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapLongRows)
         fields = {f.name: f for f in dataclasses.fields(FilterOptions)}
         self.filter_combo = QComboBox()
-        self.filter_combo.addItems(list(fields["algorithm"].metadata["choices"]))
+        self.filter_combo.addItems(list(ALGORITHMS))
         self.filter_combo.setToolTip("mahony: the original DCM filter; observer and "
                                      "vqf keep the attitude right under body acceleration "
                                      "(docs/filters.md)")

@@ -141,8 +141,15 @@ class SessionRunner:
             # copy: the user's options keep theirs; the other sections are shared
             options = dataclasses.replace(options, body=profile.body_options())
         if processor is None and self.session is not None:  # a new stream (UDP restarted):
-            # the filter settings in force go on (their one owner: the session's processor)
-            options = dataclasses.replace(options, filter=self.session.processor.options.filter)
+            # the filter settings and the alignment in force go on (their one owner: the
+            # session's processor)
+            previous = self.session.processor
+            if not self.session.running:  # the changes asked while it was stopped hold too
+                self.session.settings.apply(previous, self.session.note)
+            options = dataclasses.replace(
+                options, filter=previous.options.filter,
+                pose=dataclasses.replace(options.pose,
+                                         corrected_output=previous.corrected_output))
         processor = processor or BodyPoseProcessor(calibration=self.calibration,
                                                    options=options)
         session = LiveSession(source, options, processor,

@@ -4,7 +4,6 @@ position, the speed, which Reset Zero and which filter the recording plays with
 
 from __future__ import annotations
 
-import dataclasses
 from typing import TYPE_CHECKING
 
 from PyQt6.QtCore import QSignalBlocker, Qt, pyqtSignal
@@ -23,7 +22,7 @@ from PyQt6.QtWidgets import (
 from bpms.gui.modes import SessionRunner
 from bpms.gui.safety import guard_wheel, set_enabled_keeping_focus
 from bpms.gui.widgets import label, row
-from bpms.io.options import FilterOptions
+from bpms.io.options import ALGORITHMS
 from bpms.io.timebase import stream_time
 
 if TYPE_CHECKING:
@@ -135,10 +134,8 @@ class PlaybackPanel(QGroupBox):
         frames), or another chosen here, said in red under it."""
         own = self.runner.recorded_filter or "?"
         self.filter_combo = QComboBox()
-        choices = dataclasses.fields(FilterOptions)
-        names = next(f for f in choices if f.name == "algorithm").metadata["choices"]
         self.filter_combo.addItem(f"as recorded ({own})", None)
-        for name in names:
+        for name in ALGORITHMS:
             self.filter_combo.addItem(name, name)
         chosen = self.runner.playback_filter
         if chosen is not None:

@@ -224,16 +224,3 @@ class PoseCalibrationDialog(QDialog):
         layout.addWidget(self.panel)
         layout.addWidget(buttons)
 
-
-def open_pose_calibration(window: Any) -> PoseCalibrationDialog:
-    """Data ▸ Pose calibration… of a main window: its dialog (one per window), shown and
-    raised, for the window's live session while its data is on."""
-    dialog = getattr(window, "pose_calibration_dialog", None)
-    if dialog is None:
-        runner = window.runner
-        dialog = PoseCalibrationDialog(lambda: runner.session if runner.data_on else None,
-                                       window)
-        window.pose_calibration_dialog = dialog
-    dialog.show()
-    dialog.raise_()
-    return dialog

@@ -81,6 +81,10 @@ class StartupWindow(QWidget):
         self.calibration = calibration  # None: the user's default, else factory
         self.calibration_path: str | None = None
         self.recording_dir = recording_dir
+        #: the simulated subject's options (ModeConfig.sim_options) and the subject's
+        #: profile (ModeConfig.subject) given on the command line (bpms gui)
+        self.sim_options: dict = {}
+        self.subject = ""
         self.main_window: MainWindow | None = None
         self.last_dialog: QMessageBox | None = None
         self.calibration_wizard: QWidget | None = None
@@ -264,8 +268,7 @@ class StartupWindow(QWidget):
                           group=self.group_edit.text().strip(),
                           path=self.file_edit.text().strip(), sim_seed=self.seed_spin.value(),
                           recording_dir=self.recording_dir,
-                          sim_options=dict(getattr(self, "sim_options", {})),
-                          subject=str(getattr(self, "subject", "") or ""))
+                          sim_options=dict(self.sim_options), subject=self.subject)
 
     # -- files -----------------------------------------------------------------------------
     def _show_files(self) -> None:

@@ -18,7 +18,7 @@ from PyQt6.QtWidgets import (
 
 from bpms.gui.layouts import DEFAULT_LAYOUTS
 from bpms.gui.modes import SessionRunner
-from bpms.gui.pose_calibration_panel import open_pose_calibration
+from bpms.gui.pose_calibration_panel import PoseCalibrationDialog
 from bpms.gui.screen_fit import fit_dialog
 from bpms.gui.view3d_keys import PLOT_BINDINGS, VIEW3D_BINDINGS, help_html
 from bpms.gui.window.commands import SessionCommands
@@ -59,6 +59,7 @@ class WindowMenus:
         self._layouts = layouts
         self._mode = mode
         self.keys_box: KeysDialog | None = None
+        self.pose_calibration_dialog: PoseCalibrationDialog | None = None
         self._make_actions()
         self._build_menu_bar()
         self._build_toolbar()
@@ -135,6 +136,19 @@ class WindowMenus:
         acts["view3d"].setEnabled(panels.view3d_button.isEnabled())
         acts["browser"].setEnabled(panels.browser_button.isEnabled())
 
+    def open_pose_calibration(self) -> PoseCalibrationDialog:
+        """Data ▸ Pose calibration…: its dialog (one per window), shown and raised, for the
+        window's live session while its data is on."""
+        dialog = self.pose_calibration_dialog
+        if dialog is None:
+            runner = self._runner
+            dialog = PoseCalibrationDialog(lambda: runner.session if runner.data_on else None,
+                                           self._window)
+            self.pose_calibration_dialog = dialog
+        dialog.show()
+        dialog.raise_()
+        return dialog
+
     def _lsl_toggled(self) -> None:
         action = self.actions_by_name["lsl"]
         action.setChecked(self._commands.set_lsl(action.isChecked()))
@@ -148,7 +162,7 @@ class WindowMenus:
         menu = bar.addMenu("&Data")
         for key in ("data", "reset_zero", "marker", "corrected", "lsl"):
             menu.addAction(acts[key])
-        menu.addAction("Pose calibration…", lambda: open_pose_calibration(self._window))
+        menu.addAction("Pose calibration…", self.open_pose_calibration)
         self._mode.add_playback_actions(menu, acts)
         menu = bar.addMenu("&View")
         for key in ("plot", "joints", "tile", "view3d", "browser", "unit", "sensor_angles"):

@@ -97,10 +97,10 @@ class SessionCommands(QObject):
 
     def set_corrected_output(self, on: bool) -> None:
         """The original's v key: the session's output angles corrected by Reset Zero or not
-        (what is shown, recorded and streamed), from the next frame."""
+        (what is shown, recorded and streamed), from the next frame. The session owns it: a
+        new session (UDP restarted) starts with the one in force (SessionRunner)."""
         if self.runner.session is not None:  # the session's event says it, at its frame
             self.runner.session.set_corrected_output(on)
-        self.options.pose.corrected_output = on  # a new session (UDP restart) follows
 
     def set_lsl(self, on: bool) -> bool:
         """Stream to LSL on/off (SessionRunner.set_lsl), the reason when it cannot start;

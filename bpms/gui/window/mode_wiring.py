@@ -83,5 +83,5 @@ class ModeControls:
         dock, panel = drift_dock(self._window)
         self._window.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
         panel.start(runner.config.path, runner.playback_calibration, runner.playback_options,
-                    runner.session.processor.options.filter.algorithm)
+                    runner.playback_filter)
         return panel
