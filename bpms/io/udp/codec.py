@@ -372,11 +372,11 @@ def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
                                  and (positions is None or np.isfinite(positions).all())))):
         raise DatagramError("POSE holds NaN or infinite values")
     with np.errstate(over="ignore"):
-        norms = np.sqrt(np.sum(q[ok].astype(np.float64) ** 2, axis=1))
-    bad = np.flatnonzero(ok)[np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE]
+        norms = np.sqrt(np.sum(q.astype(np.float64) ** 2, axis=1))
+    bad = np.flatnonzero(ok & (np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE))
     if bad.size:
         raise DatagramError(f"POSE quaternion {bad[0]} is not a unit quaternion "
-                            f"(norm {norms[np.flatnonzero(ok) == bad[0]][0]:.4g})")
+                            f"(norm {norms[bad[0]]:.4g})")
     q = q.astype(np.float32)
     q[~ok] = np.nan  # a segment without data: whatever was written, no value
     return Pose(q, a.astype(np.float32), **extensions)
