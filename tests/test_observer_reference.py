@@ -19,46 +19,24 @@ import numpy as np
 import pytest
 
 from bpms.filter.algorithms import ObserverBank
-from bpms.filter.calibration import GYRO_RAD_S_PER_COUNT, SensorCalibration
 from bpms.filter.observer import ADAPTIVE, Observer, ObserverGains
-from bpms.firmware.sim.session import simulate
 from tests.reference_observer import ReferenceObserver
+from tests.reference_regimes import N, calibrated_suit, plant_regimes
 
-N = 700
 TOL = 1e-9
-#: |f| / g factors from frame 200 to 260, one per IMU (free fall, < 0.5 g, > 1.5 g, 3 g).
-ACC_FACTORS = [0.0, 0.2, 0.45, 0.5, 0.55, 0.8, 0.95, 1.05, 1.2, 1.45, 1.5, 1.55, 1.7, 2.0,
-               2.5, 3.0, 1.0, 0.3]
 STILL_IMU, NEW_FIELD_IMU, RESET_IMU = 17, 9, 2
 
 
 @pytest.fixture(scope="module")
 def inputs():
     """(f m/s², m, ω rad/s, errors, resets, trust) with each regime planted in its frames."""
-    rec = simulate(duration_s=N * 0.02, seed=11)
-    cal = SensorCalibration.from_table(rec.calibration)
-    acc, mag, gyr = (v.copy() for v in cal.calibrate(rec.raw))
-    gyro_full = 32767 * GYRO_RAD_S_PER_COUNT
+    acc, mag, gyr, cal = calibrated_suit()
     # a sensor lying still for 8 s on a table: a constant reading, gyro bias 0.01 rad/s
     acc[:400, STILL_IMU] = acc[0, STILL_IMU]
     mag[:400, STILL_IMU] = mag[0, STILL_IMU]
     gyr[:400, STILL_IMU] = [0.01, -0.02, 0.015]
-    acc[200:260] *= np.array(ACC_FACTORS)[None, :, None]
-    acc[300:303] *= 2.2  # heel strikes on every IMU
-    acc[330:333] *= 0.1
     mag[100:, NEW_FIELD_IMU] *= 1.2  # a field 20 % stronger for good: rejected, then accepted
-    mag[380:440, 0:6] = 0.0  # a missing magnetometer: a zero field
-    gyr[460:466, 7] = gyro_full  # saturated gyroscopes (both signs)
-    gyr[470:473, 12] = [-gyro_full, gyro_full, -gyro_full]
-    errors = np.zeros((N, 18, 3), bool)
-    errors[0:15, 3, 1] = True  # no good magnetometer yet: IMU 3 waits to initialise
-    errors[520:540, 4, 0] = True  # failed accelerometer
-    errors[550:556, 5, 2] = True  # failed gyroscope
-    errors[560:600, 6, 1] = True  # failed magnetometer
-    errors[610:612, 8] = True  # everything failed
-    acc[errors[..., 0]] = 30000.0  # what a failed read may carry
-    mag[errors[..., 1]] = -5000.0
-    gyr[errors[..., 2]] = 99.0
+    errors = plant_regimes(acc, mag, gyr)
     resets = np.zeros((N, 18), bool)
     resets[450, RESET_IMU] = True
     trust = np.ones((N, 18))

@@ -98,13 +98,6 @@ ONE_READER_PAIRS: frozenset[tuple[str, str]] = frozenset(
     | {(cmd, case) for case in ("markers_lost_all", "random_body") for cmd in _NO_FRAME})
 
 
-#: Pairs that fail because of issue 43.1 (the events' owners): a damaged event record whose
-#: header is damaged too, or two damaged in a row, becomes placeholder frame slots (the
-#: later frames' times shift), and with every Reset Zero lost no frame has segment
-#: orientations (rom and batch refuse the recording). tests/test_hostile_corpus.py marks
-#: them xfail (not strict); the table counts them like any other.
-
-
 #: Commands that cost a second or more per run (batch draws its summary figure): given one
 #: case per damage class and kind only.
 REPRESENTATIVES_ONLY = frozenset({"batch"})

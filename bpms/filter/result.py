@@ -21,7 +21,7 @@ import numpy as np
 from bpms.filter.centre_of_mass import centre_of_mass
 from bpms.filter.disturbance import Disturbance
 from bpms.filter.pose import Zero, body_outputs, segment_angles
-from bpms.filter.rotations import dcm_to_euler, dcm_to_quaternion
+from bpms.filter.rotations import dcm_to_euler, finite_dcm_to_quaternion
 from bpms.io.frames import N_IMUS
 from bpms.io.options import BodyOptions
 
@@ -245,12 +245,12 @@ class Result:
     @cached_property
     def quaternions(self) -> np.ndarray:
         """``[N, 18, 4]`` (w, x, y, z) of the filter DCMs ``R``."""
-        return _quaternions(self.R)
+        return finite_dcm_to_quaternion(self.R)
 
     @cached_property
     def segment_quaternions(self) -> np.ndarray:
         """``[N, 18, 4]`` (w, x, y, z) of the segment orientations ``C``."""
-        return _quaternions(self.C)
+        return finite_dcm_to_quaternion(self.C)
 
 
 _EULER: _SensorEuler = Result.__dict__["euler"]
@@ -264,10 +264,3 @@ def _per_frame(fn: Callable, *values: np.ndarray | Disturbance) -> object:
                               for g in dataclasses.fields(Disturbance)})
     return fn(*values)
 
-
-def _quaternions(R: np.ndarray) -> np.ndarray:
-    ok = np.isfinite(R).all(axis=(-1, -2))
-    out = np.full((*R.shape[:-2], 4), np.nan)
-    if ok.any():
-        out[ok] = dcm_to_quaternion(R[ok])
-    return out

@@ -86,6 +86,17 @@ def dcm_to_quaternion(R: np.ndarray) -> np.ndarray:
     return np.where(q[..., :1] < 0, -q, q)
 
 
+def finite_dcm_to_quaternion(R: np.ndarray) -> np.ndarray:
+    """:func:`dcm_to_quaternion` where ``R[..., 3, 3]`` is finite; NaN ``[4]`` where a matrix
+    holds NaN (a segment or IMU without data)."""
+    R = np.asarray(R, dtype=np.float64)
+    ok = np.isfinite(R).all(axis=(-1, -2))
+    out = np.full((*R.shape[:-2], 4), np.nan)
+    if ok.any():
+        out[ok] = dcm_to_quaternion(R[ok])
+    return out
+
+
 def quaternion_to_dcm(q: np.ndarray) -> np.ndarray:
     """Quaternions ``[..., 4]`` (w, x, y, z; normalised here) → ``[..., 3, 3]``; NaN rows give
     NaN matrices."""

@@ -250,8 +250,6 @@ class SuitLink(Closing):
         if transport is None:
             try:
                 transport = open_serial(port, baud)
-            except PortInUseError:
-                raise
             except (serial.SerialException, OSError, ValueError) as exc:
                 raise DeviceGoneError(f"cannot open {port}: {_reason(exc)}") from None
         self._t = transport

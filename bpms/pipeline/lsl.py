@@ -348,13 +348,9 @@ class LslBridge:
         self._pending = keep
 
     def _send(self, batch) -> None:
-        from bpms.filter.rotations import dcm_to_quaternion
+        from bpms.filter.rotations import finite_dcm_to_quaternion
 
-        C = np.stack([s.C for s in batch])
-        q = np.full((len(batch), 18, 4), np.nan)
-        ok = np.isfinite(C).all(axis=(-1, -2))
-        if ok.any():
-            q[ok] = dcm_to_quaternion(C[ok])
+        q = finite_dcm_to_quaternion(np.stack([s.C for s in batch]))
         acc, mag, gyr = self.session.processor.sensor_calibration.physical_units(
             np.stack([s.raw for s in batch]))
         sensors = np.concatenate([acc, mag, gyr], axis=-1)

@@ -40,10 +40,8 @@ class MvnBridge:
         self.sender.close()
 
     def _run(self) -> None:
-        import numpy as np
-
         from bpms.filter.joints import convert
-        from bpms.filter.rotations import dcm_to_quaternion
+        from bpms.filter.rotations import finite_dcm_to_quaternion
         from bpms.io.timebase import stream_time
 
         while True:
@@ -52,10 +50,7 @@ class MvnBridge:
             batch = ([first] if first is not None else []) + self._sub.drain()
             for s in batch:
                 # every frame: a segment without data (NaN) is sent as NaN (docs/mvn.md)
-                q = np.full((len(s.C), 4), np.nan)
-                ok = np.isfinite(s.C).all(axis=(-1, -2))
-                if ok.any():
-                    q[ok] = dcm_to_quaternion(s.C[ok])
+                q = finite_dcm_to_quaternion(s.C)
                 try:
                     self.sender.send(max(s.index, 0), round(stream_time(s.index) * 1000),
                                      q, s.joint_positions,

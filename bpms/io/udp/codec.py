@@ -137,9 +137,7 @@ class Pose:
     def segment_valid(self) -> np.ndarray:
         """``[S]`` bool: the segments that carry data (all of them without tag 4)."""
         n = len(self.quaternions)
-        if self.valid is None:
-            return np.ones(n, dtype=bool)
-        return np.array([(self.valid >> i) & 1 for i in range(n)], dtype=bool)
+        return np.ones(n, dtype=bool) if self.valid is None else mask_flags(self.valid, n)
 
 
 @dataclass(frozen=True)
@@ -209,7 +207,7 @@ def _decode_zero(payload: bytes) -> ZeroMessage:
         raise DatagramError("ZERO source, heading or ψ0 out of range")
     R0 = np.frombuffer(payload, ">f8", N_IMUS * 9, ZERO_HEAD.size).reshape(N_IMUS, 3, 3)
     R0 = R0.astype(np.float64)
-    has = np.array([(mask >> i) & 1 for i in range(N_IMUS)], dtype=bool)
+    has = mask_flags(mask, N_IMUS)
     if not np.isfinite(R0).all() or mask >> N_IMUS:
         raise DatagramError("ZERO holds NaN or infinite values, or an unknown IMU")
     rows = R0[has]
@@ -272,6 +270,12 @@ def disturbance_mask(flags: np.ndarray) -> int:
     """``flags[n]`` bool (IMU order) → an int with bit i set where ``flags[i]``."""
     bits = np.flatnonzero(np.asarray(flags, dtype=bool).reshape(-1))
     return int(sum(1 << int(i) for i in bits))
+
+
+def mask_flags(mask: int, n: int) -> np.ndarray:
+    """The inverse of :func:`disturbance_mask`: ``[n]`` bool, True where bit i of ``mask`` is
+    set (bits from n on ignored)."""
+    return ((mask >> np.arange(n, dtype=np.int64)) & 1).astype(bool)
 
 
 def encode_pose_extensions(positions: np.ndarray | None = None,
@@ -359,8 +363,7 @@ def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
     q = np.frombuffer(payload, ">f4", 4 * n_seg, POSE_COUNTS.size).reshape(n_seg, 4)
     a = np.frombuffer(payload, ">f4", n_ang, POSE_COUNTS.size + 16 * n_seg)
     mask = extensions.get("valid")
-    ok = np.array([(mask >> i) & 1 for i in range(n_seg)] if mask is not None
-                  else np.ones(n_seg), dtype=bool)
+    ok = np.ones(n_seg, dtype=bool) if mask is None else mask_flags(mask, n_seg)
     # NaN marks what has no data, and only with the validity block (tag 4); never infinity
     nan_allowed = mask is not None
     positions = extensions.get("positions")
@@ -369,11 +372,11 @@ def _decode_pose(payload: bytes, version: int = VERSION) -> Pose:
                                  and (positions is None or np.isfinite(positions).all())))):
         raise DatagramError("POSE holds NaN or infinite values")
     with np.errstate(over="ignore"):
-        norms = np.sqrt(np.sum(q[ok].astype(np.float64) ** 2, axis=1))
-    bad = np.flatnonzero(ok)[np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE]
+        norms = np.sqrt(np.sum(q.astype(np.float64) ** 2, axis=1))
+    bad = np.flatnonzero(ok & (np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE))
     if bad.size:
         raise DatagramError(f"POSE quaternion {bad[0]} is not a unit quaternion "
-                            f"(norm {norms[np.flatnonzero(ok) == bad[0]][0]:.4g})")
+                            f"(norm {norms[bad[0]]:.4g})")
     q = q.astype(np.float32)
     q[~ok] = np.nan  # a segment without data: whatever was written, no value
     return Pose(q, a.astype(np.float32), **extensions)
